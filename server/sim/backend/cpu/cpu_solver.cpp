@@ -1,0 +1,11 @@
+// The CPU backend: the shared solver instantiated with OpenMP loops.
+#include "sim/backend/cpu/exec_cpu.h"
+#include "sim/solver/solver_impl.h"
+
+namespace gd::sim {
+
+std::unique_ptr<SolverBase> make_cpu_solver(std::shared_ptr<const SceneData> data, const SceneOptions& opt) {
+  return std::make_unique<Solver<CpuExec>>(std::move(data), opt);
+}
+
+}  // namespace gd::sim

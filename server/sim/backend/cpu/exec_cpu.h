@@ -1,0 +1,66 @@
+#pragma once
+/// \file
+/// The CPU execution policy of the shared solver: plain host vectors and OpenMP loops.
+/// Element loops that scatter into shared rows run colour by colour (no two elements of one
+/// colour share a vertex), so adds need no atomics and results are deterministic.
+
+#include <omp.h>
+
+#include <algorithm>
+#include <vector>
+
+namespace gd::sim {
+
+struct CpuExec {
+  static constexpr const char* kName = "cpu";
+  /// Element loops use a vertex colouring instead of atomic adds.
+  static constexpr bool kColoring = true;
+
+  template <class T>
+  using Vector = std::vector<T>;
+
+  template <class T>
+  static T* ptr(Vector<T>& v) { return v.data(); }
+  template <class T>
+  static const T* ptr(const Vector<T>& v) { return v.data(); }
+  template <class T>
+  static void upload(Vector<T>& dst, const std::vector<T>& src) { dst = src; }
+  template <class T>
+  static void download(std::vector<T>& dst, const Vector<T>& src) { dst = src; }
+  template <class T>
+  static void resize(Vector<T>& v, size_t n) { v.assign(n, T{}); }
+  template <class T>
+  static void fill(Vector<T>& v, T value) { std::fill(v.begin(), v.end(), value); }
+
+  /// Runs f(i) for i in [0, n) on the OpenMP threads.
+  template <class F>
+  static void for_each(int n, const F& f) {
+#pragma omp parallel for schedule(static) if (n > 2048)
+    for (int i = 0; i < n; ++i) f(i);
+  }
+
+  /// Sum of f(i) over [0, n).
+  template <class F>
+  static double sum(int n, const F& f) {
+    double s = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : s) if (n > 2048)
+    for (int i = 0; i < n; ++i) s += f(i);
+    return s;
+  }
+
+  /// Maximum of f(i) over [0, n) (0 for n == 0).
+  template <class F>
+  static double max(int n, const F& f) {
+    double m = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : m) if (n > 2048)
+    for (int i = 0; i < n; ++i) m = std::max(m, f(i));
+    return m;
+  }
+
+  /// Add into memory owned by the current element's colour (exclusive by construction).
+  static inline void add(double* p, double v) { *p += v; }
+
+  static void synchronize() {}
+};
+
+}  // namespace gd::sim

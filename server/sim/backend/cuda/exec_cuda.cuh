@@ -1,0 +1,78 @@
+#pragma once
+/// \file
+/// The CUDA execution policy of the shared solver: device vectors, one kernel per loop,
+/// thrust reductions, and atomic adds for element scatter (no colouring needed on the GPU).
+
+#include <thrust/device_vector.h>
+#include <thrust/execution_policy.h>
+#include <thrust/fill.h>
+#include <thrust/functional.h>
+#include <thrust/iterator/counting_iterator.h>
+#include <thrust/transform_reduce.h>
+
+#include <vector>
+
+namespace gd::sim {
+
+template <class F>
+__global__ void gd_for_each_kernel(int n, F f) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) f(i);
+}
+
+struct CudaExec {
+  static constexpr const char* kName = "cuda";
+  static constexpr bool kColoring = false;
+
+  template <class T>
+  using Vector = thrust::device_vector<T>;
+
+  template <class T>
+  static T* ptr(Vector<T>& v) { return thrust::raw_pointer_cast(v.data()); }
+  template <class T>
+  static const T* ptr(const Vector<T>& v) { return thrust::raw_pointer_cast(v.data()); }
+  template <class T>
+  static void upload(Vector<T>& dst, const std::vector<T>& src) { dst.assign(src.begin(), src.end()); }
+  template <class T>
+  static void download(std::vector<T>& dst, const Vector<T>& src) {
+    dst.resize(src.size());
+    thrust::copy(src.begin(), src.end(), dst.begin());
+  }
+  template <class T>
+  static void resize(Vector<T>& v, size_t n) { v.assign(n, T{}); }
+  template <class T>
+  static void fill(Vector<T>& v, T value) { thrust::fill(v.begin(), v.end(), value); }
+
+  template <class F>
+  static void for_each(int n, const F& f) {
+    if (n <= 0) return;
+    constexpr int kBlock = 256;
+    gd_for_each_kernel<<<(n + kBlock - 1) / kBlock, kBlock>>>(n, f);
+  }
+
+  template <class F>
+  static double sum(int n, const F& f) {
+    if (n <= 0) return 0.0;
+    return thrust::transform_reduce(thrust::device, thrust::counting_iterator<int>(0), thrust::counting_iterator<int>(n),
+                                    f, 0.0, thrust::plus<double>());
+  }
+
+  template <class F>
+  static double max(int n, const F& f) {
+    if (n <= 0) return 0.0;
+    return thrust::transform_reduce(thrust::device, thrust::counting_iterator<int>(0), thrust::counting_iterator<int>(n),
+                                    f, 0.0, thrust::maximum<double>());
+  }
+
+  __host__ __device__ static inline void add(double* p, double v) {
+#if defined(__CUDA_ARCH__)
+    atomicAdd(p, v);
+#else
+    *p += v;
+#endif
+  }
+
+  static void synchronize() { cudaDeviceSynchronize(); }
+};
+
+}  // namespace gd::sim

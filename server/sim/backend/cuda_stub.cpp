@@ -1,0 +1,15 @@
+// Without the CUDA backend compiled in, asking for it is a clear user error.
+#include "sim/demand.h"
+#include "sim/solver/solver.h"
+
+#if !defined(GD_WITH_CUDA)
+namespace gd::sim {
+
+bool cuda_available() { return false; }
+
+std::unique_ptr<SolverBase> make_cuda_solver(std::shared_ptr<const SceneData>, const SceneOptions&) {
+  throw InputError("this build has no CUDA backend (configure with -DGD_WITH_CUDA=ON on a machine with nvcc)");
+}
+
+}  // namespace gd::sim
+#endif

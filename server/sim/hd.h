@@ -1,0 +1,12 @@
+#pragma once
+/// \file
+/// GD_HD marks per-element functions that compile for both the CPU backend and, under nvcc,
+/// the CUDA backend (`__host__ __device__`). Write element math once, call it from both loops.
+
+#if defined(__CUDACC__)
+#define GD_HD __host__ __device__ __forceinline__
+#define GD_HD_LAMBDA __host__ __device__
+#else
+#define GD_HD inline
+#define GD_HD_LAMBDA
+#endif

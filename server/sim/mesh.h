@@ -1,0 +1,85 @@
+#pragma once
+/// \file
+/// Triangle meshes: the container, input validation, edge/hinge topology, simple generators
+/// (rectangle, disc), small queries and a minimal OBJ reader/writer. Units are metres.
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "sim/types.h"
+
+namespace gd::sim {
+
+/// A triangle mesh of one garment piece or garment.
+struct Mesh {
+  std::vector<Vec3> x;  ///< vertex positions, m
+  /// Empty, or one per vertex: 2D sewing-pattern (rest) coordinates in metres;
+  /// axis 0 = warp, axis 1 = weft.
+  std::vector<Vec2> uv;
+  std::vector<Eigen::Vector3i> tris;  ///< vertex indices; counter-clockwise seen from the front
+};
+
+/// Checks that `m` can be simulated. Throws InputError with a specific message for: no vertices
+/// or triangles, index out of range, non-finite positions or uvs, a uv count that differs from
+/// the vertex count, degenerate triangles (3D or uv area below max(1e-12 m², 1e-6 · mean edge²)),
+/// duplicate triangles (same vertex set), non-manifold edges (more than 2 triangles), and
+/// absurd scale (bounding-box diagonal > 100 m or mean edge < 1e-5 m).
+void validate_mesh(const Mesh& m);
+
+/// Edge and hinge connectivity derived from a mesh's triangles.
+struct Topology {
+  std::vector<Eigen::Vector2i> edges;  ///< unique undirected edges (i, j) with i < j, sorted
+  /// Interior edges as (x0, x1, x2, x3): (x0, x1) is the shared edge; x2 is the opposite vertex of
+  /// the triangle whose winding contains x0 -> x1; x3 is the opposite vertex of the other one.
+  std::vector<Eigen::Vector4i> hinges;
+  std::vector<Eigen::Vector2i> hinge_tris;  ///< per hinge: (triangle of x2, triangle of x3)
+  std::vector<int> boundary_vertices;       ///< vertices on a boundary edge, sorted
+};
+
+/// Builds the topology of a mesh that passed validate_mesh, in O(F log F); hinges come in the
+/// order of their (sorted) edges. Throws InputError for a non-manifold edge. If the two triangles
+/// of an edge are inconsistently oriented, the hinge follows the lower-numbered triangle's
+/// winding and one warning is logged per call.
+Topology build_topology(const Mesh& m);
+
+/// A flat size_x × size_y rectangle in the z = 0 plane with corner (0,0,0) and uv = (x, y).
+/// Rows run along x, odd rows shifted by half a spacing; the shifted rows' half-cells at both
+/// ends are snapped onto the left/right edges so the rectangle is exact. The column count is
+/// rounded so the vertex spacing dx along x is as close to `spacing` as possible; the row count
+/// so rows are as close to dx·√3/2 apart as possible (moving to the neighbouring count when that
+/// keeps all angles above 40°). Interior triangles are near-equilateral; the boundary ones are
+/// right triangles with legs dx and the row gap (about 41°, 49°, 90°). Throws InputError for
+/// non-positive or non-finite arguments.
+Mesh make_rect(Real size_x, Real size_y, Real spacing);
+
+/// A flat disc of `radius` centred at the origin in the z = 0 plane, uv = (x, y): concentric
+/// rings round(radius/spacing) apart, ring k holding 6k vertices (a hexagonal lattice bent onto
+/// circles), consecutive rings zipped into roughly equilateral triangles.
+Mesh make_disc(Real radius, Real spacing);
+
+/// Index of the vertex closest to `p` (first one on ties). The mesh must not be empty.
+int nearest_vertex(const Mesh& m, const Vec3& p);
+
+/// Indices (ascending) of the vertices whose position satisfies `pred`.
+std::vector<int> vertices_where(const Mesh& m, const std::function<bool(const Vec3&)>& pred);
+
+/// Total 3D surface area, m².
+Real mesh_area(const Mesh& m);
+
+/// Mean length of the unique edges, m.
+Real mean_edge_length(const Mesh& m);
+
+/// Writes `m` as a Wavefront OBJ (v, vt when uvs exist, f). `positions`, when non-empty,
+/// replaces m.x (it must then have one entry per vertex). Throws InputError if the file cannot
+/// be written.
+void write_obj(const Mesh& m, const std::vector<Vec3>& positions, const std::string& path);
+
+/// Minimal OBJ reader: v, vt and f lines (v, v/vt, v//vn, v/vt/vn; negative indices; polygons
+/// fan-triangulated); other statements are ignored. uv is filled only if every vertex has exactly
+/// one vt value, otherwise it is left empty. Throws InputError with the line number on malformed
+/// input. The result is not validated; call validate_mesh.
+Mesh read_obj(const std::string& path);
+
+}  // namespace gd::sim

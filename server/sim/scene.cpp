@@ -1,0 +1,265 @@
+#include "sim/scene.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "sim/demand.h"
+#include "sim/log.h"
+
+namespace gd::sim {
+namespace {
+
+bool finite(const std::vector<double>& a) {
+  return std::all_of(a.begin(), a.end(), [](double v) { return std::isfinite(v); });
+}
+
+void check_vertices(const std::vector<int>& vs, int n, const char* what) {
+  if (vs.empty()) throw InputError(std::string(what) + ": no vertices given");
+  for (int v : vs)
+    if (v < 0 || v >= n)
+      throw InputError(std::string(what) + ": vertex index " + std::to_string(v) + " is out of range [0, " +
+                       std::to_string(n) + ")");
+}
+
+void check_pose(const Eigen::Isometry3d& p, const char* what) {
+  if (!p.matrix().allFinite()) throw InputError(std::string(what) + ": the pose has non-finite entries");
+}
+
+}  // namespace
+
+std::unique_ptr<Scene> Scene::create(const Mesh& mesh, const Material& material, const SceneOptions& options) {
+  validate_mesh(mesh);
+  material.validate();
+  options.validate();
+  if (options.table) {
+    for (const Vec3& p : mesh.x)
+      if (p.z() <= options.table_height)
+        throw InputError("vertex at z=" + std::to_string(p.z()) + " is on or below the table (z=" +
+                         std::to_string(options.table_height) + "); lift the mesh or disable the table");
+  }
+  std::unique_ptr<Scene> s(new Scene());
+  s->mesh_ = mesh;
+  s->material_ = material;
+  s->options_ = options;
+  if (options.threads > 0) omp_set_num_threads(options.threads);
+  s->data_ = std::make_shared<const SceneData>(build_scene_data(mesh, material, options));
+  BackendKind b = options.backend;
+  if (b == BackendKind::kAuto) b = cuda_available() ? BackendKind::kCuda : BackendKind::kCpu;
+  if (b == BackendKind::kCuda) {
+    if (options.linear_solver == LinearSolverKind::kDirect)
+      throw InputError("linear_solver=direct runs on the CPU backend only; use pcg with the CUDA backend");
+    s->solver_ = make_cuda_solver(s->data_, options);
+  } else {
+    s->solver_ = make_cpu_solver(s->data_, options);
+  }
+  gd::log().debug("scene created: {} vertices on {}", mesh.x.size(), s->solver_->backend_name());
+  return s;
+}
+
+std::vector<Vec3> Scene::positions() const {
+  std::vector<double> x;
+  solver_->get_positions(x);
+  std::vector<Vec3> out(data_->n);
+  for (int i = 0; i < data_->n; ++i) out[i] = Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+  return out;
+}
+
+std::vector<Vec3> Scene::velocities() const {
+  std::vector<double> v;
+  solver_->get_velocities(v);
+  std::vector<Vec3> out(data_->n);
+  for (int i = 0; i < data_->n; ++i) out[i] = Vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+  return out;
+}
+
+void Scene::set_state(const std::vector<Vec3>& x, const std::vector<Vec3>& v) {
+  if (static_cast<int>(x.size()) != data_->n || static_cast<int>(v.size()) != data_->n)
+    throw InputError("set_state: expected " + std::to_string(data_->n) + " positions and velocities");
+  std::vector<double> fx(3 * data_->n), fv(3 * data_->n);
+  for (int i = 0; i < data_->n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      fx[3 * i + c] = x[i][c];
+      fv[3 * i + c] = v[i][c];
+    }
+  if (!finite(fx) || !finite(fv)) throw InputError("set_state: positions and velocities must be finite");
+  solver_->set_state(fx, fv);
+  failed_ = false;
+  failure_.clear();
+}
+
+void Scene::set_external_forces(const std::vector<int>& vertices, const std::vector<Vec3>& forces) {
+  if (forces.size() != vertices.size()) throw InputError("set_external_forces: one force per vertex expected");
+  std::vector<double> f(3 * data_->n, 0.0);
+  if (!vertices.empty()) check_vertices(vertices, data_->n, "set_external_forces");
+  for (size_t a = 0; a < vertices.size(); ++a) {
+    if (!forces[a].allFinite()) throw InputError("set_external_forces: forces must be finite");
+    for (int c = 0; c < 3; ++c) f[3 * vertices[a] + c] += forces[a][c];
+  }
+  solver_->set_external_forces(f);
+}
+
+int Scene::attach(const std::vector<int>& vertices, PoseFn pose) {
+  check_vertices(vertices, data_->n, "attach");
+  if (!pose) throw InputError("attach: no pose function given");
+  const Eigen::Isometry3d p0 = pose(time_);
+  check_pose(p0, "attach");
+  const std::vector<Vec3> x = positions();
+  Group g{next_group_++, vertices, {}, std::move(pose), {}};
+  const Eigen::Isometry3d inv = p0.inverse();
+  for (int v : vertices) g.local.push_back(inv * x[v]);
+  groups_.push_back(std::move(g));
+  return groups_.back().id;
+}
+
+int Scene::pin(const std::vector<int>& vertices) {
+  return attach(vertices, [](double) { return Eigen::Isometry3d::Identity(); });
+}
+
+int Scene::set_targets(const std::vector<int>& vertices, const std::vector<Vec3>& targets) {
+  check_vertices(vertices, data_->n, "set_targets");
+  if (targets.size() != vertices.size())
+    throw InputError("set_targets: " + std::to_string(vertices.size()) + " vertices but " +
+                     std::to_string(targets.size()) + " targets");
+  for (const Vec3& t : targets)
+    if (!t.allFinite()) throw InputError("set_targets: targets must be finite");
+  const std::vector<Vec3> x = positions();
+  Group g{next_group_++, vertices, {}, nullptr, targets};
+  for (int v : vertices) g.local.push_back(x[v]);  // start of the linear motion
+  groups_.push_back(std::move(g));
+  return groups_.back().id;
+}
+
+void Scene::release(int group) {
+  const auto it = std::find_if(groups_.begin(), groups_.end(), [&](const Group& g) { return g.id == group; });
+  if (it == groups_.end()) throw InputError("release: no kinematic group with id " + std::to_string(group));
+  groups_.erase(it);
+}
+
+void Scene::release_all() { groups_.clear(); }
+
+std::vector<int> Scene::kinematic_vertices() const {
+  std::set<int> s;
+  for (const Group& g : groups_) s.insert(g.vertices.begin(), g.vertices.end());
+  return {s.begin(), s.end()};
+}
+
+KinematicTargets Scene::targets_at(double t) const {
+  KinematicTargets k;
+  for (const Group& g : groups_) {
+    if (g.pose) {
+      const Eigen::Isometry3d p = g.pose(t);
+      if (!p.matrix().allFinite()) throw InputError("kinematic pose at t=" + std::to_string(t) + " is not finite");
+      for (size_t a = 0; a < g.vertices.size(); ++a) {
+        k.vertices.push_back(g.vertices[a]);
+        const Vec3 y = p * g.local[a];
+        k.targets.insert(k.targets.end(), {y.x(), y.y(), y.z()});
+      }
+    } else {
+      for (size_t a = 0; a < g.vertices.size(); ++a) {
+        k.vertices.push_back(g.vertices[a]);
+        k.targets.insert(k.targets.end(), {g.targets[a].x(), g.targets[a].y(), g.targets[a].z()});
+      }
+    }
+  }
+  // A vertex in several groups follows the last one.
+  std::vector<int> last(data_->n, -1);
+  for (size_t a = 0; a < k.vertices.size(); ++a) last[k.vertices[a]] = static_cast<int>(a);
+  KinematicTargets out;
+  for (size_t a = 0; a < k.vertices.size(); ++a)
+    if (last[k.vertices[a]] == static_cast<int>(a)) {
+      out.vertices.push_back(k.vertices[a]);
+      out.targets.insert(out.targets.end(), k.targets.begin() + 3 * a, k.targets.begin() + 3 * a + 3);
+    }
+  return out;
+}
+
+bool Scene::do_step(bool quasi_static) {
+  if (failed_) return false;
+  KinematicTargets kin;
+  try {
+    kin = targets_at(time_ + options_.dt);
+  } catch (const InputError& e) {
+    failed_ = true;
+    failure_ = e.what();
+    return false;
+  }
+  std::vector<double> x0, v0;
+  solver_->get_positions(x0);
+  solver_->get_velocities(v0);
+  stats_ = solver_->step(kin, quasi_static);
+  std::vector<double> x, v;
+  solver_->get_positions(x);
+  solver_->get_velocities(v);
+  if (!finite(x) || !finite(v)) {
+    solver_->set_state(x0, v0);
+    failed_ = true;
+    failure_ = "state became non-finite at t=" + std::to_string(time_ + options_.dt) +
+               " s; the previous state was kept (check material stiffness, time step and kinematic targets)";
+    gd::log().warn("scene failed: {}", failure_);
+    return false;
+  }
+  time_ += options_.dt;
+  return true;
+}
+
+bool Scene::step() { return do_step(false); }
+
+bool Scene::step(int n) {
+  for (int i = 0; i < n; ++i)
+    if (!do_step(false)) return false;
+  return true;
+}
+
+int Scene::relax(int max_steps, double tol) {
+  std::vector<double> prev, cur;
+  solver_->get_positions(prev);
+  int steps = max_steps;
+  for (int s = 0; s < max_steps; ++s) {
+    if (!do_step(true)) return -1;
+    solver_->get_positions(cur);
+    double m = 0;
+    for (size_t k = 0; k < cur.size(); ++k) m = std::max(m, std::abs(cur[k] - prev[k]));
+    std::swap(prev, cur);
+    if (m < tol) {
+      steps = s + 1;
+      break;
+    }
+  }
+  solver_->set_state(prev, std::vector<double>(prev.size(), 0.0));  // leave it at rest
+  return steps;
+}
+
+double Scene::bytes_per_vertex() const { return static_cast<double>(solver_->bytes()) / data_->n; }
+
+void SceneOptions::validate() const {
+  auto positive = [](double v, const char* name) {
+    if (!(std::isfinite(v) && v > 0)) throw InputError(std::string("option ") + name + " must be a positive number");
+  };
+  auto nonneg = [](double v, const char* name) {
+    if (!(std::isfinite(v) && v >= 0)) throw InputError(std::string("option ") + name + " must be >= 0");
+  };
+  positive(dt, "dt");
+  if (dt > 1.0) throw InputError("option dt must be at most 1 s");
+  if (!gravity.allFinite()) throw InputError("option gravity must be finite");
+  if (newton_max_iters < 1 || newton_max_iters > 1000) throw InputError("option newton_max_iters must be in [1, 1000]");
+  if (pcg_max_iters < 1 || pcg_max_iters > 100000) throw InputError("option pcg_max_iters must be in [1, 100000]");
+  positive(newton_tol, "newton_tol");
+  positive(pcg_tol, "pcg_tol");
+  if (threads < 0) throw InputError("option threads must be >= 0");
+  if (!std::isfinite(table_height)) throw InputError("option table_height must be finite");
+  nonneg(table_friction, "table_friction");
+  nonneg(contact_distance, "contact_distance");
+  positive(friction_eps_v, "friction_eps_v");
+  nonneg(air_density, "air_density");
+  nonneg(drag_coefficient, "drag_coefficient");
+  nonneg(drag_linear, "drag_linear");
+  nonneg(drag_tangent_ratio, "drag_tangent_ratio");
+  nonneg(membrane_damping, "membrane_damping");
+  nonneg(bending_damping, "bending_damping");
+  nonneg(mass_damping, "mass_damping");
+}
+
+}  // namespace gd::sim

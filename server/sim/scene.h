@@ -1,0 +1,111 @@
+#pragma once
+/// \file
+/// The plain C++ scene API: create a cloth scene from a mesh, a material and options, step it,
+/// read positions and velocities, and drive kinematic (pinned or grasped) vertices.
+///
+///   auto scene = gd::sim::Scene::create(mesh, material, options);   // throws InputError
+///   scene->pin(corner_vertices);
+///   for (int i = 0; i < 400; ++i) scene->step();
+///   auto x = scene->positions();
+///
+/// A state that turns non-finite marks the scene failed (failed(), failure()); later steps
+/// are refused. Nothing in here aborts the process on bad input.
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sim/material.h"
+#include "sim/mesh.h"
+#include "sim/solver/options.h"
+#include "sim/solver/solver.h"
+
+namespace gd::sim {
+
+/// A rigid motion over time, t in seconds of scene time.
+using PoseFn = std::function<Eigen::Isometry3d(double t)>;
+
+class Scene {
+ public:
+  /// Validates the mesh, material and options (InputError with a message on failure) and
+  /// builds the backend (options.backend; kAuto picks CUDA when a device is present).
+  static std::unique_ptr<Scene> create(const Mesh& mesh, const Material& material, const SceneOptions& options = {});
+
+  /// Advances one time step. Returns false (and does nothing) if the scene has failed; a step
+  /// that produces a non-finite state restores the previous state and marks the scene failed.
+  bool step();
+  /// Advances up to n steps; stops early on failure.
+  bool step(int n);
+  /// Quasi-static relaxation: steps that carry no momentum until the largest vertex motion in
+  /// a step falls below tol (m) or max_steps pass. Returns the steps taken (-1 on failure).
+  int relax(int max_steps, double tol);
+
+  int vertex_count() const { return data_->n; }
+  double time() const { return time_; }
+  const SceneOptions& options() const { return options_; }
+  const Material& material() const { return material_; }
+  const Mesh& mesh() const { return mesh_; }
+  const SceneData& data() const { return *data_; }
+
+  std::vector<Vec3> positions() const;
+  std::vector<Vec3> velocities() const;
+  /// Overwrites the state (e.g. reset). Throws InputError on size mismatch or non-finite values.
+  void set_state(const std::vector<Vec3>& x, const std::vector<Vec3>& v);
+
+  /// Constant external forces on vertices (N), e.g. a hanging load; replaces earlier ones.
+  /// Throws InputError on bad indices or non-finite forces.
+  void set_external_forces(const std::vector<int>& vertices, const std::vector<Vec3>& forces);
+
+  // --- kinematic (Dirichlet) vertices --------------------------------------------------
+  /// Attaches vertices to a rigid motion: each follows pose(t) * pose(t_now)^-1 * x_now.
+  /// Returns a group id. Throws InputError for bad indices or a non-finite pose.
+  int attach(const std::vector<int>& vertices, PoseFn pose);
+  /// Pins vertices where they are now.
+  int pin(const std::vector<int>& vertices);
+  /// Moves the vertices of a group of their own: linearly to these positions over the next
+  /// step, then held there. Returns the group id.
+  int set_targets(const std::vector<int>& vertices, const std::vector<Vec3>& targets);
+  /// Releases a group (its vertices become free again). Unknown ids throw InputError.
+  void release(int group);
+  void release_all();
+  /// Vertices currently kinematic.
+  std::vector<int> kinematic_vertices() const;
+
+  // --- diagnostics -------------------------------------------------------------------
+  bool failed() const { return failed_; }
+  const std::string& failure() const { return failure_; }
+  const StepStats& last_stats() const { return stats_; }
+  EnergyReport energies() const { return solver_->energies(); }
+  double max_strain() const { return solver_->max_strain(); }
+  /// Bytes held per vertex by the solver (what decides how many scenes fit on a server).
+  double bytes_per_vertex() const;
+  std::string backend() const { return solver_->backend_name(); }
+
+ private:
+  Scene() = default;
+  struct Group {
+    int id;
+    std::vector<int> vertices;
+    std::vector<Vec3> local;      ///< positions in the pose frame at attach time
+    PoseFn pose;                  ///< null for target groups
+    std::vector<Vec3> targets;    ///< target groups only
+  };
+  KinematicTargets targets_at(double t) const;
+  bool do_step(bool quasi_static);
+
+  Mesh mesh_;
+  Material material_;
+  SceneOptions options_;
+  std::shared_ptr<const SceneData> data_;
+  std::unique_ptr<SolverBase> solver_;
+  std::vector<Group> groups_;
+  int next_group_ = 1;
+  double time_ = 0;
+  bool failed_ = false;
+  std::string failure_;
+  StepStats stats_;
+};
+
+}  // namespace gd::sim

@@ -1,0 +1,66 @@
+#pragma once
+/// \file
+/// Options of a scene: time step, solver tolerances, backend, table contact, drag and damping.
+/// Every field has a default a user of a robotics simulator can start from.
+
+#include <string>
+
+#include "sim/types.h"
+
+namespace gd::sim {
+
+enum class BackendKind { kCpu, kCuda, kAuto };
+enum class LinearSolverKind {
+  kPcg,     ///< preconditioned conjugate gradients (both backends; the production path)
+  kDirect,  ///< sparse LDLT (CPU only): for small scenes and static validation solves
+};
+enum class PreconditionerKind { kBlockJacobi };
+/// How the bending Hessian is made positive semi-definite for Newton.
+enum class BendingHessianKind {
+  kGaussNewton,    ///< E''(theta) grad(theta) grad(theta)^T: cheap, the default for dynamics
+  kProjectedExact  ///< the exact Hessian with negative eigenvalues clamped: faster Newton
+                   ///< convergence at large rotations (static solves, validation)
+};
+
+struct SceneOptions {
+  // --- time stepping and solver ---------------------------------------------------------
+  Real dt = 1.0 / 200.0;          ///< time step, s
+  Vec3 gravity = Vec3(0, 0, -kGravity);  ///< m/s^2
+  int newton_max_iters = 8;       ///< inexact Newton iterations per step (at most)
+  Real newton_tol = 1e-4;         ///< stop when max |dx|/dt (m/s) falls below this
+  int pcg_max_iters = 200;        ///< PCG iteration cap per Newton iteration
+  Real pcg_tol = 1e-4;            ///< PCG relative residual tolerance
+  LinearSolverKind linear_solver = LinearSolverKind::kPcg;
+  PreconditionerKind preconditioner = PreconditionerKind::kBlockJacobi;
+  BendingHessianKind bending_hessian = BendingHessianKind::kGaussNewton;
+  BackendKind backend = BackendKind::kCpu;
+  int threads = 0;                ///< CPU threads (0: OpenMP default)
+
+  // --- rest shape -----------------------------------------------------------------------
+  /// Use the mesh's pattern coordinates (UVs) for the rest shape when present; otherwise the
+  /// initial 3D shape (hinge rest angles then come from the initial shape too).
+  bool rest_from_uv = true;
+
+  // --- table (plane z = table_height) --------------------------------------------------
+  bool table = true;
+  Real table_height = 0.0;        ///< m
+  Real table_friction = 0.266;    ///< Coulomb coefficient (RGBench's fitted ground friction)
+  Real contact_distance = 0.0;    ///< barrier activation distance dhat, m (0: max(thickness, 1 mm))
+  Real friction_eps_v = 1e-3;     ///< m/s: below this slip speed friction is smoothed (static regime)
+
+  // --- air drag ---------------------------------------------------------------------------
+  Real air_density = 1.2;         ///< kg/m^3
+  Real drag_coefficient = 1.0;    ///< normal pressure drag coefficient C_d of a flat plate
+  Real drag_linear = 0.0;         ///< extra linear normal drag, kg/(m^2 s)
+  Real drag_tangent_ratio = 0.1;  ///< tangential drag as a fraction of the normal coefficient
+
+  // --- damping --------------------------------------------------------------------------
+  Real membrane_damping = 1e-4;   ///< strain-rate damping of stretch/shear, s
+  Real bending_damping = 1e-3;    ///< curvature-rate damping of bending, s
+  Real mass_damping = 0.0;        ///< mass-proportional damping, 1/s (damps rigid motion too)
+
+  /// Throws InputError naming the offending option.
+  void validate() const;
+};
+
+}  // namespace gd::sim

@@ -1,0 +1,173 @@
+#include "sim/solver/scene_data.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+
+#include "sim/demand.h"
+#include "sim/log.h"
+
+namespace gd::sim {
+namespace {
+
+/// 2D rest coordinates of a triangle's corners: pattern UVs, or the 3D triangle flattened into a
+/// frame whose first axis is the world x axis projected onto the triangle (the warp direction of
+/// garments laid out as RGBench lays them) or, if that degenerates, the first edge.
+void rest_corners(const Mesh& m, const Eigen::Vector3i& t, bool use_uv, Vec2 p[3]) {
+  if (use_uv) {
+    for (int k = 0; k < 3; ++k) p[k] = m.uv[t[k]];
+    return;
+  }
+  const Vec3 x0 = m.x[t[0]], e1 = m.x[t[1]] - x0, e2 = m.x[t[2]] - x0;
+  const Vec3 n = e1.cross(e2).normalized();
+  Vec3 a1 = Vec3::UnitX() - n * n.x();
+  if (a1.norm() < 1e-3) a1 = e1;
+  a1.normalize();
+  const Vec3 a2 = n.cross(a1);
+  p[0] = Vec2::Zero();
+  p[1] = Vec2(e1.dot(a1), e1.dot(a2));
+  p[2] = Vec2(e2.dot(a1), e2.dot(a2));
+}
+
+}  // namespace
+
+Coloring color_elements(const std::vector<int>& elems, int k, int vertices) {
+  const int ne = static_cast<int>(elems.size()) / k;
+  constexpr int kWords = 4;  // up to 256 colours
+  std::vector<uint64_t> used(static_cast<size_t>(vertices) * kWords, 0);
+  std::vector<int> color(ne);
+  int ncolors = 0;
+  for (int e = 0; e < ne; ++e) {
+    uint64_t mask[kWords] = {0, 0, 0, 0};
+    for (int a = 0; a < k; ++a)
+      for (int w = 0; w < kWords; ++w) mask[w] |= used[static_cast<size_t>(elems[k * e + a]) * kWords + w];
+    int c = 0;
+    while (c < 64 * kWords && (mask[c / 64] >> (c % 64) & 1u)) ++c;
+    GD_DEMAND(c < 64 * kWords, "element colouring needs more than 256 colours");
+    color[e] = c;
+    ncolors = std::max(ncolors, c + 1);
+    for (int a = 0; a < k; ++a) used[static_cast<size_t>(elems[k * e + a]) * kWords + c / 64] |= uint64_t{1} << (c % 64);
+  }
+  Coloring out;
+  out.offsets.assign(ncolors + 1, 0);
+  for (int e = 0; e < ne; ++e) ++out.offsets[color[e] + 1];
+  for (int c = 0; c < ncolors; ++c) out.offsets[c + 1] += out.offsets[c];
+  out.order.resize(ne);
+  std::vector<int> fill(out.offsets.begin(), out.offsets.end() - 1);
+  for (int e = 0; e < ne; ++e) out.order[fill[color[e]]++] = e;
+  return out;
+}
+
+SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOptions& opt) {
+  SceneData d;
+  d.n = static_cast<int>(mesh.x.size());
+  d.thickness = mat.thickness;
+  d.x.resize(3 * d.n);
+  d.v.assign(3 * d.n, 0.0);
+  for (int i = 0; i < d.n; ++i)
+    for (int c = 0; c < 3; ++c) d.x[3 * i + c] = mesh.x[i][c];
+
+  const bool use_uv = opt.rest_from_uv && !mesh.uv.empty();
+  const int nt = static_cast<int>(mesh.tris.size());
+  d.mass.assign(d.n, 0.0);
+  d.tris.resize(3 * nt);
+  d.tri_rest.resize(nt);
+  std::vector<std::array<Vec2, 3>> corners(nt);
+  for (int t = 0; t < nt; ++t) {
+    const auto& tri = mesh.tris[t];
+    Vec2 p[3];
+    rest_corners(mesh, tri, use_uv, p);
+    corners[t] = {p[0], p[1], p[2]};
+    Mat2 Dm;
+    Dm.col(0) = p[1] - p[0];
+    Dm.col(1) = p[2] - p[0];
+    const Real area = 0.5 * std::abs(Dm.determinant());
+    GD_DEMAND(area > 0, "degenerate rest triangle passed mesh validation");
+    StretchShearRest& r = d.tri_rest[t];
+    r.Dm_inv = Dm.inverse();
+    r.area = area;
+    r.k_warp = mat.stretch_warp;
+    r.k_weft = mat.stretch_weft;
+    r.k_shear = mat.shear;
+    for (int k = 0; k < 3; ++k) {
+      d.tris[3 * t + k] = tri[k];
+      d.mass[tri[k]] += mat.density * area / 3.0;
+    }
+    d.area += area;
+  }
+
+  const Topology topo = build_topology(mesh);
+  const int nh = static_cast<int>(topo.hinges.size());
+  d.hinges.resize(4 * nh);
+  d.hinge_rest.resize(nh);
+  for (int h = 0; h < nh; ++h) {
+    const Eigen::Vector4i& hv = topo.hinges[h];
+    for (int k = 0; k < 4; ++k) d.hinges[4 * h + k] = hv[k];
+    const int ta = topo.hinge_tris[h][0], tb = topo.hinge_tris[h][1];
+    const Real a_sum = d.tri_rest[ta].area + d.tri_rest[tb].area;
+    // Edge direction in pattern space of triangle ta: bending about an edge along the weft
+    // curves the warp, so its rigidity is the warp one.
+    Vec2 e2d;
+    {
+      const auto& tri = mesh.tris[ta];
+      int i0 = -1, i1 = -1;
+      for (int k = 0; k < 3; ++k) {
+        if (tri[k] == hv[0]) i0 = k;
+        if (tri[k] == hv[1]) i1 = k;
+      }
+      GD_DEMAND(i0 >= 0 && i1 >= 0, "hinge edge not in its triangle");
+      e2d = (corners[ta][i1] - corners[ta][i0]);
+    }
+    const Real elen = e2d.norm();
+    const Vec2 eh = e2d / elen;
+    HingeRest& r = d.hinge_rest[h];
+    r.stiffness = mat.bend_warp * eh.y() * eh.y() + mat.bend_weft * eh.x() * eh.x();
+    r.coef = std::sqrt(3.0) * elen / a_sum;  // sum over hinges = G/2 kappa^2 area (docs/physics.md)
+    r.area = a_sum / 3.0;
+    r.kappa_n = mat.bend_kappa_n;
+    r.theta0 = use_uv ? 0.0
+                      : dihedral_angle(mesh.x[hv[0]], mesh.x[hv[1]], mesh.x[hv[2]], mesh.x[hv[3]]);
+  }
+
+  // Block pattern: a vertex couples with every vertex it shares a triangle or hinge with.
+  std::vector<std::vector<int>> nbr(d.n);
+  auto couple = [&](const int* v, int k) {
+    for (int a = 0; a < k; ++a)
+      for (int b = 0; b < k; ++b) nbr[v[a]].push_back(v[b]);
+  };
+  for (int t = 0; t < nt; ++t) couple(&d.tris[3 * t], 3);
+  for (int h = 0; h < nh; ++h) couple(&d.hinges[4 * h], 4);
+  d.row_ptr.assign(d.n + 1, 0);
+  for (int i = 0; i < d.n; ++i) {
+    nbr[i].push_back(i);
+    std::sort(nbr[i].begin(), nbr[i].end());
+    nbr[i].erase(std::unique(nbr[i].begin(), nbr[i].end()), nbr[i].end());
+    d.row_ptr[i + 1] = d.row_ptr[i] + static_cast<int>(nbr[i].size());
+  }
+  d.cols.reserve(d.row_ptr.back());
+  for (int i = 0; i < d.n; ++i) d.cols.insert(d.cols.end(), nbr[i].begin(), nbr[i].end());
+  auto slot = [&](int i, int j) {
+    const auto b = d.cols.begin() + d.row_ptr[i], e = d.cols.begin() + d.row_ptr[i + 1];
+    const auto it = std::lower_bound(b, e, j);
+    GD_DEMAND(it != e && *it == j, "block missing from the Hessian pattern");
+    return static_cast<int>(it - d.cols.begin());
+  };
+  d.diag.resize(d.n);
+  for (int i = 0; i < d.n; ++i) d.diag[i] = slot(i, i);
+  d.tri_slots.resize(9 * nt);
+  for (int t = 0; t < nt; ++t)
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) d.tri_slots[9 * t + 3 * a + b] = slot(d.tris[3 * t + a], d.tris[3 * t + b]);
+  d.hinge_slots.resize(16 * nh);
+  for (int h = 0; h < nh; ++h)
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b) d.hinge_slots[16 * h + 4 * a + b] = slot(d.hinges[4 * h + a], d.hinges[4 * h + b]);
+
+  d.tri_colors = color_elements(d.tris, 3, d.n);
+  d.hinge_colors = color_elements(d.hinges, 4, d.n);
+  gd::log().debug("scene data: {} vertices, {} triangles, {} hinges, {} blocks, {}+{} colours", d.n, nt, nh,
+                  d.blocks(), d.tri_colors.colors(), d.hinge_colors.colors());
+  return d;
+}
+
+}  // namespace gd::sim

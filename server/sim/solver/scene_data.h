@@ -1,0 +1,57 @@
+#pragma once
+/// \file
+/// Everything a backend needs about one scene, built once per topology on the host: flat
+/// element arrays, rest data, lumped masses, the 3x3-block sparsity pattern of the Hessian and
+/// where each element writes into it, and element colourings for atomic-free CPU assembly.
+
+#include <vector>
+
+#include "sim/energy/bending.h"
+#include "sim/energy/stretch_shear.h"
+#include "sim/material.h"
+#include "sim/mesh.h"
+#include "sim/solver/options.h"
+#include "sim/types.h"
+
+namespace gd::sim {
+
+/// Elements grouped so that no two elements of one colour share a vertex.
+struct Coloring {
+  std::vector<int> order;    ///< element indices, colour by colour
+  std::vector<int> offsets;  ///< colour c is order[offsets[c] .. offsets[c+1])
+  int colors() const { return offsets.empty() ? 0 : static_cast<int>(offsets.size()) - 1; }
+};
+
+struct SceneData {
+  int n = 0;                             ///< vertices
+  std::vector<double> x, v;              ///< 3n initial positions and velocities
+  std::vector<double> mass;              ///< n lumped masses, kg
+  std::vector<int> tris;                 ///< 3 per triangle
+  std::vector<StretchShearRest> tri_rest;
+  std::vector<int> hinges;               ///< 4 per hinge: edge (x0, x1), opposite x2, x3
+  std::vector<HingeRest> hinge_rest;
+
+  // Block-sparse (3x3) pattern, both triangles stored: row i holds cols[row_ptr[i]..row_ptr[i+1]).
+  std::vector<int> row_ptr, cols;
+  std::vector<int> diag;                 ///< block index of (i, i)
+  std::vector<int> tri_slots;            ///< 9 per triangle: block index of (a, b), a-major
+  std::vector<int> hinge_slots;          ///< 16 per hinge
+  Coloring tri_colors, hinge_colors;
+
+  Real thickness = 0;                    ///< m (from the material)
+  Real area = 0;                         ///< total rest area, m^2
+
+  int triangles() const { return static_cast<int>(tris.size() / 3); }
+  int hinge_count() const { return static_cast<int>(hinges.size() / 4); }
+  int blocks() const { return static_cast<int>(cols.size()); }
+};
+
+/// Builds rest data, masses, the Hessian pattern and colourings. The mesh must already have
+/// passed validate_mesh(); the material validate(). Rest shape from UVs when present and
+/// options.rest_from_uv, else from the initial 3D shape.
+SceneData build_scene_data(const Mesh& mesh, const Material& material, const SceneOptions& options);
+
+/// Greedy colouring of elements with k vertices each (flat index array).
+Coloring color_elements(const std::vector<int>& elems, int k, int vertices);
+
+}  // namespace gd::sim

@@ -1,0 +1,64 @@
+#pragma once
+/// \file
+/// The narrow interface between a Scene and its backend. The implicit-Euler Newton solver is
+/// written once (solver_impl.h) over an execution policy; the CPU backend instantiates it with
+/// OpenMP loops, the CUDA backend with kernels. A Scene only sees SolverBase.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sim/solver/options.h"
+#include "sim/solver/scene_data.h"
+
+namespace gd::sim {
+
+/// What one step did.
+struct StepStats {
+  int newton_iters = 0;        ///< Newton iterations taken
+  int pcg_iters = 0;           ///< PCG iterations summed over the Newton iterations
+  double step_norm = 0;        ///< max |dx|/dt of the last Newton iteration, m/s
+  double min_alpha = 1;        ///< smallest accepted line-search step
+  bool converged = false;      ///< step_norm fell below newton_tol
+  double seconds = 0;          ///< wall time of the step
+};
+
+/// Energies of the current state, J. Gravity is m g.x relative to z = 0.
+struct EnergyReport {
+  double kinetic = 0, stretch = 0, bending = 0, gravity = 0, contact = 0;
+  double total() const { return kinetic + stretch + bending + gravity + contact; }
+};
+
+/// Dirichlet vertices for one step: their positions at the end of the step.
+struct KinematicTargets {
+  std::vector<int> vertices;
+  std::vector<double> targets;  ///< 3 per vertex
+};
+
+class SolverBase {
+ public:
+  virtual ~SolverBase() = default;
+  /// Advances by options.dt. quasi_static: start from rest (v = 0) and carry no momentum, a
+  /// proximal step towards static equilibrium.
+  virtual StepStats step(const KinematicTargets& kin, bool quasi_static) = 0;
+  virtual void get_positions(std::vector<double>& x) = 0;
+  virtual void get_velocities(std::vector<double>& v) = 0;
+  virtual void set_state(const std::vector<double>& x, const std::vector<double>& v) = 0;
+  /// Constant external forces (3 per vertex, N), e.g. a hanging load.
+  virtual void set_external_forces(const std::vector<double>& f) = 0;
+  virtual EnergyReport energies() = 0;
+  /// Largest |stretch strain| (warp or weft) over all triangles.
+  virtual double max_strain() = 0;
+  /// Bytes of solver state held by the backend (device memory on CUDA).
+  virtual size_t bytes() const = 0;
+  virtual std::string backend_name() const = 0;
+};
+
+std::unique_ptr<SolverBase> make_cpu_solver(std::shared_ptr<const SceneData> data, const SceneOptions& opt);
+
+/// True when the CUDA backend was built and a device is present.
+bool cuda_available();
+/// The CUDA backend; throws InputError when cuda_available() is false.
+std::unique_ptr<SolverBase> make_cuda_solver(std::shared_ptr<const SceneData> data, const SceneOptions& opt);
+
+}  // namespace gd::sim

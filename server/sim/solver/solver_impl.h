@@ -1,0 +1,656 @@
+#pragma once
+/// \file
+/// The implicit-Euler solver, written once over an execution policy `Exec` (CpuExec: OpenMP,
+/// CudaExec: kernels). One step minimises
+///   L(x) = 1/(2h^2)|x - x_hat|_M^2 + E_membrane + E_bend + E_gravity + E_table + E_friction
+///          + D_drag + D_damping
+/// with a few inexact Newton iterations: assemble the gradient and PSD-projected Hessian, solve
+/// with PCG (block-Jacobi), cap the step so no vertex reaches the table (CCD on a plane), and
+/// backtrack until L decreases. Dirichlet (kinematic) vertices are set to their targets and
+/// removed from the solve. Included only by the backend translation units.
+
+#include <Eigen/SparseCholesky>
+#include <chrono>
+#include <cmath>
+#include <type_traits>
+
+#include "sim/energy/bending.h"
+#include "sim/energy/damping.h"
+#include "sim/energy/drag.h"
+#include "sim/energy/gravity.h"
+#include "sim/energy/inertia.h"
+#include "sim/energy/mass_damping.h"
+#include "sim/energy/psd_project.h"
+#include "sim/energy/stretch_shear.h"
+#include "sim/energy/table_barrier.h"
+#include "sim/energy/table_friction.h"
+#include "sim/solver/solver.h"
+
+namespace gd::sim {
+
+struct CpuExec;
+
+namespace detail {
+
+GD_HD Vec3 load3(const double* p, int i) { return Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2]); }
+GD_HD void store3(double* p, int i, const Vec3& v) {
+  p[3 * i] = v.x();
+  p[3 * i + 1] = v.y();
+  p[3 * i + 2] = v.z();
+}
+
+/// Scalars every element kernel needs, passed by value into kernels.
+struct Params {
+  Real h = 0;
+  Vec3 gravity = Vec3::Zero();
+  bool quasi_static = false;
+  bool table = false;
+  Vec3 table_n = Vec3::UnitZ();
+  Real table_offset = 0, dhat = 0, kappa_per_mass = 0, table_mu = 0, friction_eps = 0;
+  Real air_density = 0, drag_cd = 0, drag_linear = 0, drag_tangent_ratio = 0;
+  Real beta_membrane = 0, beta_bend = 0, alpha_mass = 0;
+  bool bending_exact_projected = false;
+};
+
+/// Raw pointers into the backend's arrays (host or device), copied into kernels.
+struct View {
+  int n = 0, nt = 0, nh = 0;
+  const double* mass;
+  const int* tris;
+  const StretchShearRest* tri_rest;
+  const int* hinges;
+  const HingeRest* hinge_rest;
+  const int* row_ptr;
+  const int* cols;
+  const int* diag;
+  const int* tri_slots;
+  const int* hinge_slots;
+  const int* fixed;      // 1 for Dirichlet vertices
+  const double* x_t;     // positions at step start
+  const double* v_t;     // velocities at step start
+  const double* f_ext;   // external forces, N (3 per vertex)
+};
+
+/// Inertia target x_hat = x_t + h v_t (gravity is its own energy).
+GD_HD Vec3 inertia_target(const View& V, const Params& P, int i) {
+  const Vec3 xt = load3(V.x_t, i);
+  return P.quasi_static ? xt : Vec3(xt + P.h * load3(V.v_t, i));
+}
+
+/// Per-vertex terms: inertia, gravity, mass damping, table barrier and lagged friction.
+GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Vec3* g, Mat3* H) {
+  const Real m = V.mass[i];
+  const Vec3 xt = load3(V.x_t, i);
+  Vec3 gi;
+  Mat3 Hi;
+  Real e = inertia_energy(x, inertia_target(V, P, i), m, P.h, g ? &gi : nullptr, H ? &Hi : nullptr);
+  Vec3 gk;
+  e += gravity_energy(x, m, P.gravity, g ? &gk : nullptr);
+  const Vec3 f = load3(V.f_ext, i);
+  e -= f.dot(x);  // external load: potential -f.x
+  if (g) *g = gi + gk - f;
+  if (H) *H = Hi;
+  Real hd = 0;
+  e += mass_damping_energy(x, xt, m, P.alpha_mass, P.h, g ? &gk : nullptr, H ? &hd : nullptr);
+  if (g) *g += gk;
+  if (H) *H += hd * Mat3::Identity();
+  if (P.table && !V.fixed[i]) {
+    const Real kappa = P.kappa_per_mass * m;
+    Mat3 Hb;
+    e += plane_barrier_energy(x, P.table_n, P.table_offset, P.dhat, kappa, g ? &gk : nullptr, H ? &Hb : nullptr);
+    if (g) *g += gk;
+    if (H) *H += Hb;
+    // Friction with the normal force lagged at the start of the step.
+    const Real dt = P.table_n.dot(xt) - P.table_offset;
+    if (P.table_mu > 0 && dt < P.dhat) {
+      const Real lambda = plane_barrier_force_magnitude(dt, P.dhat, kappa);
+      Eigen::Matrix<Real, 3, 2> T;
+      plane_tangent_basis(P.table_n, &T);
+      e += plane_friction_energy(x, xt, T, P.table_mu, lambda, P.friction_eps, g ? &gk : nullptr, H ? &Hb : nullptr);
+      if (g) *g += gk;
+      if (H) *H += Hb;
+    }
+  }
+  return e;
+}
+
+/// Triangle terms: anisotropic stretch/shear, strain-rate damping and air drag.
+GD_HD Real triangle_terms(const View& V, const Params& P, int t, const double* x, Vec9* g, Mat9* H) {
+  const int i0 = V.tris[3 * t], i1 = V.tris[3 * t + 1], i2 = V.tris[3 * t + 2];
+  const Vec3 x0 = load3(x, i0), x1 = load3(x, i1), x2 = load3(x, i2);
+  const StretchShearRest& r = V.tri_rest[t];
+  Vec9 ge;
+  Mat9 He;
+  Real e = stretch_shear_energy(x0, x1, x2, r, g, H, HessianKind::kProjected);
+  const Vec3 y0 = load3(V.x_t, i0), y1 = load3(V.x_t, i1), y2 = load3(V.x_t, i2);
+  if (P.beta_membrane > 0) {
+    Vec3 wu, wv;
+    deformation_columns(y0, y1, y2, r.Dm_inv, &wu, &wv);
+    e += membrane_damping_energy(x0, x1, x2, wu, wv, r, P.beta_membrane, P.h, g ? &ge : nullptr, H ? &He : nullptr);
+    if (g) *g += ge;
+    if (H) *H += He;
+  }
+  if (P.air_density > 0 && !P.quasi_static) {
+    const Vec3 nrm = (y1 - y0).cross(y2 - y0);
+    const Real len = nrm.norm();
+    if (len > 0) {
+      const Vec3 n = nrm / len;
+      const Vec3 vc = (load3(V.v_t, i0) + load3(V.v_t, i1) + load3(V.v_t, i2)) / 3.0;
+      const Real cn = drag_normal_coefficient(P.air_density, P.drag_cd, fabs(vc.dot(n)), P.drag_linear);
+      const Vec3 c_prev = (y0 + y1 + y2) / 3.0;
+      e += drag_energy(x0, x1, x2, c_prev, n, r.area, cn, cn * P.drag_tangent_ratio, P.h, g ? &ge : nullptr,
+                       H ? &He : nullptr);
+      if (g) *g += ge;
+      if (H) *H += He;
+    }
+  }
+  return e;
+}
+
+/// Hinge terms: nonlinear bending and curvature-rate damping.
+GD_HD Real hinge_terms(const View& V, const Params& P, int h, const double* x, Vec12* g, Mat12* H) {
+  const int* hv = V.hinges + 4 * h;
+  const HingeRest& r = V.hinge_rest[h];
+  Vec12 xs, ys;
+  for (int k = 0; k < 4; ++k) {
+    xs.segment<3>(3 * k) = load3(x, hv[k]);
+    ys.segment<3>(3 * k) = load3(V.x_t, hv[k]);
+  }
+  Real e = bending_energy(xs.segment<3>(0), xs.segment<3>(3), xs.segment<3>(6), xs.segment<3>(9), r, g, H,
+                          P.bending_exact_projected ? HessianKind::kExact : HessianKind::kProjected);
+  if (H && P.bending_exact_projected) project_psd<12>(H);
+  if (P.beta_bend > 0) {
+    Vec12 gt;
+    dihedral_angle_derivatives(ys.segment<3>(0), ys.segment<3>(3), ys.segment<3>(6), ys.segment<3>(9), &gt, nullptr);
+    Vec12 ge;
+    Mat12 He;
+    e += bending_damping_energy(xs, ys, gt, r, P.beta_bend, P.h, g ? &ge : nullptr, H ? &He : nullptr);
+    if (g) *g += ge;
+    if (H) *H += He;
+  }
+  return e;
+}
+
+}  // namespace detail
+
+template <class Exec>
+class Solver final : public SolverBase {
+  template <class T>
+  using Vec = typename Exec::template Vector<T>;
+
+ public:
+  Solver(std::shared_ptr<const SceneData> data, const SceneOptions& opt) : data_(std::move(data)), opt_(opt) {
+    const SceneData& d = *data_;
+    n_ = d.n;
+    Exec::upload(mass_, d.mass);
+    Exec::upload(tris_, d.tris);
+    Exec::upload(tri_rest_, d.tri_rest);
+    Exec::upload(hinges_, d.hinges);
+    Exec::upload(hinge_rest_, d.hinge_rest);
+    Exec::upload(row_ptr_, d.row_ptr);
+    Exec::upload(cols_, d.cols);
+    Exec::upload(diag_, d.diag);
+    Exec::upload(tri_slots_, d.tri_slots);
+    Exec::upload(hinge_slots_, d.hinge_slots);
+    Exec::upload(x_, d.x);
+    Exec::upload(v_, d.v);
+    for (auto* vec : {&x_t_, &v_t_, &g_, &dx_, &r_, &z_, &p_, &ap_, &x_trial_}) Exec::resize(*vec, 3 * n_);
+    Exec::resize(vals_, 9 * static_cast<size_t>(d.blocks()));
+    Exec::resize(pinv_, 9 * static_cast<size_t>(n_));
+    Exec::resize(fixed_, n_);
+    Exec::resize(f_ext_, 3 * static_cast<size_t>(n_));
+    kin_fixed_host_.assign(n_, 0);
+
+    P_.gravity = opt.gravity;
+    P_.table = opt.table;
+    P_.table_n = Vec3::UnitZ();
+    P_.table_offset = opt.table_height;
+    P_.dhat = opt.contact_distance > 0 ? opt.contact_distance : std::max<Real>(d.thickness, 1e-3);
+    // Barrier stiffness per kilogram: a vertex's own weight is balanced at d = dhat/2.
+    P_.kappa_per_mass = kGravity / (P_.dhat * 1.1931471805599454);
+    P_.table_mu = opt.table_friction;
+    P_.air_density = opt.air_density;
+    P_.drag_cd = opt.drag_coefficient;
+    P_.drag_linear = opt.drag_linear;
+    P_.drag_tangent_ratio = opt.drag_tangent_ratio;
+    P_.beta_membrane = opt.membrane_damping;
+    P_.beta_bend = opt.bending_damping;
+    P_.alpha_mass = opt.mass_damping;
+    P_.bending_exact_projected = opt.bending_hessian == BendingHessianKind::kProjectedExact;
+  }
+
+  // ---------------------------------------------------------------------------------------
+  // One time step: the table of contents.
+  StepStats step(const KinematicTargets& kin, bool quasi_static) override {
+    const auto t0 = std::chrono::steady_clock::now();
+    StepStats st;
+    begin_step(kin, quasi_static);                    // lagged data, Dirichlet targets, predictor
+    for (int k = 0; k < opt_.newton_max_iters; ++k) {
+      assemble();                                      // gradient and PSD Hessian of L at x
+      st.pcg_iters += solve_linear();                  // dx = -H^-1 g (inexact)
+      const double alpha = line_search(max_step());    // CCD cap, then Armijo backtracking
+      axpy(alpha, dx_, x_);                            // x += alpha dx
+      st.newton_iters = k + 1;
+      st.min_alpha = std::min(st.min_alpha, alpha);
+      st.step_norm = alpha * max_abs(dx_) / P_.h;
+      if (st.step_norm < opt_.newton_tol) {
+        st.converged = true;
+        break;
+      }
+    }
+    end_step();                                        // v = (x - x_t)/h
+    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return st;
+  }
+
+  void get_positions(std::vector<double>& x) override { Exec::download(x, x_); }
+  void get_velocities(std::vector<double>& v) override { Exec::download(v, v_); }
+  void set_state(const std::vector<double>& x, const std::vector<double>& v) override {
+    Exec::upload(x_, x);
+    Exec::upload(v_, v);
+  }
+
+  void set_external_forces(const std::vector<double>& f) override { Exec::upload(f_ext_, f); }
+
+  EnergyReport energies() override {
+    const detail::View V = view();
+    const double* x = Exec::ptr(x_);
+    const double* v = Exec::ptr(v_);
+    const Vec3 grav = P_.gravity;
+    EnergyReport e;
+    e.kinetic = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return 0.5 * V.mass[i] * detail::load3(v, i).squaredNorm(); });
+    e.gravity = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return -V.mass[i] * grav.dot(detail::load3(x, i)); });
+    e.stretch = Exec::sum(V.nt, [=] GD_HD_LAMBDA(int t) {
+      const int* tv = V.tris + 3 * t;
+      return stretch_shear_energy(detail::load3(x, tv[0]), detail::load3(x, tv[1]), detail::load3(x, tv[2]),
+                                  V.tri_rest[t], nullptr, nullptr, HessianKind::kNone);
+    });
+    e.bending = Exec::sum(V.nh, [=] GD_HD_LAMBDA(int h) {
+      const int* hv = V.hinges + 4 * h;
+      return bending_energy(detail::load3(x, hv[0]), detail::load3(x, hv[1]), detail::load3(x, hv[2]),
+                            detail::load3(x, hv[3]), V.hinge_rest[h], nullptr, nullptr, HessianKind::kNone);
+    });
+    if (P_.table) {
+      const detail::Params P = P_;
+      e.contact = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+        return plane_barrier_energy(detail::load3(x, i), P.table_n, P.table_offset, P.dhat, P.kappa_per_mass * V.mass[i],
+                                    nullptr, nullptr);
+      });
+    }
+    return e;
+  }
+
+  double max_strain() override {
+    const detail::View V = view();
+    const double* x = Exec::ptr(x_);
+    return Exec::max(V.nt, [=] GD_HD_LAMBDA(int t) {
+      const int* tv = V.tris + 3 * t;
+      Real eu, ev, s;
+      triangle_strains(detail::load3(x, tv[0]), detail::load3(x, tv[1]), detail::load3(x, tv[2]), V.tri_rest[t].Dm_inv,
+                       &eu, &ev, &s);
+      return fmax(fabs(eu), fabs(ev));
+    });
+  }
+
+  size_t bytes() const override {
+    const SceneData& d = *data_;
+    size_t b = sizeof(double) * (12 * static_cast<size_t>(n_) * 3 + 9 * static_cast<size_t>(d.blocks()) + 9 * n_ + n_);
+    b += sizeof(int) * (d.tris.size() + d.hinges.size() + d.row_ptr.size() + d.cols.size() + d.diag.size() +
+                        d.tri_slots.size() + d.hinge_slots.size() + n_);
+    b += sizeof(StretchShearRest) * d.tri_rest.size() + sizeof(HingeRest) * d.hinge_rest.size();
+    return b;
+  }
+
+  std::string backend_name() const override { return Exec::kName; }
+
+ private:
+  detail::View view() const {
+    detail::View V;
+    V.n = n_;
+    V.nt = data_->triangles();
+    V.nh = data_->hinge_count();
+    V.mass = Exec::ptr(mass_);
+    V.tris = Exec::ptr(tris_);
+    V.tri_rest = Exec::ptr(tri_rest_);
+    V.hinges = Exec::ptr(hinges_);
+    V.hinge_rest = Exec::ptr(hinge_rest_);
+    V.row_ptr = Exec::ptr(row_ptr_);
+    V.cols = Exec::ptr(cols_);
+    V.diag = Exec::ptr(diag_);
+    V.tri_slots = Exec::ptr(tri_slots_);
+    V.hinge_slots = Exec::ptr(hinge_slots_);
+    V.fixed = Exec::ptr(fixed_);
+    V.x_t = Exec::ptr(x_t_);
+    V.v_t = Exec::ptr(v_t_);
+    V.f_ext = Exec::ptr(f_ext_);
+    return V;
+  }
+
+  /// Saves the step-start state, applies Dirichlet targets and an inertial predictor that stays
+  /// above the table.
+  void begin_step(const KinematicTargets& kin, bool quasi_static) {
+    P_.h = opt_.dt;
+    P_.quasi_static = quasi_static;
+    P_.friction_eps = opt_.friction_eps_v * opt_.dt;
+    if (quasi_static) Exec::fill(v_, 0.0);
+    copy(x_, x_t_);
+    copy(v_, v_t_);
+    // Dirichlet flags and targets.
+    std::fill(kin_fixed_host_.begin(), kin_fixed_host_.end(), 0);
+    for (int k : kin.vertices) kin_fixed_host_[k] = 1;
+    Exec::upload(fixed_, kin_fixed_host_);
+    Exec::upload(kin_idx_, kin.vertices);
+    Exec::upload(kin_target_, kin.targets);
+    const detail::View V = view();
+    const detail::Params P = P_;
+    double* x = Exec::ptr(x_);
+    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+      if (V.fixed[i]) return;
+      const Vec3 xt = detail::load3(V.x_t, i);
+      Vec3 step = detail::inertia_target(V, P, i) - xt;
+      if (P.table) {  // keep the predictor clear of the table
+        const Real d = P.table_n.dot(xt) - P.table_offset, dn = P.table_n.dot(step);
+        if (dn < 0 && d + dn < 0.5 * d) step *= 0.5 * d / (-dn);
+      }
+      detail::store3(x, i, xt + step);
+    });
+    const int* ki = Exec::ptr(kin_idx_);
+    const double* kt = Exec::ptr(kin_target_);
+    Exec::for_each(static_cast<int>(kin.vertices.size()), [=] GD_HD_LAMBDA(int k) {
+      const int i = ki[k];
+      for (int c = 0; c < 3; ++c) x[3 * i + c] = kt[3 * k + c];
+    });
+  }
+
+  /// Gradient g_ and projected Hessian vals_ of L at x_. Dirichlet rows are left zero (identity
+  /// is implied in the matrix-vector product).
+  void assemble() {
+    Exec::fill(vals_, 0.0);
+    Exec::fill(g_, 0.0);
+    const detail::View V = view();
+    const detail::Params P = P_;
+    const double* x = Exec::ptr(x_);
+    double* g = Exec::ptr(g_);
+    double* H = Exec::ptr(vals_);
+    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+      if (V.fixed[i]) return;
+      Vec3 gi;
+      Mat3 Hi;
+      detail::vertex_terms(V, P, i, detail::load3(x, i), &gi, &Hi);
+      detail::store3(g, i, gi);
+      double* b = H + 9 * V.diag[i];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) b[3 * r + c] = Hi(r, c);
+    });
+    for_each_element(data_->tri_colors, V.nt, [=] GD_HD_LAMBDA(int t) {
+      Vec9 ge;
+      Mat9 He;
+      detail::triangle_terms(V, P, t, x, &ge, &He);
+      scatter<3>(V, V.tris + 3 * t, V.tri_slots + 9 * t, ge, He, g, H);
+    });
+    for_each_element(data_->hinge_colors, V.nh, [=] GD_HD_LAMBDA(int h) {
+      Vec12 ge;
+      Mat12 He;
+      detail::hinge_terms(V, P, h, x, &ge, &He);
+      scatter<4>(V, V.hinges + 4 * h, V.hinge_slots + 16 * h, ge, He, g, H);
+    });
+  }
+
+  template <int K>
+  GD_HD static void scatter(const detail::View& V, const int* vs, const int* slots, const VecN<3 * K>& ge,
+                            const MatN<3 * K>& He, double* g, double* H) {
+    for (int a = 0; a < K; ++a) {
+      if (V.fixed[vs[a]]) continue;
+      for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, ge(3 * a + c));
+      for (int b = 0; b < K; ++b) {
+        if (V.fixed[vs[b]]) continue;
+        double* blk = H + 9 * slots[K * a + b];
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) Exec::add(blk + 3 * r + c, He(3 * a + r, 3 * b + c));
+      }
+    }
+  }
+
+  /// Runs an element loop: colour by colour on the CPU, all at once with atomics on the GPU.
+  template <class F>
+  void for_each_element(const Coloring& coloring, int count, const F& f) {
+    if constexpr (Exec::kColoring) {
+      const int* order = coloring.order.data();
+      for (int c = 0; c < coloring.colors(); ++c) {
+        const int begin = coloring.offsets[c];
+        Exec::for_each(coloring.offsets[c + 1] - begin, [=](int k) { f(order[begin + k]); });
+      }
+    } else {
+      Exec::for_each(count, f);
+    }
+  }
+
+  /// L(x) at the given positions (infinite if a vertex is on or below the table).
+  double objective(const Vec<double>& xs) {
+    const detail::View V = view();
+    const detail::Params P = P_;
+    const double* x = Exec::ptr(xs);
+    double e = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+      return V.fixed[i] ? 0.0 : detail::vertex_terms(V, P, i, detail::load3(x, i), nullptr, nullptr);
+    });
+    e += Exec::sum(V.nt, [=] GD_HD_LAMBDA(int t) { return detail::triangle_terms(V, P, t, x, nullptr, nullptr); });
+    e += Exec::sum(V.nh, [=] GD_HD_LAMBDA(int h) { return detail::hinge_terms(V, P, h, x, nullptr, nullptr); });
+    return e;
+  }
+
+  /// y = A x over free vertices (Dirichlet rows and columns act as identity / zero).
+  void spmv(const Vec<double>& xs, Vec<double>& ys) {
+    const detail::View V = view();
+    const double* x = Exec::ptr(xs);
+    const double* A = Exec::ptr(vals_);
+    double* y = Exec::ptr(ys);
+    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+      Vec3 acc = Vec3::Zero();
+      if (V.fixed[i]) {
+        acc = detail::load3(x, i);
+      } else {
+        for (int k = V.row_ptr[i]; k < V.row_ptr[i + 1]; ++k) {
+          const int j = V.cols[k];
+          if (V.fixed[j]) continue;
+          const double* b = A + 9 * k;
+          const Vec3 xj = detail::load3(x, j);
+          acc.x() += b[0] * xj.x() + b[1] * xj.y() + b[2] * xj.z();
+          acc.y() += b[3] * xj.x() + b[4] * xj.y() + b[5] * xj.z();
+          acc.z() += b[6] * xj.x() + b[7] * xj.y() + b[8] * xj.z();
+        }
+      }
+      detail::store3(y, i, acc);
+    });
+  }
+
+  /// Block-Jacobi: inverts each vertex's 3x3 diagonal block.
+  void setup_block_jacobi() {
+    const detail::View V = view();
+    const double* A = Exec::ptr(vals_);
+    double* pinv = Exec::ptr(pinv_);
+    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+      Mat3 inv = Mat3::Identity();
+      if (!V.fixed[i]) {
+        const double* b = A + 9 * V.diag[i];
+        Mat3 D;
+        D << b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8];
+        const Real det = D.determinant();
+        if (fabs(det) > 1e-300) inv = D.inverse();
+      }
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) pinv[9 * i + 3 * r + c] = inv(r, c);
+    });
+  }
+
+  void apply_block_jacobi(const Vec<double>& rs, Vec<double>& zs) {
+    const double* r = Exec::ptr(rs);
+    const double* pinv = Exec::ptr(pinv_);
+    double* z = Exec::ptr(zs);
+    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+      const double* m = pinv + 9 * i;
+      const Vec3 ri = detail::load3(r, i);
+      detail::store3(z, i, Vec3(m[0] * ri.x() + m[1] * ri.y() + m[2] * ri.z(), m[3] * ri.x() + m[4] * ri.y() + m[5] * ri.z(),
+                                m[6] * ri.x() + m[7] * ri.y() + m[8] * ri.z()));
+    });
+  }
+
+  /// Solves H dx = -g. Returns the iterations spent (1 for the direct solver).
+  int solve_linear() {
+    if constexpr (std::is_same_v<Exec, CpuExec>) {
+      if (opt_.linear_solver == LinearSolverKind::kDirect) return solve_direct();
+    }
+    return solve_pcg();
+  }
+
+  int solve_pcg() {
+    setup_block_jacobi();
+    Exec::fill(dx_, 0.0);
+    copy(g_, r_);
+    scale(-1.0, r_);  // r = -g (free rows; Dirichlet rows of g are zero)
+    const double r0 = std::sqrt(dot(r_, r_));
+    if (r0 == 0.0) return 0;
+    apply_block_jacobi(r_, z_);
+    copy(z_, p_);
+    double rz = dot(r_, z_);
+    int it = 0;
+    while (it < opt_.pcg_max_iters) {
+      spmv(p_, ap_);
+      const double pap = dot(p_, ap_);
+      if (!(pap > 0)) break;
+      const double a = rz / pap;
+      axpy(a, p_, dx_);
+      axpy(-a, ap_, r_);
+      ++it;
+      if (std::sqrt(dot(r_, r_)) <= opt_.pcg_tol * r0) break;
+      apply_block_jacobi(r_, z_);
+      const double rz_new = dot(r_, z_);
+      const double beta = rz_new / rz;
+      rz = rz_new;
+      xpby(z_, beta, p_);  // p = z + beta p
+    }
+    return it;
+  }
+
+  /// Sparse LDLT on the CPU (validation and small scenes).
+  int solve_direct() {
+    if constexpr (std::is_same_v<Exec, CpuExec>) {
+      const SceneData& d = *data_;
+      std::vector<Eigen::Triplet<double>> trip;
+      trip.reserve(9 * d.cols.size());
+      for (int i = 0; i < n_; ++i) {
+        if (kin_fixed_host_[i]) {
+          for (int c = 0; c < 3; ++c) trip.emplace_back(3 * i + c, 3 * i + c, 1.0);
+          continue;
+        }
+        for (int k = d.row_ptr[i]; k < d.row_ptr[i + 1]; ++k) {
+          const int j = d.cols[k];
+          if (kin_fixed_host_[j]) continue;
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) trip.emplace_back(3 * i + r, 3 * j + c, vals_[9 * k + 3 * r + c]);
+        }
+      }
+      Eigen::SparseMatrix<double> A(3 * n_, 3 * n_);
+      A.setFromTriplets(trip.begin(), trip.end());
+      if (!ldlt_analyzed_) {
+        ldlt_.analyzePattern(A);
+        ldlt_analyzed_ = true;
+      }
+      ldlt_.factorize(A);
+      Eigen::Map<const Eigen::VectorXd> g(g_.data(), 3 * n_);
+      Eigen::Map<Eigen::VectorXd> dx(dx_.data(), 3 * n_);
+      if (ldlt_.info() != Eigen::Success) return solve_pcg();
+      dx = ldlt_.solve(-g);
+      return 1;
+    } else {
+      return solve_pcg();
+    }
+  }
+
+  /// Largest step fraction keeping every free vertex at least 10% of its distance above the
+  /// table (continuous collision detection against a plane is exact and cheap).
+  double max_step() {
+    if (!P_.table) return 1.0;
+    const detail::View V = view();
+    const detail::Params P = P_;
+    const double* x = Exec::ptr(x_);
+    const double* dx = Exec::ptr(dx_);
+    // max over vertices of the inverse admissible fraction
+    const double inv = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
+      if (V.fixed[i]) return 0.0;
+      const Real d = P.table_n.dot(detail::load3(x, i)) - P.table_offset;
+      const Real dn = P.table_n.dot(detail::load3(dx, i));
+      if (dn >= 0) return 0.0;
+      return -dn / (0.9 * d);
+    });
+    return inv > 1.0 ? 1.0 / inv : 1.0;
+  }
+
+  /// Backtracking (Armijo) from alpha_max; returns the accepted step fraction.
+  double line_search(double alpha_max) {
+    const double e0 = objective(x_);
+    const double slope = dot(g_, dx_);
+    double alpha = alpha_max;
+    for (int k = 0; k < 20; ++k) {
+      copy(x_, x_trial_);
+      axpy(alpha, dx_, x_trial_);
+      const double e = objective(x_trial_);
+      if (std::isfinite(e) && e <= e0 + 1e-4 * alpha * std::min(slope, 0.0)) return alpha;
+      alpha *= 0.5;
+    }
+    return 0.0;
+  }
+
+  void end_step() {
+    const double inv_h = 1.0 / P_.h;
+    const double* x = Exec::ptr(x_);
+    const double* xt = Exec::ptr(x_t_);
+    double* v = Exec::ptr(v_);
+    Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { v[k] = (x[k] - xt[k]) * inv_h; });
+  }
+
+  // --- vector kernels --------------------------------------------------------------------
+  double dot(const Vec<double>& a, const Vec<double>& b) {
+    const double* pa = Exec::ptr(a);
+    const double* pb = Exec::ptr(b);
+    return Exec::sum(3 * n_, [=] GD_HD_LAMBDA(int k) { return pa[k] * pb[k]; });
+  }
+  double max_abs(const Vec<double>& a) {
+    const double* pa = Exec::ptr(a);
+    return Exec::max(3 * n_, [=] GD_HD_LAMBDA(int k) { return fabs(pa[k]); });
+  }
+  void axpy(double a, const Vec<double>& xs, Vec<double>& ys) {
+    const double* x = Exec::ptr(xs);
+    double* y = Exec::ptr(ys);
+    Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] += a * x[k]; });
+  }
+  void xpby(const Vec<double>& xs, double b, Vec<double>& ys) {
+    const double* x = Exec::ptr(xs);
+    double* y = Exec::ptr(ys);
+    Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] = x[k] + b * y[k]; });
+  }
+  void scale(double a, Vec<double>& ys) {
+    double* y = Exec::ptr(ys);
+    Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] *= a; });
+  }
+  void copy(const Vec<double>& src, Vec<double>& dst) {
+    const double* s = Exec::ptr(src);
+    double* d = Exec::ptr(dst);
+    Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { d[k] = s[k]; });
+  }
+
+  std::shared_ptr<const SceneData> data_;
+  SceneOptions opt_;
+  detail::Params P_;
+  int n_ = 0;
+  Vec<double> mass_;
+  Vec<int> tris_, hinges_, row_ptr_, cols_, diag_, tri_slots_, hinge_slots_, fixed_, kin_idx_;
+  Vec<StretchShearRest> tri_rest_;
+  Vec<HingeRest> hinge_rest_;
+  Vec<double> f_ext_;
+  Vec<double> x_, v_, x_t_, v_t_, g_, dx_, r_, z_, p_, ap_, x_trial_, vals_, pinv_, kin_target_;
+  std::vector<int> kin_fixed_host_;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
+  bool ldlt_analyzed_ = false;
+};
+
+}  // namespace gd::sim

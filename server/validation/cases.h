@@ -1,0 +1,63 @@
+#pragma once
+/// \file
+/// Validation scenes: physics the simulator must reproduce, each returning expected vs measured.
+/// gd-validate prints them; tests/validation asserts on them. Cases:
+///  - cantilever/<fabric>: ASTM D1388 bending length against c = (G / (W g))^(1/3)
+///  - tensile/<fabric>: a strip under a hanging load stretches by F / k
+///  - drape/<fabric>: Cusick drape coefficient of a 30 cm disc held on an 18 cm support
+///  - drop/<fabric>: a square dropped on the table comes to rest on it, not through it
+///  - slide/<fabric>: a square sliding on the table stops after v^2 / (2 mu g)
+///  - hang/<fabric>: a square pinned at two corners settles with small strain and no energy gain
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "sim/material.h"
+
+namespace gd::validation {
+
+struct CaseResult {
+  std::string name;       ///< e.g. "cantilever/cotton"
+  double expected = 0;
+  double measured = 0;
+  double rel_error = 0;   ///< |measured - expected| / |expected|
+  double tolerance = 0;   ///< pass when rel_error <= tolerance (or by the case's own rule)
+  bool pass = false;
+  std::string unit;
+  std::string detail;     ///< what was measured and how, for humans
+  int vertices = 0;
+  double seconds = 0;
+};
+
+/// ASTM D1388 cantilever of a 2.5 cm wide strip: finds the overhang at which the chord from the
+/// support edge to the tip falls 41.5 degrees; the bending length is half of it.
+struct CantileverMeasurement {
+  double bending_length = 0;  ///< m
+  double overhang = 0;        ///< m
+  double angle_deg = 0;       ///< chord angle at that overhang
+  int evaluations = 0;        ///< static solves spent
+  int vertices = 0;
+};
+/// elements_per_overhang: mesh resolution along the overhang.
+CantileverMeasurement measure_cantilever(const sim::Material& m, int elements_per_overhang = 24);
+/// The chord angle (degrees) of a strip with about the given overhang (one static solve);
+/// effective_overhang receives the overhang the mesh rows actually give.
+double cantilever_angle(const sim::Material& m, double overhang, int elements_per_overhang, int* vertices = nullptr,
+                        double* effective_overhang = nullptr);
+/// Expected bending length c = (G / (W g))^(1/3) from the warp rigidity.
+double expected_bending_length(const sim::Material& m);
+
+CaseResult cantilever_case(const sim::Material& m);
+CaseResult cantilever_mesh_independence_case(const sim::Material& m);
+CaseResult tensile_case(const sim::Material& m);
+CaseResult drape_case(const sim::Material& m);
+CaseResult drop_case(const sim::Material& m);
+CaseResult slide_case(const sim::Material& m);
+CaseResult hang_case(const sim::Material& m);
+
+/// Every case, in gd-validate's order; progress(i, total, name) is called before each case.
+std::vector<CaseResult> run_all(const sim::MaterialLibrary& lib,
+                                const std::function<void(int, int, const std::string&)>& progress = {});
+
+}  // namespace gd::validation
