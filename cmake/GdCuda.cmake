@@ -17,8 +17,7 @@ if(NOT DEFINED GD_WITH_CUDA)
 endif()
 if(GD_WITH_CUDA)
   enable_language(CUDA)
-  set(CMAKE_CUDA_STANDARD 20)
-  set(CMAKE_CUDA_STANDARD_REQUIRED ON)
+
   if(NOT DEFINED CMAKE_CUDA_ARCHITECTURES)
     # Hopper (H100/H200) is the deployment target; 80 keeps A100s working.
     set(CMAKE_CUDA_ARCHITECTURES 80 90)

@@ -56,8 +56,13 @@ CaseResult drop_case(const sim::Material& m);
 CaseResult slide_case(const sim::Material& m);
 CaseResult hang_case(const sim::Material& m);
 
-/// Every case, in gd-validate's order; progress(i, total, name) is called before each case.
-std::vector<CaseResult> run_all(const sim::MaterialLibrary& lib,
-                                const std::function<void(int, int, const std::string&)>& progress = {});
+/// A case by name, run on demand.
+struct NamedCase {
+  std::string name;
+  std::function<CaseResult()> run;
+};
+/// Every case, in gd-validate's order: cantilever for each fabric of the library, then the
+/// cotton cases (mesh independence, tensile, hang, drop, slide, drape).
+std::vector<NamedCase> case_list(const sim::MaterialLibrary& lib);
 
 }  // namespace gd::validation

@@ -26,10 +26,10 @@ struct SceneOptions {
   // --- time stepping and solver ---------------------------------------------------------
   Real dt = 1.0 / 200.0;          ///< time step, s
   Vec3 gravity = Vec3(0, 0, -kGravity);  ///< m/s^2
-  int newton_max_iters = 8;       ///< inexact Newton iterations per step (at most)
+  int newton_max_iters = 6;       ///< inexact Newton iterations per step (at most)
   Real newton_tol = 1e-4;         ///< stop when max |dx|/dt (m/s) falls below this
-  int pcg_max_iters = 200;        ///< PCG iteration cap per Newton iteration
-  Real pcg_tol = 1e-4;            ///< PCG relative residual tolerance
+  int pcg_max_iters = 100;        ///< PCG iteration cap per Newton iteration
+  Real pcg_tol = 1e-2;            ///< PCG relative residual tolerance (inexact Newton)
   LinearSolverKind linear_solver = LinearSolverKind::kPcg;
   PreconditionerKind preconditioner = PreconditionerKind::kBlockJacobi;
   BendingHessianKind bending_hessian = BendingHessianKind::kGaussNewton;

@@ -303,7 +303,8 @@ class Solver final : public SolverBase {
 
   std::string backend_name() const override { return Exec::kName; }
 
- private:
+ // The stages below are public only because nvcc requires the functions that enclose extended
+ // __host__ __device__ lambdas to be public; SolverBase is the interface.
   detail::View view() const {
     detail::View V;
     V.n = n_;
@@ -381,7 +382,7 @@ class Solver final : public SolverBase {
       double* b = H + 9 * V.diag[i];
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) b[3 * r + c] = Hi(r, c);
-    });
+    }, Exec::kParallelMinHeavy);
     for_each_element(data_->tri_colors, V.nt, [=] GD_HD_LAMBDA(int t) {
       Vec9 ge;
       Mat9 He;
@@ -418,10 +419,10 @@ class Solver final : public SolverBase {
       const int* order = coloring.order.data();
       for (int c = 0; c < coloring.colors(); ++c) {
         const int begin = coloring.offsets[c];
-        Exec::for_each(coloring.offsets[c + 1] - begin, [=](int k) { f(order[begin + k]); });
+        Exec::for_each(coloring.offsets[c + 1] - begin, [=](int k) { f(order[begin + k]); }, Exec::kParallelMinHeavy);
       }
     } else {
-      Exec::for_each(count, f);
+      Exec::for_each(count, f, Exec::kParallelMinHeavy);
     }
   }
 
@@ -432,9 +433,11 @@ class Solver final : public SolverBase {
     const double* x = Exec::ptr(xs);
     double e = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
       return V.fixed[i] ? 0.0 : detail::vertex_terms(V, P, i, detail::load3(x, i), nullptr, nullptr);
-    });
-    e += Exec::sum(V.nt, [=] GD_HD_LAMBDA(int t) { return detail::triangle_terms(V, P, t, x, nullptr, nullptr); });
-    e += Exec::sum(V.nh, [=] GD_HD_LAMBDA(int h) { return detail::hinge_terms(V, P, h, x, nullptr, nullptr); });
+    }, Exec::kParallelMinHeavy);
+    e += Exec::sum(V.nt, [=] GD_HD_LAMBDA(int t) { return detail::triangle_terms(V, P, t, x, nullptr, nullptr); },
+                   Exec::kParallelMinHeavy);
+    e += Exec::sum(V.nh, [=] GD_HD_LAMBDA(int h) { return detail::hinge_terms(V, P, h, x, nullptr, nullptr); },
+                   Exec::kParallelMinHeavy);
     return e;
   }
 
@@ -460,7 +463,7 @@ class Solver final : public SolverBase {
         }
       }
       detail::store3(y, i, acc);
-    });
+    }, Exec::kParallelMinHeavy);
   }
 
   /// Block-Jacobi: inverts each vertex's 3x3 diagonal block.
@@ -638,6 +641,7 @@ class Solver final : public SolverBase {
     Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { d[k] = s[k]; });
   }
 
+ private:
   std::shared_ptr<const SceneData> data_;
   SceneOptions opt_;
   detail::Params P_;

@@ -32,27 +32,33 @@ struct CpuExec {
   template <class T>
   static void fill(Vector<T>& v, T value) { std::fill(v.begin(), v.end(), value); }
 
+  /// Loops shorter than this run on the calling thread: a parallel region costs more than a
+  /// few thousand cheap iterations, and far more when the cores are busy with other work.
+  static constexpr int kParallelMin = 16384;
+  /// The same for loops whose iterations are heavy (element energies and Hessians).
+  static constexpr int kParallelMinHeavy = 1024;
+
   /// Runs f(i) for i in [0, n) on the OpenMP threads.
   template <class F>
-  static void for_each(int n, const F& f) {
-#pragma omp parallel for schedule(static) if (n > 2048)
+  static void for_each(int n, const F& f, int parallel_min = kParallelMin) {
+#pragma omp parallel for schedule(static) if (n >= parallel_min)
     for (int i = 0; i < n; ++i) f(i);
   }
 
   /// Sum of f(i) over [0, n).
   template <class F>
-  static double sum(int n, const F& f) {
+  static double sum(int n, const F& f, int parallel_min = kParallelMin) {
     double s = 0.0;
-#pragma omp parallel for schedule(static) reduction(+ : s) if (n > 2048)
+#pragma omp parallel for schedule(static) reduction(+ : s) if (n >= parallel_min)
     for (int i = 0; i < n; ++i) s += f(i);
     return s;
   }
 
   /// Maximum of f(i) over [0, n) (0 for n == 0).
   template <class F>
-  static double max(int n, const F& f) {
+  static double max(int n, const F& f, int parallel_min = kParallelMin) {
     double m = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : m) if (n > 2048)
+#pragma omp parallel for schedule(static) reduction(max : m) if (n >= parallel_min)
     for (int i = 0; i < n; ++i) m = std::max(m, f(i));
     return m;
   }

@@ -43,22 +43,25 @@ struct CudaExec {
   template <class T>
   static void fill(Vector<T>& v, T value) { thrust::fill(v.begin(), v.end(), value); }
 
+  static constexpr int kParallelMin = 0;
+  static constexpr int kParallelMinHeavy = 0;
+
   template <class F>
-  static void for_each(int n, const F& f) {
+  static void for_each(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return;
     constexpr int kBlock = 256;
     gd_for_each_kernel<<<(n + kBlock - 1) / kBlock, kBlock>>>(n, f);
   }
 
   template <class F>
-  static double sum(int n, const F& f) {
+  static double sum(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
     return thrust::transform_reduce(thrust::device, thrust::counting_iterator<int>(0), thrust::counting_iterator<int>(n),
                                     f, 0.0, thrust::plus<double>());
   }
 
   template <class F>
-  static double max(int n, const F& f) {
+  static double max(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
     return thrust::transform_reduce(thrust::device, thrust::counting_iterator<int>(0), thrust::counting_iterator<int>(n),
                                     f, 0.0, thrust::maximum<double>());

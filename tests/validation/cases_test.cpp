@@ -1,0 +1,60 @@
+// The validation scenes as tests: physics the simulator must reproduce (see docs/validation.md).
+#include <gtest/gtest.h>
+
+#include "sim/material.h"
+#include "validation/cases.h"
+
+namespace gd::validation {
+namespace {
+
+const sim::MaterialLibrary& library() {
+  static const sim::MaterialLibrary lib = sim::MaterialLibrary::load_default();
+  return lib;
+}
+
+void expect_pass(const CaseResult& r) {
+  EXPECT_TRUE(r.pass) << r.name << ": expected " << r.expected << ", measured " << r.measured << " (rel. error "
+                      << r.rel_error << ", tolerance " << r.tolerance << "): " << r.detail;
+}
+
+class Cantilever : public ::testing::TestWithParam<std::string> {};
+
+// ASTM D1388: the simulated bending length is within 5% of (G / (W g))^(1/3) for every fabric.
+TEST_P(Cantilever, BendingLengthMatchesRigidity) {
+  const CaseResult r = cantilever_case(library().get(GetParam()));
+  expect_pass(r);
+  EXPECT_LE(r.rel_error, 0.05);
+}
+
+INSTANTIATE_TEST_SUITE_P(TenFabrics, Cantilever,
+                         ::testing::Values("cotton", "linen", "wool", "polyester", "nylon", "silk", "knit", "velvet",
+                                           "leather", "fur"));
+
+TEST(CantileverMesh, TwoResolutionsAgreeWithinFivePercent) {
+  expect_pass(cantilever_mesh_independence_case(library().get("cotton")));
+}
+
+TEST(CantileverAngle, GrowsWithOverhang) {
+  const sim::Material& m = library().get("wool");
+  const double c = expected_bending_length(m);
+  EXPECT_LT(cantilever_angle(m, 1.5 * c, 16), cantilever_angle(m, 2.5 * c, 16));
+}
+
+TEST(Tensile, StretchesByLoadOverStiffness) { expect_pass(tensile_case(library().get("cotton"))); }
+
+TEST(Tensile, SofterFabricStretchesMore) {
+  const CaseResult cotton = tensile_case(library().get("cotton"));
+  const CaseResult knit = tensile_case(library().get("knit"));
+  expect_pass(knit);
+  // Both are loaded to 1% strain of their own stiffness: equal elongation, different loads.
+  EXPECT_NEAR(cotton.measured, knit.measured, 0.02 * cotton.measured);
+}
+
+TEST(Hang, SettlesWithSmallStrainAndNoEnergyGrowth) { expect_pass(hang_case(library().get("cotton"))); }
+
+TEST(Drop, RestsOnTheTableNotThroughIt) { expect_pass(drop_case(library().get("cotton"))); }
+
+TEST(Slide, StopsAfterCoulombDistance) { expect_pass(slide_case(library().get("cotton"))); }
+
+}  // namespace
+}  // namespace gd::validation
