@@ -193,10 +193,10 @@ bool Scene::do_step(bool quasi_static) {
   std::vector<double> x, v;
   solver_->get_positions(x);
   solver_->get_velocities(v);
-  if (!finite(x) || !finite(v)) {
+  if (!stats_.finite || !finite(x) || !finite(v)) {
     solver_->set_state(x0, v0);
     failed_ = true;
-    failure_ = "state became non-finite at t=" + std::to_string(time_ + options_.dt) +
+    failure_ = "state became non-finite (energy overflow or NaN) at t=" + std::to_string(time_ + options_.dt) +
                " s; the previous state was kept (check material stiffness, time step and kinematic targets)";
     gd::log().warn("scene failed: {}", failure_);
     return false;

@@ -20,6 +20,7 @@ struct StepStats {
   double step_norm = 0;        ///< max |dx|/dt of the last Newton iteration, m/s
   double min_alpha = 1;        ///< smallest accepted line-search step
   bool converged = false;      ///< step_norm fell below newton_tol
+  bool finite = true;          ///< false when the objective was not finite (the step is void)
   double seconds = 0;          ///< wall time of the step
 };
 

@@ -228,7 +228,12 @@ class Solver final : public SolverBase {
     for (int k = 0; k < opt_.newton_max_iters; ++k) {
       assemble();                                      // gradient and PSD Hessian of L at x
       st.pcg_iters += solve_linear();                  // dx = -H^-1 g (inexact)
-      const double alpha = line_search(max_step());    // CCD cap, then Armijo backtracking
+      double e0 = 0;
+      const double alpha = line_search(max_step(), &e0);  // CCD cap, then Armijo backtracking
+      if (!std::isfinite(e0)) {                        // e.g. a target that tears the cloth apart
+        st.finite = false;
+        break;
+      }
       axpy(alpha, dx_, x_);                            // x += alpha dx
       st.newton_iters = k + 1;
       st.min_alpha = std::min(st.min_alpha, alpha);
@@ -589,8 +594,10 @@ class Solver final : public SolverBase {
   }
 
   /// Backtracking (Armijo) from alpha_max; returns the accepted step fraction.
-  double line_search(double alpha_max) {
+  double line_search(double alpha_max, double* e_start) {
     const double e0 = objective(x_);
+    *e_start = e0;
+    if (!std::isfinite(e0)) return 0.0;
     const double slope = dot(g_, dx_);
     double alpha = alpha_max;
     for (int k = 0; k < 20; ++k) {

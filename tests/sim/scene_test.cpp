@@ -1,0 +1,184 @@
+// The scene API: creation errors, kinematic vertices, failure handling, anisotropy, backends.
+#include "sim/scene.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "sim/demand.h"
+
+namespace gd::sim {
+namespace {
+
+Material cotton() { return MaterialLibrary::load_default().get("cotton"); }
+
+Mesh lifted_square(double size, double spacing, double z) {
+  Mesh m = make_rect(size, size, spacing);
+  for (Vec3& p : m.x) p.z() = z;
+  return m;
+}
+
+TEST(SceneCreate, RejectsMeshOnOrBelowTheTable) {
+  const Mesh m = lifted_square(0.1, 0.02, 0.0);
+  EXPECT_THROW(Scene::create(m, cotton()), InputError);
+  SceneOptions o;
+  o.table = false;
+  EXPECT_NO_THROW(Scene::create(m, cotton(), o));
+}
+
+TEST(SceneCreate, RejectsBadOptionsWithTheirName) {
+  SceneOptions o;
+  o.dt = -1;
+  try {
+    Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), o);
+    FAIL() << "negative dt accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("dt"), std::string::npos);
+  }
+  o = SceneOptions();
+  o.gravity = Vec3(0, 0, NAN);
+  EXPECT_THROW(Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), o), InputError);
+}
+
+TEST(SceneCreate, RejectsZeroThicknessMaterial) {
+  Material m = cotton();
+  m.thickness = 0;
+  EXPECT_THROW(Scene::create(lifted_square(0.1, 0.02, 0.1), m), InputError);
+}
+
+TEST(SceneCreate, CudaWithoutDeviceIsAClearError) {
+  if (cuda_available()) GTEST_SKIP() << "a CUDA device is present";
+  SceneOptions o;
+  o.backend = BackendKind::kCuda;
+  EXPECT_THROW(Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), o), InputError);
+  o.backend = BackendKind::kAuto;
+  EXPECT_EQ(Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), o)->backend(), "cpu");
+}
+
+TEST(SceneKinematics, AttachedVerticesFollowTheirPose) {
+  SceneOptions o;
+  o.table = false;
+  const Mesh m = lifted_square(0.2, 0.02, 0.5);
+  auto s = Scene::create(m, cotton(), o);
+  const int v = nearest_vertex(m, Vec3(0.1, 0.1, 0.5));
+  const Vec3 start = m.x[v];
+  s->attach({v}, [](double t) { return Eigen::Isometry3d(Eigen::Translation3d(0.1 * t, 0, 0.2 * t)); });
+  ASSERT_TRUE(s->step(20));
+  const Vec3 expect = start + Vec3(0.1, 0, 0.2) * s->time();
+  EXPECT_LT((s->positions()[v] - expect).norm(), 1e-12);
+  EXPECT_EQ(s->kinematic_vertices(), std::vector<int>{v});
+}
+
+TEST(SceneKinematics, ReleasedClothFalls) {
+  SceneOptions o;
+  o.table = false;
+  const Mesh m = lifted_square(0.2, 0.02, 0.5);
+  auto s = Scene::create(m, cotton(), o);
+  const int g = s->pin({0, 1, 2});
+  ASSERT_TRUE(s->step(10));
+  s->release(g);
+  EXPECT_THROW(s->release(g), InputError);
+  ASSERT_TRUE(s->step(20));
+  for (const Vec3& p : s->positions()) EXPECT_LT(p.z(), 0.5 - 0.01);
+}
+
+TEST(SceneKinematics, BadIndicesAndPosesAreInputErrors) {
+  auto s = Scene::create(lifted_square(0.1, 0.02, 0.1), cotton());
+  EXPECT_THROW(s->pin({-1}), InputError);
+  EXPECT_THROW(s->pin({s->vertex_count()}), InputError);
+  EXPECT_THROW(s->pin({}), InputError);
+  EXPECT_THROW(s->attach({0}, [](double) { return Eigen::Isometry3d(Eigen::Translation3d(NAN, 0, 0)); }), InputError);
+  EXPECT_THROW(s->set_targets({0}, {Vec3(0, 0, INFINITY)}), InputError);
+  EXPECT_THROW(s->set_state({}, {}), InputError);
+}
+
+TEST(SceneFailure, NonFiniteStateMarksFailedAndKeepsLastState) {
+  SceneOptions o;
+  o.table = false;
+  auto s = Scene::create(lifted_square(0.1, 0.02, 0.5), cotton(), o);
+  const auto before = s->positions();
+  // A target at 1e300 m overflows the membrane energy: the state turns non-finite.
+  s->set_targets({0}, {Vec3(1e300, 0, 0)});
+  EXPECT_FALSE(s->step());
+  EXPECT_TRUE(s->failed());
+  EXPECT_NE(s->failure().find("non-finite"), std::string::npos);
+  const auto after = s->positions();
+  for (size_t i = 0; i < before.size(); ++i) EXPECT_EQ(before[i], after[i]);
+  EXPECT_FALSE(s->step());  // refused while failed
+}
+
+TEST(SceneFailure, PoseThatTurnsNonFiniteLaterFailsTheStepNotTheProcess) {
+  SceneOptions o;
+  o.table = false;
+  auto s = Scene::create(lifted_square(0.1, 0.02, 0.5), cotton(), o);
+  s->attach({0}, [](double t) {
+    return Eigen::Isometry3d(Eigen::Translation3d(t > 0.02 ? NAN : 0.0, 0, 0));
+  });
+  EXPECT_FALSE(s->step(10));
+  EXPECT_TRUE(s->failed());
+  EXPECT_NE(s->failure().find("not finite"), std::string::npos);
+}
+
+// Anisotropy: the same strip pulled along the warp and along the weft stretches in the ratio
+// of the two stiffnesses.
+TEST(SceneAnisotropy, WarpAndWeftStretchByTheirOwnStiffness) {
+  Material m = cotton();
+  m.stretch_warp = 1000;
+  m.stretch_weft = 250;
+  SceneOptions o;
+  o.table = false;
+  o.gravity = Vec3::Zero();
+  o.dt = 1.0;
+  o.linear_solver = LinearSolverKind::kDirect;
+  o.newton_max_iters = 30;
+  auto elongation = [&](bool along_warp) {
+    Mesh mesh = make_rect(0.1, 0.02, 0.005);  // long along x
+    for (size_t i = 0; i < mesh.x.size(); ++i) {
+      mesh.x[i].z() = 0.5;
+      if (!along_warp) mesh.uv[i] = Vec2(mesh.uv[i].y(), -mesh.uv[i].x());  // warp across, weft along
+    }
+    auto s = Scene::create(mesh, m, o);
+    s->pin(vertices_where(mesh, [](const Vec3& p) { return p.x() < 1e-9; }));
+    const auto end = vertices_where(mesh, [](const Vec3& p) { return p.x() > 0.1 - 1e-9; });
+    std::vector<Vec3> f(end.size(), Vec3(0.02 / end.size(), 0, 0));  // 0.02 N in total
+    s->set_external_forces(end, f);
+    s->relax(30, 1e-12);
+    double d = 0;
+    const auto x = s->positions();
+    for (int i : end) d += x[i].x() - mesh.x[i].x();
+    return d / end.size();
+  };
+  const double warp = elongation(true), weft = elongation(false);
+  EXPECT_NEAR(warp, 0.02 / 0.02 / 1000 * 0.1, 0.03 * warp);
+  EXPECT_NEAR(weft / warp, 4.0, 0.15);
+}
+
+// The CUDA backend runs the same element functions: one step must agree with the CPU step.
+TEST(SceneBackends, CudaStepMatchesCpuStep) {
+  if (!cuda_available()) GTEST_SKIP() << "no CUDA device on this machine";
+  SceneOptions o;
+  o.pcg_tol = 1e-8;
+  o.pcg_max_iters = 2000;
+  o.newton_max_iters = 10;
+  o.newton_tol = 1e-8;
+  const Mesh m = lifted_square(0.3, 0.01, 0.2);
+  auto cpu = Scene::create(m, cotton(), o);
+  o.backend = BackendKind::kCuda;
+  auto gpu = Scene::create(m, cotton(), o);
+  for (auto* s : {cpu.get(), gpu.get()}) s->pin({0, nearest_vertex(m, Vec3(0.3, 0, 0.2))});
+  ASSERT_TRUE(cpu->step(5));
+  ASSERT_TRUE(gpu->step(5));
+  const auto a = cpu->positions(), b = gpu->positions();
+  double worst = 0;
+  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, (a[i] - b[i]).norm() / std::max(1e-3, (a[i] - m.x[i]).norm()));
+  EXPECT_LT(worst, 1e-4);
+}
+
+TEST(SceneMemory, ReportsBytesPerVertex) {
+  auto s = Scene::create(lifted_square(0.2, 0.01, 0.1), cotton());
+  EXPECT_GT(s->bytes_per_vertex(), 500);
+  EXPECT_LT(s->bytes_per_vertex(), 20000);
+}
+
+}  // namespace
+}  // namespace gd::sim
