@@ -1,0 +1,270 @@
+/// \file
+/// gd-bench: step-time benchmark of the simulator on hanging cotton squares of growing size.
+///
+///   gd-bench [--json] [--steps N] [--sizes 5000,10000,20000,40000] [--backend cpu|cuda|auto]
+///            [--threads N] [--side 0.5] [--warmup 3] [--max-seconds 30] [--material cotton]
+///
+/// Each case ("drape/<N>") is a cotton square of side 0.5 m meshed by make_rect with a spacing
+/// chosen to give about N vertices, lifted to z = 0.6 m and pinned at its two top corners (the
+/// vertices within 1 cm of (0, side) and (side, side)), with SceneOptions defaults otherwise.
+/// After a few warm-up steps, N timed steps give the mean wall time per step and the mean Newton
+/// and PCG iterations per step (and the fraction of steps whose Newton solve converged). A case whose warm-up and timed steps run past --max-seconds
+/// (default 30 s) stops early, after at least one timed step, and reports the steps it timed
+/// ("steps"); this keeps the default run near 3 minutes on 2 CPU cores. --max-seconds 0 times
+/// exactly N steps in every case.
+///
+/// Without --json: a table on stdout. With --json: exactly one JSON array on stdout. Progress
+/// always goes to stderr.
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "sim/demand.h"
+#include "sim/log.h"
+#include "sim/material.h"
+#include "sim/mesh.h"
+#include "sim/scene.h"
+#include "sim/solver/options.h"
+
+namespace {
+
+using gd::sim::Mesh;
+using gd::sim::Real;
+using gd::sim::Scene;
+using gd::sim::SceneOptions;
+using gd::sim::Vec3;
+using Clock = std::chrono::steady_clock;
+
+struct CaseResult {
+  std::string name;
+  int vertices = 0;
+  int steps = 0;  ///< timed steps actually taken
+  double ms_per_step = 0;
+  double newton_iters = 0;
+  double pcg_iters = 0;
+  double converged = 0;  ///< fraction of timed steps whose Newton solve converged
+  double bytes_per_vertex = 0;
+  std::string backend;
+  std::string error;  ///< non-empty when the case failed
+};
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// A side × side make_rect square with about `target` vertices (one spacing correction pass).
+Mesh square_with_about(Real side, int target) {
+  // make_rect: about side/dx columns and side/(dx √3/2) rows, so N ≈ side² · 2/(√3 dx²).
+  Real dx = side * std::sqrt(2.0 / (std::sqrt(3.0) * target));
+  Mesh m = gd::sim::make_rect(side, side, dx);
+  const double ratio = static_cast<double>(m.x.size()) / target;
+  if (std::abs(ratio - 1.0) > 0.02) m = gd::sim::make_rect(side, side, dx * std::sqrt(ratio));
+  return m;
+}
+
+std::vector<int> corner_vertices(const Mesh& m, Real side, Real radius) {
+  const Vec3 a(0, side, 0), b(side, side, 0);
+  return gd::sim::vertices_where(m, [&](const Vec3& p) {
+    const Vec3 q(p.x(), p.y(), 0);
+    return (q - a).norm() <= radius + 1e-12 || (q - b).norm() <= radius + 1e-12;
+  });
+}
+
+CaseResult run_case(int target, Real side, int warmup, int steps, double max_seconds, const SceneOptions& opt,
+                    const gd::sim::Material& mat) {
+  CaseResult r;
+  r.name = "drape/" + std::to_string(target);
+  Mesh mesh = square_with_about(side, target);
+  for (auto& p : mesh.x) p.z() = 0.6;
+  r.vertices = static_cast<int>(mesh.x.size());
+
+  const auto t_setup = Clock::now();
+  auto scene = Scene::create(mesh, mat, opt);
+  scene->pin(corner_vertices(mesh, side, 0.01));
+  r.backend = scene->backend();
+  r.bytes_per_vertex = scene->bytes_per_vertex();
+  std::fprintf(stderr, "[gd-bench] %s: %d vertices on %s (setup %.2f s); %d warm-up + %d timed steps\n",
+               r.name.c_str(), r.vertices, r.backend.c_str(), seconds_since(t_setup), warmup, steps);
+
+  // The --max-seconds budget covers warm-up and timed steps: warm-up stops after half of it
+  // (at least one step), the timed steps once the whole is spent (at least one step).
+  const auto t_case = Clock::now();
+  for (int i = 0; i < warmup; ++i) {
+    if (!scene->step()) {
+      r.error = "scene failed during warm-up: " + scene->failure();
+      return r;
+    }
+    if (max_seconds > 0 && seconds_since(t_case) > 0.5 * max_seconds && i + 1 < warmup) {
+      std::fprintf(stderr, "[gd-bench] %s: warm-up cut to %d step(s) (--max-seconds %.0f)\n", r.name.c_str(), i + 1,
+                   max_seconds);
+      break;
+    }
+  }
+
+  double total_s = 0;
+  long newton = 0, pcg = 0, converged = 0;
+  int done = 0;
+  double last_report = seconds_since(t_case);
+  for (int i = 0; i < steps; ++i) {
+    const auto t0 = Clock::now();
+    const bool ok = scene->step();
+    total_s += seconds_since(t0);
+    if (!ok) {
+      r.error = "scene failed at timed step " + std::to_string(i) + ": " + scene->failure();
+      break;
+    }
+    const auto& st = scene->last_stats();
+    newton += st.newton_iters;
+    pcg += st.pcg_iters;
+    converged += st.converged ? 1 : 0;
+    ++done;
+    const double elapsed = seconds_since(t_case);
+    if (elapsed - last_report >= 10.0 && done < steps) {
+      last_report = elapsed;
+      std::fprintf(stderr, "[gd-bench] %s: %d/%d steps, %.1f ms/step so far\n", r.name.c_str(), done, steps,
+                   1e3 * total_s / done);
+    }
+    if (max_seconds > 0 && elapsed > max_seconds && done < steps) {
+      std::fprintf(stderr, "[gd-bench] %s: stopping after %d of %d steps (--max-seconds %.0f)\n", r.name.c_str(),
+                   done, steps, max_seconds);
+      break;
+    }
+  }
+  r.steps = done;
+  if (done > 0) {
+    r.ms_per_step = 1e3 * total_s / done;
+    r.newton_iters = static_cast<double>(newton) / done;
+    r.pcg_iters = static_cast<double>(pcg) / done;
+    r.converged = static_cast<double>(converged) / done;
+  }
+  std::fprintf(stderr,
+               "[gd-bench] %s: %.2f ms/step, %.2f Newton and %.1f PCG iterations per step, %.0f%% converged%s\n",
+               r.name.c_str(), r.ms_per_step, r.newton_iters, r.pcg_iters, 100.0 * r.converged,
+               r.error.empty() ? "" : " (FAILED)");
+  return r;
+}
+
+std::vector<int> parse_sizes(const std::string& s) {
+  std::vector<int> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item.empty()) continue;
+    std::size_t pos = 0;
+    long v = 0;
+    try {
+      v = std::stol(item, &pos);
+    } catch (const std::exception&) {
+      pos = 0;
+    }
+    if (pos != item.size() || v < 4 || v > 100000000)
+      throw CLI::ValidationError("--sizes", "'" + item + "' is not a vertex count (integer >= 4)");
+    out.push_back(static_cast<int>(v));
+  }
+  if (out.empty()) throw CLI::ValidationError("--sizes", "no sizes given");
+  return out;
+}
+
+nlohmann::json to_json(const CaseResult& r) {
+  nlohmann::json j = {{"case", r.name},
+                      {"vertices", r.vertices},
+                      {"steps", r.steps},
+                      {"ms_per_step", r.steps > 0 ? nlohmann::json(r.ms_per_step) : nlohmann::json(nullptr)},
+                      {"newton_iters", r.steps > 0 ? nlohmann::json(r.newton_iters) : nlohmann::json(nullptr)},
+                      {"pcg_iters", r.steps > 0 ? nlohmann::json(r.pcg_iters) : nlohmann::json(nullptr)},
+                      {"converged", r.steps > 0 ? nlohmann::json(r.converged) : nlohmann::json(nullptr)},
+                      {"bytes_per_vertex", r.bytes_per_vertex},
+                      {"backend", r.backend}};
+  if (!r.error.empty()) j["error"] = r.error;
+  return j;
+}
+
+void print_table(const std::vector<CaseResult>& rs) {
+  std::printf("%-14s %9s %6s %12s %9s %9s %10s %10s %-8s\n", "case", "vertices", "steps", "ms/step", "newton",
+              "pcg", "converged", "bytes/vtx", "backend");
+  for (const auto& r : rs) {
+    std::printf("%-14s %9d %6d %12.2f %9.2f %9.1f %9.0f%% %10.0f %-8s%s\n", r.name.c_str(), r.vertices, r.steps,
+                r.ms_per_step, r.newton_iters, r.pcg_iters, 100.0 * r.converged, r.bytes_per_vertex,
+                r.backend.c_str(),
+                r.error.empty() ? "" : ("  FAILED: " + r.error).c_str());
+  }
+  std::printf("(ms/step: mean wall time of a step; newton, pcg: mean iterations per step, PCG summed over "
+              "Newton iterations; converged: steps whose Newton solve met newton_tol)\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"gd-bench: step time of hanging cotton squares (drape/<N>) of growing vertex count"};
+  bool json = false;
+  int steps = 20;
+  int warmup = 3;
+  int threads = 0;
+  double side = 0.5;
+  double max_seconds = 30;
+  std::string sizes_arg = "5000,10000,20000,40000";
+  std::string backend_arg = "auto";
+  std::string material_name = "cotton";
+  app.add_flag("--json", json, "Print one JSON array of results on stdout (and nothing else)");
+  app.add_option("--steps", steps, "Timed steps per case")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--warmup", warmup, "Untimed warm-up steps per case")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--sizes", sizes_arg, "Comma-separated approximate vertex counts")->capture_default_str();
+  app.add_option("--backend", backend_arg, "Solver backend")
+      ->check(CLI::IsMember({"cpu", "cuda", "auto"}))
+      ->capture_default_str();
+  app.add_option("--threads", threads, "CPU threads (0: OpenMP default)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--side", side, "Side of the square, m")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--material", material_name, "Material name from the library")->capture_default_str();
+  app.add_option("--max-seconds", max_seconds,
+                 "Time budget per case, s, warm-up included: a case stops early, reporting the steps it timed (0: no limit)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  std::vector<CaseResult> results;
+  try {
+    const std::vector<int> sizes = parse_sizes(sizes_arg);
+    SceneOptions opt;
+    opt.backend = backend_arg == "cpu"    ? gd::sim::BackendKind::kCpu
+                  : backend_arg == "cuda" ? gd::sim::BackendKind::kCuda
+                                          : gd::sim::BackendKind::kAuto;
+    opt.threads = threads;
+    const auto lib = gd::sim::MaterialLibrary::load_default();
+    const auto& mat = lib.get(material_name);
+    const auto t_all = Clock::now();
+    for (std::size_t k = 0; k < sizes.size(); ++k) {
+      std::fprintf(stderr, "[gd-bench] case %zu/%zu (%.1f s elapsed)\n", k + 1, sizes.size(), seconds_since(t_all));
+      results.push_back(run_case(sizes[k], side, warmup, steps, max_seconds, opt, mat));
+    }
+    std::fprintf(stderr, "[gd-bench] done in %.1f s\n", seconds_since(t_all));
+  } catch (const CLI::Error& e) {
+    return app.exit(e);
+  } catch (const gd::sim::InputError& e) {
+    std::fprintf(stderr, "gd-bench: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "gd-bench: error: %s\n", e.what());
+    return 1;
+  }
+
+  if (json) {
+    nlohmann::json arr = nlohmann::json::array();
+    for (const auto& r : results) arr.push_back(to_json(r));
+    std::printf("%s\n", arr.dump(2).c_str());
+  } else {
+    print_table(results);
+  }
+  for (const auto& r : results)
+    if (!r.error.empty()) return 1;
+  return 0;
+}
