@@ -202,6 +202,7 @@ bool Scene::do_step(bool quasi_static) {
     return false;
   }
   time_ += options_.dt;
+  if (stats_.untangled) ++untangle_runs_;
   return true;
 }
 

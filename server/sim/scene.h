@@ -77,6 +77,8 @@ class Scene {
   bool failed() const { return failed_; }
   const std::string& failure() const { return failure_; }
   const StepStats& last_stats() const { return stats_; }
+  /// Steps in which the untangling fail-safe ran, since creation.
+  int untangle_runs() const { return untangle_runs_; }
   EnergyReport energies() const { return solver_->energies(); }
   double max_strain() const { return solver_->max_strain(); }
   /// Bytes held per vertex by the solver (what decides how many scenes fit on a server).
@@ -106,6 +108,7 @@ class Scene {
   bool failed_ = false;
   std::string failure_;
   StepStats stats_;
+  int untangle_runs_ = 0;
 };
 
 }  // namespace gd::sim

@@ -55,6 +55,9 @@ CaseResult drape_case(const sim::Material& m);
 CaseResult drop_case(const sim::Material& m);
 CaseResult slide_case(const sim::Material& m);
 CaseResult hang_case(const sim::Material& m);
+/// self/fold: a square folded twice by kinematic grips on the table and released; passes with
+/// zero intersecting triangle pairs after every step.
+CaseResult fold_case(const sim::Material& m);
 
 /// A case by name, run on demand.
 struct NamedCase {

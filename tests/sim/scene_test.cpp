@@ -65,7 +65,9 @@ TEST(SceneKinematics, AttachedVerticesFollowTheirPose) {
   s->attach({v}, [](double t) { return Eigen::Isometry3d(Eigen::Translation3d(0.1 * t, 0, 0.2 * t)); });
   ASSERT_TRUE(s->step(20));
   const Vec3 expect = start + Vec3(0.1, 0, 0.2) * s->time();
-  EXPECT_LT((s->positions()[v] - expect).norm(), 1e-12);
+  // With self-contact on, kinematic vertices are held by a very stiff spring (so CCD guards
+  // them too): they follow to well under a micrometre.
+  EXPECT_LT((s->positions()[v] - expect).norm(), 1e-6);
   EXPECT_EQ(s->kinematic_vertices(), std::vector<int>{v});
 }
 

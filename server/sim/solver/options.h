@@ -48,6 +48,15 @@ struct SceneOptions {
   Real contact_distance = 0.0;    ///< barrier activation distance dhat, m (0: max(thickness, 1 mm))
   Real friction_eps_v = 1e-3;     ///< m/s: below this slip speed friction is smoothed (static regime)
 
+  // --- cloth self-contact ---------------------------------------------------------------
+  /// Vertex-face and edge-edge barriers between cloth triangles, Embree broad phase, CCD,
+  /// lagged cloth-cloth friction, intersection count and untangling. Off by default while the
+  /// contact work is in progress (docs/physics.md).
+  bool self_contact = false;
+  Real self_friction = -1;         ///< cloth-cloth Coulomb coefficient (< 0: the material's)
+  bool check_intersections = true; ///< exact intersecting-pair count after every step
+  bool untangle = true;            ///< run the untangling fail-safe when intersections are found
+
   // --- air drag ---------------------------------------------------------------------------
   Real air_density = 1.2;         ///< kg/m^3
   Real drag_coefficient = 1.0;    ///< normal pressure drag coefficient C_d of a flat plate

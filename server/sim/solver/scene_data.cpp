@@ -62,6 +62,8 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
   SceneData d;
   d.n = static_cast<int>(mesh.x.size());
   d.thickness = mat.thickness;
+  d.friction = mat.friction;
+  d.stiffness_ref = std::max(mat.stretch_warp, mat.stretch_weft);
   d.x.resize(3 * d.n);
   d.v.assign(3 * d.n, 0.0);
   for (int i = 0; i < d.n; ++i)

@@ -39,6 +39,8 @@ struct SceneData {
   Coloring tri_colors, hinge_colors;
 
   Real thickness = 0;                    ///< m (from the material)
+  Real friction = 0;                     ///< cloth-cloth Coulomb coefficient (from the material)
+  Real stiffness_ref = 0;                ///< largest stretch stiffness of the material, N/m
   Real area = 0;                         ///< total rest area, m^2
 
   int triangles() const { return static_cast<int>(tris.size() / 3); }

@@ -21,6 +21,11 @@ struct StepStats {
   double min_alpha = 1;        ///< smallest accepted line-search step
   bool converged = false;      ///< step_norm fell below newton_tol
   bool finite = true;          ///< false when the objective was not finite (the step is void)
+  int contacts = 0;            ///< active self-contact pairs (closer than the contact distance)
+  int candidates = 0;          ///< broad-phase candidate pairs
+  int intersecting_pairs = 0;  ///< intersecting triangle pairs after the step (and untangling)
+  bool untangled = false;      ///< the untangling fail-safe ran this step
+  double broad_phase_seconds = 0;
   double seconds = 0;          ///< wall time of the step
 };
 

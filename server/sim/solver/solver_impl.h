@@ -24,6 +24,10 @@
 #include "sim/energy/stretch_shear.h"
 #include "sim/energy/table_barrier.h"
 #include "sim/energy/table_friction.h"
+#include "sim/contact/barrier.h"
+#include "sim/contact/ccd.h"
+#include "sim/contact/friction.h"
+#include "sim/solver/self_contact.h"
 #include "sim/solver/solver.h"
 
 namespace gd::sim {
@@ -50,6 +54,10 @@ struct Params {
   Real air_density = 0, drag_cd = 0, drag_linear = 0, drag_tangent_ratio = 0;
   Real beta_membrane = 0, beta_bend = 0, alpha_mass = 0;
   bool bending_exact_projected = false;
+  bool self_contact = false;
+  Real dhat_self = 0, mu_self = 0;
+  Real kin_stiffness = 1e3;
+  Real membrane_ref = 0;  // N/m, the material's largest stretch stiffness
 };
 
 /// Raw pointers into the backend's arrays (host or device), copied into kernels.
@@ -69,7 +77,44 @@ struct View {
   const double* x_t;     // positions at step start
   const double* v_t;     // velocities at step start
   const double* f_ext;   // external forces, N (3 per vertex)
+  const int* kin;            // 1 for kinematic vertices held by a spring (self-contact mode)
+  const double* kin_target;  // their targets at the end of the step (3 per vertex)
+  // self-contact: candidate pairs (line search, CCD), active pairs (Hessian), lagged friction
+  int n_cand = 0, n_act = 0, n_fr = 0;
+  const int* cand_v;
+  const int* cand_type;
+  const double* cand_kappa;
+  const double* cand_eps;
+  const int* act_v;
+  const int* act_type;
+  const double* act_kappa;
+  const double* act_eps;
+  const int* fr_v;
+  const double* fr_w;
+  const double* fr_T;
+  const double* fr_lambda;
 };
+
+/// Self-contact barrier of one pair (vertex-face or edge-edge), PSD-projected Hessian.
+GD_HD Real pair_barrier(const Params& P, const int* v, int type, Real kappa, Real eps_x, const double* x, Vec12* g,
+                        Mat12* H) {
+  const Vec3 a = load3(x, v[0]), b = load3(x, v[1]), c = load3(x, v[2]), d = load3(x, v[3]);
+  return type == 0 ? vf_contact_energy(a, b, c, d, 0.0, P.dhat_self, kappa, g, H, HessianKind::kProjected)
+                   : ee_contact_energy(a, b, c, d, 0.0, P.dhat_self, kappa, eps_x, g, H, HessianKind::kProjected);
+}
+
+/// Lagged cloth-cloth friction of friction pair k.
+GD_HD Real pair_friction(const View& V, const Params& P, int k, const double* x, Vec12* g, Mat12* H) {
+  const int* v = V.fr_v + 4 * k;
+  Vec12 xs, ys;
+  for (int a = 0; a < 4; ++a) {
+    xs.segment<3>(3 * a) = load3(x, v[a]);
+    ys.segment<3>(3 * a) = load3(V.x_t, v[a]);
+  }
+  const VecN<4> w(V.fr_w[4 * k], V.fr_w[4 * k + 1], V.fr_w[4 * k + 2], V.fr_w[4 * k + 3]);
+  const Eigen::Map<const Eigen::Matrix<Real, 3, 2>> T(V.fr_T + 6 * k);
+  return contact_friction_energy(xs, ys, w, T, P.mu_self, V.fr_lambda[k], P.friction_eps, g, H);
+}
 
 /// Inertia target x_hat = x_t + h v_t (gravity is its own energy).
 GD_HD Vec3 inertia_target(const View& V, const Params& P, int i) {
@@ -94,6 +139,13 @@ GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Ve
   e += mass_damping_energy(x, xt, m, P.alpha_mass, P.h, g ? &gk : nullptr, H ? &hd : nullptr);
   if (g) *g += gk;
   if (H) *H += hd * Mat3::Identity();
+  if (V.kin[i]) {  // stiff spring to the kinematic target, far stiffer than inertia and membrane
+    const Real k = P.kin_stiffness * (m / (P.h * P.h) + P.membrane_ref);
+    const Vec3 d = x - load3(V.kin_target, i);
+    e += 0.5 * k * d.squaredNorm();
+    if (g) *g += k * d;
+    if (H) *H += k * Mat3::Identity();
+  }
   if (P.table && !V.fixed[i]) {
     const Real kappa = P.kappa_per_mass * m;
     Mat3 Hb;
@@ -198,8 +250,11 @@ class Solver final : public SolverBase {
     Exec::resize(vals_, 9 * static_cast<size_t>(d.blocks()));
     Exec::resize(pinv_, 9 * static_cast<size_t>(n_));
     Exec::resize(fixed_, n_);
+    Exec::resize(kin_flag_, n_);
+    Exec::resize(kin_target_, 3 * static_cast<size_t>(n_));
     Exec::resize(f_ext_, 3 * static_cast<size_t>(n_));
     kin_fixed_host_.assign(n_, 0);
+    host_dx_.assign(3 * static_cast<size_t>(n_), 0.0);
 
     P_.gravity = opt.gravity;
     P_.table = opt.table;
@@ -217,6 +272,13 @@ class Solver final : public SolverBase {
     P_.beta_bend = opt.bending_damping;
     P_.alpha_mass = opt.mass_damping;
     P_.bending_exact_projected = opt.bending_hessian == BendingHessianKind::kProjectedExact;
+    P_.membrane_ref = d.stiffness_ref;
+    P_.self_contact = opt.self_contact && d.triangles() > 1;
+    if (P_.self_contact) {
+      P_.dhat_self = P_.dhat;
+      P_.mu_self = opt.self_friction >= 0 ? opt.self_friction : d.friction;
+      self_ = std::make_unique<SelfContact>(d, P_.dhat_self, P_.kappa_per_mass);
+    }
   }
 
   // ---------------------------------------------------------------------------------------
@@ -224,10 +286,13 @@ class Solver final : public SolverBase {
   StepStats step(const KinematicTargets& kin, bool quasi_static) override {
     const auto t0 = std::chrono::steady_clock::now();
     StepStats st;
+    const double bp_seconds_at_start = self_ ? self_->broad_phase_seconds() : 0.0;
     begin_step(kin, quasi_static);                    // lagged data, Dirichlet targets, predictor
     for (int k = 0; k < opt_.newton_max_iters; ++k) {
+      select_contacts();                               // active self-contact pairs at x
       assemble();                                      // gradient and PSD Hessian of L at x
       st.pcg_iters += solve_linear();                  // dx = -H^-1 g (inexact)
+      find_contacts_along_step();                      // broad phase on the motion x -> x + dx
       double e0 = 0;
       const double alpha = line_search(max_step(), &e0);  // CCD cap, then Armijo backtracking
       if (!std::isfinite(e0)) {                        // e.g. a target that tears the cloth apart
@@ -244,6 +309,12 @@ class Solver final : public SolverBase {
       }
     }
     end_step();                                        // v = (x - x_t)/h
+    check_intersections(&st);                          // exact count; untangle if any (fail-safe)
+    if (self_) {
+      st.contacts = self_->active().size();
+      st.candidates = self_->candidates().size();
+      st.broad_phase_seconds = self_->broad_phase_seconds() - bp_seconds_at_start;
+    }
     st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return st;
   }
@@ -329,6 +400,23 @@ class Solver final : public SolverBase {
     V.x_t = Exec::ptr(x_t_);
     V.v_t = Exec::ptr(v_t_);
     V.f_ext = Exec::ptr(f_ext_);
+    V.kin = Exec::ptr(kin_flag_);
+    V.kin_target = Exec::ptr(kin_target_);
+    V.n_cand = n_cand_;
+    V.cand_v = Exec::ptr(cand_v_);
+    V.cand_type = Exec::ptr(cand_type_);
+    V.cand_kappa = Exec::ptr(cand_kappa_);
+    V.cand_eps = Exec::ptr(cand_eps_);
+    V.n_act = n_act_;
+    V.act_v = Exec::ptr(act_v_);
+    V.act_type = Exec::ptr(act_type_);
+    V.act_kappa = Exec::ptr(act_kappa_);
+    V.act_eps = Exec::ptr(act_eps_);
+    V.n_fr = n_fr_;
+    V.fr_v = Exec::ptr(fr_v_);
+    V.fr_w = Exec::ptr(fr_w_);
+    V.fr_T = Exec::ptr(fr_T_);
+    V.fr_lambda = Exec::ptr(fr_lambda_);
     return V;
   }
 
@@ -341,17 +429,27 @@ class Solver final : public SolverBase {
     if (quasi_static) Exec::fill(v_, 0.0);
     copy(x_, x_t_);
     copy(v_, v_t_);
-    // Dirichlet flags and targets.
+    // Kinematic vertices: hard Dirichlet without self-contact; with self-contact they stay in the
+    // solve, pulled to their targets by a stiff spring, so CCD also guards their motion and a
+    // gripper pushes cloth aside instead of jumping through it.
+    const bool soft = self_ != nullptr;
     std::fill(kin_fixed_host_.begin(), kin_fixed_host_.end(), 0);
-    for (int k : kin.vertices) kin_fixed_host_[k] = 1;
+    std::vector<int> kin_flag(n_, 0);
+    for (int k : kin.vertices) (soft ? kin_flag : kin_fixed_host_)[k] = 1;
     Exec::upload(fixed_, kin_fixed_host_);
-    Exec::upload(kin_idx_, kin.vertices);
-    Exec::upload(kin_target_, kin.targets);
+    Exec::upload(kin_flag_, kin_flag);
+    std::vector<double> targets(3 * static_cast<size_t>(n_), 0.0);
+    for (size_t k = 0; k < kin.vertices.size(); ++k)
+      for (int c = 0; c < 3; ++c) targets[3 * kin.vertices[k] + c] = kin.targets[3 * k + c];
+    Exec::upload(kin_target_, targets);
     const detail::View V = view();
     const detail::Params P = P_;
     double* x = Exec::ptr(x_);
     Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
-      if (V.fixed[i]) return;
+      if (V.fixed[i] || V.kin[i]) {  // kinematic: straight to the target
+        detail::store3(x, i, detail::load3(V.kin_target, i));
+        return;
+      }
       const Vec3 xt = detail::load3(V.x_t, i);
       Vec3 step = detail::inertia_target(V, P, i) - xt;
       if (P.table) {  // keep the predictor clear of the table
@@ -360,12 +458,81 @@ class Solver final : public SolverBase {
       }
       detail::store3(x, i, xt + step);
     });
-    const int* ki = Exec::ptr(kin_idx_);
-    const double* kt = Exec::ptr(kin_target_);
-    Exec::for_each(static_cast<int>(kin.vertices.size()), [=] GD_HD_LAMBDA(int k) {
-      const int i = ki[k];
-      for (int c = 0; c < 3; ++c) x[3 * i + c] = kt[3 * k + c];
-    });
+    if (self_) {
+      // Lagged friction from the contacts at the start of the step; then make the predictor
+      // safe: candidates along x_t -> x, and the whole motion scaled back by CCD where needed.
+      Exec::download(host_xt_, x_t_);
+      self_->find(host_xt_, host_xt_);
+      self_->select_active(host_xt_, kin_fixed_host_);
+      self_->build_friction(host_xt_);
+      upload_friction();
+      Exec::download(host_x_, x_);
+      self_->find(host_xt_, host_x_);
+      upload_candidates();
+      for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] = host_x_[k] - host_xt_[k];
+      Exec::upload(dx_, host_dx_);
+      copy(x_t_, x_);
+      const double alpha = std::min(self_ccd_bound(), table_ccd_bound());
+      axpy(alpha < 1.0 ? 0.9 * alpha : 1.0, dx_, x_);
+    }
+  }
+
+  /// Active pairs (closer than dhat) at the current x, with their Hessian storage.
+  void select_contacts() {
+    if (!self_) return;
+    Exec::download(host_x_, x_);
+    self_->select_active(host_x_, kin_fixed_host_);
+    const ContactPairs& a = self_->active();
+    n_act_ = a.size();
+    Exec::upload(act_v_, a.v);
+    Exec::upload(act_type_, a.type);
+    Exec::upload(act_kappa_, a.kappa);
+    Exec::upload(act_eps_, a.eps_x);
+    Exec::resize(act_H_, 144 * static_cast<size_t>(n_act_));
+    upload_candidates();  // select_active drops pairs already at zero distance
+  }
+
+  /// Candidates along the Newton step x -> x + dx (for CCD and the line search).
+  void find_contacts_along_step() {
+    if (!self_) return;
+    Exec::download(host_x_, x_);
+    Exec::download(host_dx_, dx_);
+    for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] += host_x_[k];
+    self_->find(host_x_, host_dx_);
+    self_->select_active(host_x_, kin_fixed_host_);
+    upload_candidates();
+  }
+
+  void upload_candidates() {
+    const ContactPairs& c = self_->candidates();
+    n_cand_ = c.size();
+    Exec::upload(cand_v_, c.v);
+    Exec::upload(cand_type_, c.type);
+    Exec::upload(cand_kappa_, c.kappa);
+    Exec::upload(cand_eps_, c.eps_x);
+  }
+
+  void upload_friction() {
+    const FrictionPairs& f = self_->friction();
+    n_fr_ = f.size();
+    Exec::upload(fr_v_, f.v);
+    Exec::upload(fr_w_, f.w);
+    Exec::upload(fr_T_, f.T);
+    Exec::upload(fr_lambda_, f.lambda);
+    Exec::resize(fr_H_, 144 * static_cast<size_t>(n_fr_));
+  }
+
+  /// Exact count of intersecting triangle pairs after the step; the untangling fail-safe runs
+  /// when there are any.
+  void check_intersections(StepStats* st) {
+    if (!self_ || !opt_.check_intersections) return;
+    Exec::download(host_x_, x_);
+    st->intersecting_pairs = self_->count_intersections(host_x_);
+    if (st->intersecting_pairs > 0 && opt_.untangle) {
+      st->untangled = true;
+      st->intersecting_pairs = self_->untangle(&host_x_, kin_fixed_host_);
+      Exec::upload(x_, host_x_);
+    }
   }
 
   /// Gradient g_ and projected Hessian vals_ of L at x_. Dirichlet rows are left zero (identity
@@ -400,6 +567,44 @@ class Solver final : public SolverBase {
       detail::hinge_terms(V, P, h, x, &ge, &He);
       scatter<4>(V, V.hinges + 4 * h, V.hinge_slots + 16 * h, ge, He, g, H);
     });
+    if (!self_) return;
+    // Contact pairs couple vertices outside the mesh pattern: their diagonal blocks go into the
+    // block matrix, their off-diagonal blocks stay with the pair (applied in spmv).
+    double* HA = Exec::ptr(act_H_);
+    double* HF = Exec::ptr(fr_H_);
+    Exec::for_each(V.n_act, [=] GD_HD_LAMBDA(int c) {
+      Vec12 ge;
+      Mat12 He;
+      detail::pair_barrier(P, V.act_v + 4 * c, V.act_type[c], V.act_kappa[c], V.act_eps[c], x, &ge, &He);
+      scatter_pair(V, V.act_v + 4 * c, ge, He, g, H, HA + 144 * c);
+    }, kSerialOnCpu);
+    Exec::for_each(V.n_fr, [=] GD_HD_LAMBDA(int k) {
+      Vec12 ge;
+      Mat12 He;
+      detail::pair_friction(V, P, k, x, &ge, &He);
+      scatter_pair(V, V.fr_v + 4 * k, ge, He, g, H, HF + 144 * k);
+    }, kSerialOnCpu);
+  }
+
+  /// Loops that add into shared rows without colouring: serial on the CPU, atomics on the GPU.
+  static constexpr int kSerialOnCpu = Exec::kColoring ? 0x7fffffff : 0;
+
+  GD_HD static void scatter_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12& He, double* g,
+                                 double* H, double* Hpair) {
+    for (int a = 0; a < 4; ++a) {
+      const bool fa = V.fixed[vs[a]];
+      if (!fa)
+        for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, ge(3 * a + c));
+      for (int b = 0; b < 4; ++b) {
+        const bool keep = !fa && !V.fixed[vs[b]];
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) {
+            const double h = keep ? He(3 * a + r, 3 * b + c) : 0.0;
+            Hpair[36 * a + 12 * r + 3 * b + c] = a == b ? 0.0 : h;  // row-major 12x12
+            if (a == b && keep) Exec::add(H + 9 * V.diag[vs[a]] + 3 * r + c, h);
+          }
+      }
+    }
   }
 
   template <int K>
@@ -443,6 +648,14 @@ class Solver final : public SolverBase {
                    Exec::kParallelMinHeavy);
     e += Exec::sum(V.nh, [=] GD_HD_LAMBDA(int h) { return detail::hinge_terms(V, P, h, x, nullptr, nullptr); },
                    Exec::kParallelMinHeavy);
+    if (self_) {
+      e += Exec::sum(V.n_cand, [=] GD_HD_LAMBDA(int c) {
+        return detail::pair_barrier(P, V.cand_v + 4 * c, V.cand_type[c], V.cand_kappa[c], V.cand_eps[c], x, nullptr,
+                                    nullptr);
+      }, Exec::kParallelMinHeavy);
+      e += Exec::sum(V.n_fr, [=] GD_HD_LAMBDA(int k) { return detail::pair_friction(V, P, k, x, nullptr, nullptr); },
+                     Exec::kParallelMinHeavy);
+    }
     return e;
   }
 
@@ -469,6 +682,27 @@ class Solver final : public SolverBase {
       }
       detail::store3(y, i, acc);
     }, Exec::kParallelMinHeavy);
+    if (!self_) return;
+    pair_spmv(V.n_act, V.act_v, Exec::ptr(act_H_), x, y);
+    pair_spmv(V.n_fr, V.fr_v, Exec::ptr(fr_H_), x, y);
+  }
+
+  /// y += (off-diagonal blocks of the pairs' Hessians) x.
+  void pair_spmv(int count, const int* vs_all, const double* Hs, const double* x, double* y) {
+    const detail::View V = view();
+    Exec::for_each(count, [=] GD_HD_LAMBDA(int c) {
+      const int* vs = vs_all + 4 * c;
+      const double* Hc = Hs + 144 * c;
+      for (int a = 0; a < 4; ++a) {
+        if (V.fixed[vs[a]]) continue;
+        for (int r = 0; r < 3; ++r) {
+          double acc = 0;
+          for (int b = 0; b < 4; ++b)
+            for (int k = 0; k < 3; ++k) acc += Hc[36 * a + 12 * r + 3 * b + k] * x[3 * vs[b] + k];
+          Exec::add(y + 3 * vs[a] + r, acc);
+        }
+      }
+    }, kSerialOnCpu);
   }
 
   /// Block-Jacobi: inverts each vertex's 3x3 diagonal block.
@@ -557,6 +791,20 @@ class Solver final : public SolverBase {
             for (int c = 0; c < 3; ++c) trip.emplace_back(3 * i + r, 3 * j + c, vals_[9 * k + 3 * r + c]);
         }
       }
+      if (self_) {
+        auto add_pairs = [&](const std::vector<int>& vs, const Vec<double>& Hs) {
+          for (size_t c = 0; c < vs.size() / 4; ++c)
+            for (int a = 0; a < 4; ++a)
+              for (int b = 0; b < 4; ++b)
+                for (int r = 0; r < 3; ++r)
+                  for (int k = 0; k < 3; ++k) {
+                    const double h = Hs[144 * c + 36 * a + 12 * r + 3 * b + k];
+                    if (h != 0.0) trip.emplace_back(3 * vs[4 * c + a] + r, 3 * vs[4 * c + b] + k, h);
+                  }
+        };
+        add_pairs(self_->active().v, act_H_);
+        add_pairs(self_->friction().v, fr_H_);
+      }
       Eigen::SparseMatrix<double> A(3 * n_, 3 * n_);
       A.setFromTriplets(trip.begin(), trip.end());
       if (!ldlt_analyzed_) {
@@ -574,9 +822,12 @@ class Solver final : public SolverBase {
     }
   }
 
+  /// Largest step fraction along dx that keeps the state free of crossings (CCD).
+  double max_step() { return std::min(table_ccd_bound(), self_ccd_bound()); }
+
   /// Largest step fraction keeping every free vertex at least 10% of its distance above the
   /// table (continuous collision detection against a plane is exact and cheap).
-  double max_step() {
+  double table_ccd_bound() {
     if (!P_.table) return 1.0;
     const detail::View V = view();
     const detail::Params P = P_;
@@ -590,6 +841,25 @@ class Solver final : public SolverBase {
       if (dn >= 0) return 0.0;
       return -dn / (0.9 * d);
     });
+    return inv > 1.0 ? 1.0 / inv : 1.0;
+  }
+
+  /// Largest fraction of dx along which no candidate pair closes more than 90% of its gap.
+  double self_ccd_bound() {
+    if (!self_ || n_cand_ == 0) return 1.0;
+    const detail::View V = view();
+    const double* x = Exec::ptr(x_);
+    const double* dx = Exec::ptr(dx_);
+    const double inv = Exec::max(V.n_cand, [=] GD_HD_LAMBDA(int c) {
+      const int* v = V.cand_v + 4 * c;
+      const Vec3 a = detail::load3(x, v[0]), b = detail::load3(x, v[1]), q = detail::load3(x, v[2]),
+                 d = detail::load3(x, v[3]);
+      const Vec3 da = detail::load3(dx, v[0]), db = detail::load3(dx, v[1]), dq = detail::load3(dx, v[2]),
+                 dd = detail::load3(dx, v[3]);
+      const Real alpha = V.cand_type[c] == 0 ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, 0.0)
+                                             : edge_edge_ccd(a, b, q, d, da, db, dq, dd, 0.0);
+      return alpha >= 1.0 ? 0.0 : (alpha > 1e-12 ? 1.0 / alpha : 1e12);
+    }, Exec::kParallelMinHeavy);
     return inv > 1.0 ? 1.0 / inv : 1.0;
   }
 
@@ -654,12 +924,18 @@ class Solver final : public SolverBase {
   detail::Params P_;
   int n_ = 0;
   Vec<double> mass_;
-  Vec<int> tris_, hinges_, row_ptr_, cols_, diag_, tri_slots_, hinge_slots_, fixed_, kin_idx_;
+  Vec<int> tris_, hinges_, row_ptr_, cols_, diag_, tri_slots_, hinge_slots_, fixed_, kin_flag_;
   Vec<StretchShearRest> tri_rest_;
   Vec<HingeRest> hinge_rest_;
   Vec<double> f_ext_;
   Vec<double> x_, v_, x_t_, v_t_, g_, dx_, r_, z_, p_, ap_, x_trial_, vals_, pinv_, kin_target_;
   std::vector<int> kin_fixed_host_;
+  // self-contact (host bookkeeping, device pair lists)
+  std::unique_ptr<SelfContact> self_;
+  std::vector<double> host_x_, host_xt_, host_dx_;
+  int n_cand_ = 0, n_act_ = 0, n_fr_ = 0;
+  Vec<int> cand_v_, cand_type_, act_v_, act_type_, fr_v_;
+  Vec<double> cand_kappa_, cand_eps_, act_kappa_, act_eps_, act_H_, fr_w_, fr_T_, fr_lambda_, fr_H_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   bool ldlt_analyzed_ = false;
 };

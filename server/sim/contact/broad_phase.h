@@ -1,0 +1,67 @@
+#pragma once
+/// \file
+/// Broad phase of cloth self-contact: which vertex-face (VF) and edge-edge (EE) pairs of one mesh
+/// may come closer than a margin during a linear motion x0 -> x1, so that the narrow phase
+/// (distance.h, barrier.h, ccd.h) only evaluates those.
+///
+/// Bounds: every primitive (vertex, edge, triangle) gets the axis-aligned box of its corners at x0
+/// and at x1 (this contains the primitive at every time of the linear motion, since each point of
+/// it moves on a segment between two points of the box), inflated by margin / 2 on every side and
+/// rounded outwards to float. If two primitives come within distance d < margin of each other at
+/// some time, their points differ by less than d on every axis, so their boxes overlap: a pair
+/// whose boxes do not overlap cannot come within `margin` (no misses). A pair is a candidate
+/// exactly when the two boxes overlap (closed boxes: touching counts) and the primitives share no
+/// vertex; the Embree and brute-force implementations apply the same test to the same boxes and
+/// report the same sets.
+///
+/// Output lists are sorted lexicographically and free of duplicates (deterministic across runs
+/// and thread counts). Units: positions and margin in metres.
+
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace gd::sim {
+
+/// Candidate contact pairs between mesh primitives whose (swept, inflated) bounds overlap.
+struct ContactCandidates {
+  std::vector<Eigen::Vector2i> vf;  ///< (vertex, triangle) pairs; the vertex is not a corner of the triangle
+  std::vector<Eigen::Vector2i> ee;  ///< (edge a, edge b) pairs, indices into the edge list given at construction, a < b, edges share no vertex
+};
+
+/// Broad-phase interface (the CPU implementation uses Embree; a GPU LBVH can sit behind the same
+/// interface). An instance keeps its acceleration structures between calls; calls on one instance
+/// must not run concurrently.
+class BroadPhase {
+ public:
+  virtual ~BroadPhase() = default;
+  /// x0, x1: 3n flat positions at the start and end of a motion (pass x1 == x0 for a static
+  /// query); margin: inflation in metres (contact distance + thickness), >= 0. Every VF/EE pair
+  /// whose distance can fall below `margin` anywhere along the linear motion from x0 to x1 is
+  /// reported (no misses; extra candidates are allowed). `out` is overwritten. Throws InputError
+  /// for wrong sizes, a negative or non-finite margin, or a non-finite position.
+  virtual void find(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
+                    ContactCandidates* out) = 0;
+  /// Triangle pairs (t_a < t_b, sharing no vertex) whose swept inflated bounds overlap: used by the
+  /// intersection check and untangling. Same arguments and guarantees as find(); `out` is overwritten.
+  virtual void triangle_pairs(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
+                              std::vector<Eigen::Vector2i>* out) = 0;
+};
+
+/// Embree 3 implementation (rtcCollide on user geometries with per-primitive boxes: vertices
+/// against triangles for VF, edges against edges for EE, triangles against triangles for
+/// triangle_pairs). `tris`: 3 vertex indices per triangle; `edges`: any list of vertex pairs
+/// (normally Topology::edges); every vertex in [0, vertex_count) is a contact point, including
+/// vertices used by no triangle. Topology is fixed at construction. Throws InputError for an
+/// index out of range, a `tris` size not divisible by 3, or a degenerate edge/triangle (repeated
+/// vertex).
+std::unique_ptr<BroadPhase> make_embree_broad_phase(const std::vector<int>& tris,
+                                                    const std::vector<Eigen::Vector2i>& edges, int vertex_count);
+
+/// O(n^2) reference with the same boxes and the same overlap test, for tests only.
+std::unique_ptr<BroadPhase> make_brute_force_broad_phase(const std::vector<int>& tris,
+                                                         const std::vector<Eigen::Vector2i>& edges,
+                                                         int vertex_count);
+
+}  // namespace gd::sim

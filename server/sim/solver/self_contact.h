@@ -1,0 +1,78 @@
+#pragma once
+/// \file
+/// Host-side bookkeeping of cloth self-contact for one scene: broad phase (behind the
+/// BroadPhase interface), the candidate and active pair lists the backend evaluates, lagged
+/// friction frames, the exact intersection count and the untangling fail-safe.
+///
+/// Pairs are flat arrays so a backend can upload them as they are: 4 vertex ids per pair
+/// (VF: point, triangle corners; EE: edge a, edge b), a type (0 VF, 1 EE), the barrier stiffness
+/// and the edge-edge mollifier threshold.
+
+#include <memory>
+#include <vector>
+
+#include "sim/contact/broad_phase.h"
+#include "sim/solver/options.h"
+#include "sim/solver/scene_data.h"
+
+namespace gd::sim {
+
+struct ContactPairs {
+  std::vector<int> v;         ///< 4 per pair
+  std::vector<int> type;      ///< 0: vertex-face, 1: edge-edge
+  std::vector<double> kappa;  ///< barrier stiffness per pair, N/m
+  std::vector<double> eps_x;  ///< edge-edge mollifier threshold (0 for VF)
+  int size() const { return static_cast<int>(type.size()); }
+  void clear() { v.clear(), type.clear(), kappa.clear(), eps_x.clear(); }
+  void push(const int* vs, int t, double k, double e);
+};
+
+/// Lagged friction of active pairs at the start of a step (see contact/friction.h).
+struct FrictionPairs {
+  std::vector<int> v;          ///< 4 per pair
+  std::vector<double> w;       ///< 4 closest-point weights per pair
+  std::vector<double> T;       ///< 3x2 tangent basis per pair, column-major (6)
+  std::vector<double> lambda;  ///< normal force, N
+  int size() const { return static_cast<int>(lambda.size()); }
+  void clear() { v.clear(), w.clear(), T.clear(), lambda.clear(); }
+};
+
+class SelfContact {
+ public:
+  SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass);
+
+  /// Candidates: pairs that can come within dhat while moving linearly from x0 to x1.
+  void find(const std::vector<double>& x0, const std::vector<double>& x1);
+  /// Active pairs: candidates closer than dhat at x with at least one free vertex. Pairs
+  /// already at zero distance (driven there by kinematic vertices) are dropped from both lists
+  /// and counted: the untangling fail-safe handles them.
+  void select_active(const std::vector<double>& x, const std::vector<int>& fixed);
+  /// Lagged friction frames of the active pairs at x_t.
+  void build_friction(const std::vector<double>& x_t);
+
+  /// Number of intersecting triangle pairs (exact test over broad-phase candidates).
+  int count_intersections(const std::vector<double>& x);
+  /// Runs the untangling fail-safe on x (free vertices only); returns pairs left.
+  int untangle(std::vector<double>* x, const std::vector<int>& fixed);
+
+  const ContactPairs& candidates() const { return cand_; }
+  const ContactPairs& active() const { return active_; }
+  const FrictionPairs& friction() const { return friction_; }
+  int dropped() const { return dropped_; }
+  double broad_phase_seconds() const { return bp_seconds_; }
+  Real dhat() const { return dhat_; }
+
+ private:
+  const SceneData& d_;
+  Real dhat_, kappa_per_mass_;
+  std::unique_ptr<BroadPhase> bp_;
+  std::vector<Eigen::Vector2i> edges_;
+  std::vector<double> edge_len2_;  ///< rest squared edge lengths (mollifier)
+  ContactCandidates raw_;
+  ContactPairs cand_, active_;
+  FrictionPairs friction_;
+  int dropped_ = 0;
+  double bp_seconds_ = 0;
+};
+
+}  // namespace gd::sim
