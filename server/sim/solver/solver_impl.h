@@ -27,6 +27,7 @@
 #include "sim/contact/barrier.h"
 #include "sim/contact/ccd.h"
 #include "sim/contact/friction.h"
+#include "sim/solver/preconditioner.h"
 #include "sim/solver/self_contact.h"
 #include "sim/solver/solver.h"
 
@@ -248,7 +249,7 @@ class Solver final : public SolverBase {
     Exec::upload(v_, d.v);
     for (auto* vec : {&x_t_, &v_t_, &g_, &dx_, &r_, &z_, &p_, &ap_, &x_trial_}) Exec::resize(*vec, 3 * n_);
     Exec::resize(vals_, 9 * static_cast<size_t>(d.blocks()));
-    Exec::resize(pinv_, 9 * static_cast<size_t>(n_));
+    precond_ = make_preconditioner<Exec>(opt.preconditioner, n_);
     Exec::resize(fixed_, n_);
     Exec::resize(kin_flag_, n_);
     Exec::resize(kin_target_, 3 * static_cast<size_t>(n_));
@@ -705,37 +706,6 @@ class Solver final : public SolverBase {
     }, kSerialOnCpu);
   }
 
-  /// Block-Jacobi: inverts each vertex's 3x3 diagonal block.
-  void setup_block_jacobi() {
-    const detail::View V = view();
-    const double* A = Exec::ptr(vals_);
-    double* pinv = Exec::ptr(pinv_);
-    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
-      Mat3 inv = Mat3::Identity();
-      if (!V.fixed[i]) {
-        const double* b = A + 9 * V.diag[i];
-        Mat3 D;
-        D << b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8];
-        const Real det = D.determinant();
-        if (fabs(det) > 1e-300) inv = D.inverse();
-      }
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) pinv[9 * i + 3 * r + c] = inv(r, c);
-    });
-  }
-
-  void apply_block_jacobi(const Vec<double>& rs, Vec<double>& zs) {
-    const double* r = Exec::ptr(rs);
-    const double* pinv = Exec::ptr(pinv_);
-    double* z = Exec::ptr(zs);
-    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
-      const double* m = pinv + 9 * i;
-      const Vec3 ri = detail::load3(r, i);
-      detail::store3(z, i, Vec3(m[0] * ri.x() + m[1] * ri.y() + m[2] * ri.z(), m[3] * ri.x() + m[4] * ri.y() + m[5] * ri.z(),
-                                m[6] * ri.x() + m[7] * ri.y() + m[8] * ri.z()));
-    });
-  }
-
   /// Solves H dx = -g. Returns the iterations spent (1 for the direct solver).
   int solve_linear() {
     if constexpr (std::is_same_v<Exec, CpuExec>) {
@@ -745,13 +715,14 @@ class Solver final : public SolverBase {
   }
 
   int solve_pcg() {
-    setup_block_jacobi();
+    precond_->setup(BlockMatrixView{n_, Exec::ptr(row_ptr_), Exec::ptr(cols_), Exec::ptr(diag_), Exec::ptr(vals_),
+                                    Exec::ptr(fixed_)});
     Exec::fill(dx_, 0.0);
     copy(g_, r_);
     scale(-1.0, r_);  // r = -g (free rows; Dirichlet rows of g are zero)
     const double r0 = std::sqrt(dot(r_, r_));
     if (r0 == 0.0) return 0;
-    apply_block_jacobi(r_, z_);
+    precond_->apply(Exec::ptr(r_), Exec::ptr(z_));
     copy(z_, p_);
     double rz = dot(r_, z_);
     int it = 0;
@@ -764,7 +735,7 @@ class Solver final : public SolverBase {
       axpy(-a, ap_, r_);
       ++it;
       if (std::sqrt(dot(r_, r_)) <= opt_.pcg_tol * r0) break;
-      apply_block_jacobi(r_, z_);
+      precond_->apply(Exec::ptr(r_), Exec::ptr(z_));
       const double rz_new = dot(r_, z_);
       const double beta = rz_new / rz;
       rz = rz_new;
@@ -928,7 +899,8 @@ class Solver final : public SolverBase {
   Vec<StretchShearRest> tri_rest_;
   Vec<HingeRest> hinge_rest_;
   Vec<double> f_ext_;
-  Vec<double> x_, v_, x_t_, v_t_, g_, dx_, r_, z_, p_, ap_, x_trial_, vals_, pinv_, kin_target_;
+  Vec<double> x_, v_, x_t_, v_t_, g_, dx_, r_, z_, p_, ap_, x_trial_, vals_, kin_target_;
+  std::unique_ptr<Preconditioner<Exec>> precond_;
   std::vector<int> kin_fixed_host_;
   // self-contact (host bookkeeping, device pair lists)
   std::unique_ptr<SelfContact> self_;
