@@ -54,6 +54,9 @@ struct CaseResult {
   double bytes_per_vertex = 0;
   std::string backend;
   std::string error;  ///< non-empty when the case failed
+  bool contact = false;        ///< a self-contact case (fold/<N>)
+  double contacts = 0;         ///< mean active self-contact pairs per timed step
+  double broad_phase_share = 0;  ///< fraction of the step time spent in the broad phase
 };
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
@@ -76,17 +79,29 @@ std::vector<int> corner_vertices(const Mesh& m, Real side, Real radius) {
   });
 }
 
-CaseResult run_case(int target, Real side, int warmup, int steps, double max_seconds, const SceneOptions& opt,
-                    const gd::sim::Material& mat) {
+/// drape/<N>: a square hanging from two pinned corners. fold/<N> (contact): the square folded in
+/// half (the flap 4 mm above the base), 1 cm above the table, let fall with self-contact on.
+CaseResult run_case(int target, Real side, int warmup, int steps, double max_seconds, SceneOptions opt,
+                    const gd::sim::Material& mat, bool contact) {
   CaseResult r;
-  r.name = "drape/" + std::to_string(target);
+  r.contact = contact;
+  r.name = (contact ? "fold/" : "drape/") + std::to_string(target);
   Mesh mesh = square_with_about(side, target);
-  for (auto& p : mesh.x) p.z() = 0.6;
+  for (auto& p : mesh.x) {
+    if (!contact) {
+      p.z() = 0.6;
+    } else if (p.x() > 0.5 * side) {
+      p = Vec3(side - p.x(), p.y(), 0.014);
+    } else {
+      p.z() = 0.01;
+    }
+  }
   r.vertices = static_cast<int>(mesh.x.size());
+  opt.self_contact = contact;
 
   const auto t_setup = Clock::now();
   auto scene = Scene::create(mesh, mat, opt);
-  scene->pin(corner_vertices(mesh, side, 0.01));
+  if (!contact) scene->pin(corner_vertices(mesh, side, 0.01));
   r.backend = scene->backend();
   r.bytes_per_vertex = scene->bytes_per_vertex();
   std::fprintf(stderr, "[gd-bench] %s: %d vertices on %s (setup %.2f s); %d warm-up + %d timed steps\n",
@@ -107,7 +122,7 @@ CaseResult run_case(int target, Real side, int warmup, int steps, double max_sec
     }
   }
 
-  double total_s = 0;
+  double total_s = 0, bp_s = 0, contacts = 0;
   long newton = 0, pcg = 0, converged = 0;
   int done = 0;
   double last_report = seconds_since(t_case);
@@ -123,6 +138,8 @@ CaseResult run_case(int target, Real side, int warmup, int steps, double max_sec
     newton += st.newton_iters;
     pcg += st.pcg_iters;
     converged += st.converged ? 1 : 0;
+    contacts += st.contacts;
+    bp_s += st.broad_phase_seconds;
     ++done;
     const double elapsed = seconds_since(t_case);
     if (elapsed - last_report >= 10.0 && done < steps) {
@@ -142,6 +159,8 @@ CaseResult run_case(int target, Real side, int warmup, int steps, double max_sec
     r.newton_iters = static_cast<double>(newton) / done;
     r.pcg_iters = static_cast<double>(pcg) / done;
     r.converged = static_cast<double>(converged) / done;
+    r.contacts = contacts / done;
+    r.broad_phase_share = total_s > 0 ? bp_s / total_s : 0;
   }
   std::fprintf(stderr,
                "[gd-bench] %s: %.2f ms/step, %.2f Newton and %.1f PCG iterations per step, %.0f%% converged%s\n",
@@ -180,18 +199,23 @@ nlohmann::json to_json(const CaseResult& r) {
                       {"pcg_iters", r.steps > 0 ? nlohmann::json(r.pcg_iters) : nlohmann::json(nullptr)},
                       {"converged", r.steps > 0 ? nlohmann::json(r.converged) : nlohmann::json(nullptr)},
                       {"bytes_per_vertex", r.bytes_per_vertex},
-                      {"backend", r.backend}};
+                      {"backend", r.backend},
+                      {"contact", r.contact}};
+  if (r.contact) {
+    j["contacts"] = r.contacts;
+    j["broad_phase_share"] = r.broad_phase_share;
+  }
   if (!r.error.empty()) j["error"] = r.error;
   return j;
 }
 
 void print_table(const std::vector<CaseResult>& rs) {
-  std::printf("%-14s %9s %6s %12s %9s %9s %10s %10s %-8s\n", "case", "vertices", "steps", "ms/step", "newton",
-              "pcg", "converged", "bytes/vtx", "backend");
+  std::printf("%-14s %9s %6s %12s %9s %9s %10s %10s %9s %8s %-8s\n", "case", "vertices", "steps", "ms/step", "newton",
+              "pcg", "converged", "bytes/vtx", "contacts", "bp share", "backend");
   for (const auto& r : rs) {
-    std::printf("%-14s %9d %6d %12.2f %9.2f %9.1f %9.0f%% %10.0f %-8s%s\n", r.name.c_str(), r.vertices, r.steps,
-                r.ms_per_step, r.newton_iters, r.pcg_iters, 100.0 * r.converged, r.bytes_per_vertex,
-                r.backend.c_str(),
+    std::printf("%-14s %9d %6d %12.2f %9.2f %9.1f %9.0f%% %10.0f %9.0f %7.0f%% %-8s%s\n", r.name.c_str(), r.vertices,
+                r.steps, r.ms_per_step, r.newton_iters, r.pcg_iters, 100.0 * r.converged, r.bytes_per_vertex,
+                r.contacts, 100.0 * r.broad_phase_share, r.backend.c_str(),
                 r.error.empty() ? "" : ("  FAILED: " + r.error).c_str());
   }
   std::printf("(ms/step: mean wall time of a step; newton, pcg: mean iterations per step, PCG summed over "
@@ -201,7 +225,8 @@ void print_table(const std::vector<CaseResult>& rs) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"gd-bench: step time of hanging cotton squares (drape/<N>) of growing vertex count"};
+  CLI::App app{"gd-bench: step time of hanging cotton squares (drape/<N>) and of squares folded in half falling with "
+               "self-contact (fold/<N>), at growing vertex counts"};
   bool json = false;
   int steps = 20;
   int warmup = 3;
@@ -211,6 +236,7 @@ int main(int argc, char** argv) {
   std::string sizes_arg = "5000,10000,20000,40000";
   std::string backend_arg = "auto";
   std::string material_name = "cotton";
+  std::string kinds = "drape,fold";
   app.add_flag("--json", json, "Print one JSON array of results on stdout (and nothing else)");
   app.add_option("--steps", steps, "Timed steps per case")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--warmup", warmup, "Untimed warm-up steps per case")
@@ -225,6 +251,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--side", side, "Side of the square, m")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--material", material_name, "Material name from the library")->capture_default_str();
+  app.add_option("--cases", kinds, "drape (no contact), fold (self-contact), or both")
+      ->check(CLI::IsMember({"drape", "fold", "drape,fold", "fold,drape"}))
+      ->capture_default_str();
   app.add_option("--max-seconds", max_seconds,
                  "Time budget per case, s, warm-up included: a case stops early, reporting the steps it timed (0: no limit)")
       ->check(CLI::NonNegativeNumber)
@@ -242,10 +271,16 @@ int main(int argc, char** argv) {
     const auto lib = gd::sim::MaterialLibrary::load_default();
     const auto& mat = lib.get(material_name);
     const auto t_all = Clock::now();
-    for (std::size_t k = 0; k < sizes.size(); ++k) {
-      std::fprintf(stderr, "[gd-bench] case %zu/%zu (%.1f s elapsed)\n", k + 1, sizes.size(), seconds_since(t_all));
-      results.push_back(run_case(sizes[k], side, warmup, steps, max_seconds, opt, mat));
-    }
+    std::vector<bool> modes;
+    if (kinds.find("drape") != std::string::npos) modes.push_back(false);
+    if (kinds.find("fold") != std::string::npos) modes.push_back(true);
+    const std::size_t total = sizes.size() * modes.size();
+    std::size_t k = 0;
+    for (bool contact : modes)
+      for (int size : sizes) {
+        std::fprintf(stderr, "[gd-bench] case %zu/%zu (%.1f s elapsed)\n", ++k, total, seconds_since(t_all));
+        results.push_back(run_case(size, side, warmup, steps, max_seconds, opt, mat, contact));
+      }
     std::fprintf(stderr, "[gd-bench] done in %.1f s\n", seconds_since(t_all));
   } catch (const CLI::Error& e) {
     return app.exit(e);

@@ -399,6 +399,7 @@ std::vector<NamedCase> case_list(const sim::MaterialLibrary& lib) {
   cases.push_back({"drop/cotton", [cotton] { return drop_case(cotton); }});
   cases.push_back({"slide/cotton", [cotton] { return slide_case(cotton); }});
   cases.push_back({"drape/cotton", [cotton] { return drape_case(cotton); }});
+  cases.push_back({"self/fold/cotton", [cotton] { return fold_case(cotton); }});
   return cases;
 }
 
@@ -434,8 +435,8 @@ CaseResult fold_case(const sim::Material& m) {
   r.name = "self/fold/" + m.name;
   r.unit = "pairs";
   // A 30 cm square resting on the table is folded in half (grips at two corners rotate over
-  // the fold line x = 15 cm), released, then folded again across y, released and left to
-  // settle. Cloth self-contact must keep the layers apart: zero intersecting triangle pairs
+  // the fold line x = 15 cm in 2 s), released, then folded again across y (both layers held),
+  // released and left to settle. Cloth self-contact must keep the layers apart: zero intersecting triangle pairs
   // after every step, with the untangling fail-safe counted if it ever runs.
   const double L = 0.3, spacing = 0.015;
   sim::SceneOptions o;
@@ -466,8 +467,8 @@ CaseResult fold_case(const sim::Material& m) {
   const auto g2 = near(x, Vec3(L, L, 0));
   grip.insert(grip.end(), g2.begin(), g2.end());
   // Rotating about -y carries x = L up and over onto x = 0.
-  int g = scene->attach(grip, fold_motion(Vec3(L / 2, 0, 0.5 * dhat), Vec3(0, -1, 0), scene->time(), 1.0, 4 * dhat));
-  run(1.1);
+  int g = scene->attach(grip, fold_motion(Vec3(L / 2, 0, 0.5 * dhat), Vec3(0, -1, 0), scene->time(), 2.0, 4 * dhat));
+  run(2.1);
   scene->release(g);
   run(0.4);
   // Fold 2: the folded strip's corners at y = L over the line y = L/2 (both layers held).
@@ -476,8 +477,8 @@ CaseResult fold_case(const sim::Material& m) {
   const auto g3 = near(x, Vec3(L / 2, L, 0));
   grip.insert(grip.end(), g3.begin(), g3.end());
   // Rotating about +x carries y = L up and over onto y = 0.
-  g = scene->attach(grip, fold_motion(Vec3(0, L / 2, 0.5 * dhat), Vec3(1, 0, 0), scene->time(), 1.0, 8 * dhat));
-  run(1.1);
+  g = scene->attach(grip, fold_motion(Vec3(0, L / 2, 0.5 * dhat), Vec3(1, 0, 0), scene->time(), 2.0, 8 * dhat));
+  run(2.1);
   scene->release(g);
   run(0.5);
   double min_z = 1e30;

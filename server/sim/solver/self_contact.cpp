@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "sim/contact/barrier.h"
 #include "sim/contact/distance.h"
@@ -55,14 +56,14 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
   cand_.clear();
   for (const auto& p : raw_.vf) {
     const int v[4] = {p[0], d_.tris[3 * p[1]], d_.tris[3 * p[1] + 1], d_.tris[3 * p[1] + 2]};
-    cand_.push(v, 0, kappa_per_mass_ * d_.mass[v[0]], 0.0);
+    cand_.push(v, 0, kappa_scale_ * kappa_per_mass_ * d_.mass[v[0]], 0.0);
   }
   for (const auto& p : raw_.ee) {
     const auto& a = edges_[p[0]];
     const auto& b = edges_[p[1]];
     const int v[4] = {a[0], a[1], b[0], b[1]};
     const double m = 0.25 * (d_.mass[v[0]] + d_.mass[v[1]] + d_.mass[v[2]] + d_.mass[v[3]]);
-    cand_.push(v, 1, kappa_per_mass_ * m, 1e-3 * edge_len2_[p[0]] * edge_len2_[p[1]]);
+    cand_.push(v, 1, kappa_scale_ * kappa_per_mass_ * m, 1e-3 * edge_len2_[p[0]] * edge_len2_[p[1]]);
   }
 }
 
@@ -82,6 +83,12 @@ void SelfContact::select_active(const std::vector<double>& x, const std::vector<
     if (dist < dhat_) active_.push(v, cand_.type[c], cand_.kappa[c], cand_.eps_x[c]);
   }
   cand_ = std::move(kept);
+}
+
+double SelfContact::min_active_distance(const std::vector<double>& x) const {
+  double m = std::numeric_limits<double>::infinity();
+  for (int c = 0; c < active_.size(); ++c) m = std::min(m, pair_distance(x, &active_.v[4 * c], active_.type[c]));
+  return m;
 }
 
 void SelfContact::build_friction(const std::vector<double>& x_t) {

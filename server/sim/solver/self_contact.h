@@ -55,6 +55,11 @@ class SelfContact {
   /// Runs the untangling fail-safe on x (free vertices only); returns pairs left.
   int untangle(std::vector<double>* x, const std::vector<int>& fixed);
 
+  /// Multiplies the barrier stiffness of pairs found from now on (adaptive stiffness).
+  void set_kappa_scale(Real s) { kappa_scale_ = s; }
+  /// Smallest distance over the active pairs at x (infinity when none).
+  double min_active_distance(const std::vector<double>& x) const;
+
   const ContactPairs& candidates() const { return cand_; }
   const ContactPairs& active() const { return active_; }
   const FrictionPairs& friction() const { return friction_; }
@@ -65,6 +70,7 @@ class SelfContact {
  private:
   const SceneData& d_;
   Real dhat_, kappa_per_mass_;
+  Real kappa_scale_ = 1;
   std::unique_ptr<BroadPhase> bp_;
   std::vector<Eigen::Vector2i> edges_;
   std::vector<double> edge_len2_;  ///< rest squared edge lengths (mollifier)

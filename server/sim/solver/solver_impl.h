@@ -310,6 +310,7 @@ class Solver final : public SolverBase {
       }
     }
     end_step();                                        // v = (x - x_t)/h
+    adapt_barrier_stiffness();                         // stiffer barriers if gaps got tiny
     check_intersections(&st);                          // exact count; untangle if any (fail-safe)
     if (self_) {
       st.contacts = self_->active().size();
@@ -521,6 +522,19 @@ class Solver final : public SolverBase {
     Exec::upload(fr_T_, f.T);
     Exec::upload(fr_lambda_, f.lambda);
     Exec::resize(fr_H_, 144 * static_cast<size_t>(n_fr_));
+  }
+
+  /// IPC-style adaptive stiffness of the self-contact barrier: it starts so that a vertex's
+  /// weight rests at dhat/2, but grippers and stacked layers press harder. When a pair's gap
+  /// closes below a tenth of dhat the stiffness doubles (up to 1e4 x). (The table keeps its
+  /// weight-calibrated stiffness: cloth rests on it under gravity alone.)
+  void adapt_barrier_stiffness() {
+    if (!self_) return;
+    Exec::download(host_x_, x_);
+    if (self_->min_active_distance(host_x_) < 0.1 * P_.dhat_self && kappa_scale_ < 1e4) {
+      kappa_scale_ *= 2;
+      self_->set_kappa_scale(kappa_scale_);
+    }
   }
 
   /// Exact count of intersecting triangle pairs after the step; the untangling fail-safe runs
@@ -904,6 +918,7 @@ class Solver final : public SolverBase {
   std::vector<int> kin_fixed_host_;
   // self-contact (host bookkeeping, device pair lists)
   std::unique_ptr<SelfContact> self_;
+  double kappa_scale_ = 1;
   std::vector<double> host_x_, host_xt_, host_dx_;
   int n_cand_ = 0, n_act_ = 0, n_fr_ = 0;
   Vec<int> cand_v_, cand_type_, act_v_, act_type_, fr_v_;
