@@ -184,3 +184,40 @@ TEST(SceneMemory, ReportsBytesPerVertex) {
 
 }  // namespace
 }  // namespace gd::sim
+
+namespace gd::sim {
+namespace {
+
+// A sheet dropped onto another resting on the table lands on it: self-contact keeps the layers
+// apart (positive gap, no intersecting pair) and the top sheet comes to rest.
+TEST(SceneSelfContact, SheetLandsOnSheet) {
+  SceneOptions o;
+  o.self_contact = true;
+  Mesh bottom = make_rect(0.1, 0.1, 0.01);
+  Mesh m = bottom;
+  const int nb = static_cast<int>(bottom.x.size());
+  for (Vec3& p : m.x) p.z() = 0.0005;
+  for (int i = 0; i < nb; ++i) {  // the second sheet, 2 cm above and shifted by a third of a cell
+    m.x.push_back(bottom.x[i] + Vec3(0.003, 0.002, 0.02));
+    m.uv.push_back(bottom.uv[i]);
+  }
+  for (const auto& t : bottom.tris) m.tris.emplace_back(t + Eigen::Vector3i::Constant(nb));
+  auto s = Scene::create(m, cotton(), o);
+  int worst = 0;
+  for (int k = 0; k < 60; ++k) {
+    ASSERT_TRUE(s->step()) << s->failure();
+    worst = std::max(worst, s->last_stats().intersecting_pairs);
+  }
+  EXPECT_EQ(worst, 0);
+  EXPECT_EQ(s->untangle_runs(), 0);
+  const auto x = s->positions();
+  double top_min = 1e9, bottom_max = -1e9;
+  for (int i = 0; i < nb; ++i) bottom_max = std::max(bottom_max, x[i].z());
+  for (int i = nb; i < 2 * nb; ++i) top_min = std::min(top_min, x[i].z());
+  EXPECT_GT(top_min, bottom_max);          // still on top
+  EXPECT_LT(top_min, bottom_max + 0.003);  // and resting on it, not hovering
+  EXPECT_GT(s->last_stats().contacts, 0);
+}
+
+}  // namespace
+}  // namespace gd::sim

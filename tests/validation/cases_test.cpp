@@ -58,3 +58,17 @@ TEST(Slide, StopsAfterCoulombDistance) { expect_pass(slide_case(library().get("c
 
 }  // namespace
 }  // namespace gd::validation
+
+namespace gd::validation {
+namespace {
+
+// Cloth self-contact: a square folded twice by kinematic grips stays free of intersecting
+// triangle pairs after every step (untangling is counted; it should not be needed).
+TEST(SelfFold, NoIntersectionsThroughTwoFolds) {
+  const CaseResult r = fold_case(sim::MaterialLibrary::load_default().get("cotton"));
+  EXPECT_TRUE(r.pass) << r.detail;
+  EXPECT_EQ(r.measured, 0) << r.detail;
+}
+
+}  // namespace
+}  // namespace gd::validation
