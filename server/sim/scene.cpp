@@ -90,6 +90,21 @@ void Scene::set_state(const std::vector<Vec3>& x, const std::vector<Vec3>& v) {
   failure_.clear();
 }
 
+int Scene::add_collider(Collider collider) {
+  collider.checked_pose(time_);  // InputError names the time
+  colliders_.push_back(std::move(collider));
+  collider_ids_.push_back(next_group_++);
+  return collider_ids_.back();
+}
+
+void Scene::remove_collider(int id) {
+  const auto it = std::find(collider_ids_.begin(), collider_ids_.end(), id);
+  if (it == collider_ids_.end()) throw InputError("remove_collider: no collider with id " + std::to_string(id));
+  const auto k = it - collider_ids_.begin();
+  collider_ids_.erase(it);
+  colliders_.erase(colliders_.begin() + k);
+}
+
 void Scene::set_external_forces(const std::vector<int>& vertices, const std::vector<Vec3>& forces) {
   if (forces.size() != vertices.size()) throw InputError("set_external_forces: one force per vertex expected");
   std::vector<double> f(3 * data_->n, 0.0);
@@ -181,6 +196,7 @@ bool Scene::do_step(bool quasi_static) {
   KinematicTargets kin;
   try {
     kin = targets_at(time_ + options_.dt);
+    solver_->set_colliders(colliders_, time_, time_ + options_.dt);  // checks the poses
   } catch (const InputError& e) {
     failed_ = true;
     failure_ = e.what();

@@ -58,6 +58,14 @@ class Scene {
   /// Throws InputError on bad indices or non-finite forces.
   void set_external_forces(const std::vector<int>& vertices, const std::vector<Vec3>& forces);
 
+  // --- kinematic colliders -------------------------------------------------------------
+  /// Adds a collider (box, capsule, plane or triangle mesh with a pose over time and a friction
+  /// coefficient) that cloth vertices stay outside of. Returns its id. Throws InputError when
+  /// its pose at the current time is not a finite rigid motion.
+  int add_collider(Collider collider);
+  /// Removes a collider; unknown ids throw InputError.
+  void remove_collider(int id);
+
   // --- kinematic (Dirichlet) vertices --------------------------------------------------
   /// Attaches vertices to a rigid motion: each follows pose(t) * pose(t_now)^-1 * x_now.
   /// Returns a group id. Throws InputError for bad indices or a non-finite pose.
@@ -103,6 +111,8 @@ class Scene {
   std::shared_ptr<const SceneData> data_;
   std::unique_ptr<SolverBase> solver_;
   std::vector<Group> groups_;
+  std::vector<Collider> colliders_;
+  std::vector<int> collider_ids_;
   int next_group_ = 1;
   double time_ = 0;
   bool failed_ = false;

@@ -400,6 +400,8 @@ std::vector<NamedCase> case_list(const sim::MaterialLibrary& lib) {
   cases.push_back({"slide/cotton", [cotton] { return slide_case(cotton); }});
   cases.push_back({"drape/cotton", [cotton] { return drape_case(cotton); }});
   cases.push_back({"self/fold/cotton", [cotton] { return fold_case(cotton); }});
+  cases.push_back({"slope/cotton", [cotton] { return slope_case(cotton); }});
+  cases.push_back({"pinch/cotton", [cotton] { return pinch_case(cotton); }});
   return cases;
 }
 
@@ -492,7 +494,111 @@ CaseResult fold_case(const sim::Material& m) {
   r.seconds = seconds_since(t0);
   r.rel_error = r.measured;
   r.tolerance = 0;
+  r.intersections = worst;
   r.pass = !scene->failed() && worst == 0 && min_z > 0;
+  return r;
+}
+
+}  // namespace gd::validation
+
+namespace gd::validation {
+namespace {
+
+/// Displacement (m, along the uphill in-plane axis; negative = downhill) of a 10 cm patch
+/// resting on a plane collider tilted by `angle` (rad) with friction mu, after `seconds`.
+double slope_displacement(const sim::Material& m, double angle, double mu, double seconds, int* vertices) {
+  const double dhat = std::max(m.thickness, 1e-3);
+  const Vec3 n(-std::sin(angle), 0, std::cos(angle)), eu(std::cos(angle), 0, std::sin(angle)), o(0, 0, 0.5);
+  Mesh mesh = sim::make_rect(0.1, 0.1, 0.01);
+  for (Vec3& p : mesh.x) p = o + p.x() * eu + Vec3(0, p.y(), 0) + 0.5 * dhat * n;
+  SceneOptions opt;
+  opt.table = false;
+  opt.air_density = 0;
+  opt.dt = 1.0 / 200;
+  auto scene = Scene::create(mesh, m, opt);
+  sim::Collider plane = sim::Collider::plane(o, n);
+  plane.set_friction(mu);
+  scene->add_collider(plane);
+  const auto x0 = scene->positions();
+  scene->step(static_cast<int>(std::lround(seconds / opt.dt)));
+  if (vertices) *vertices = scene->vertex_count();
+  if (scene->failed()) return NAN;
+  const auto x = scene->positions();
+  double d = 0;
+  for (size_t i = 0; i < x.size(); ++i) d += (x[i] - x0[i]).dot(eu);
+  return d / x.size();
+}
+
+/// Fall (m) of a hanging 4 x 10 cm strip whose top 2 cm are squeezed between two box pads
+/// with friction mu, after `seconds`.
+double pinch_fall(const sim::Material& m, double mu, double seconds, int* vertices) {
+  const double dhat = std::max(m.thickness, 1e-3), W = 0.04, L = 0.10, grip = 0.02, half_gap = 0.3 * dhat;
+  Mesh mesh = sim::make_rect(W, L, 0.005);
+  for (Vec3& p : mesh.x) p = Vec3(p.x(), 0, 0.5 + p.y());  // hanging in the xz plane, top at z = 0.6
+  SceneOptions opt;
+  opt.table = false;
+  opt.air_density = 0;
+  opt.dt = 1.0 / 200;
+  auto scene = Scene::create(mesh, m, opt);
+  for (const double side : {-1.0, 1.0}) {
+    sim::Collider pad = sim::Collider::box(Vec3(W, 0.005, 0.5 * grip));
+    const Vec3 c(0.5 * W, side * (half_gap + 0.005), 0.5 + L - 0.5 * grip);
+    pad.set_pose([c](double) { return Eigen::Isometry3d(Eigen::Translation3d(c)); });
+    pad.set_friction(mu);
+    scene->add_collider(pad);
+  }
+  const auto x0 = scene->positions();
+  scene->step(static_cast<int>(std::lround(seconds / opt.dt)));
+  if (vertices) *vertices = scene->vertex_count();
+  if (scene->failed()) return NAN;
+  const auto x = scene->positions();
+  double fall = 0;
+  for (size_t i = 0; i < x.size(); ++i) fall += x0[i].z() - x[i].z();
+  return fall / x.size();
+}
+
+}  // namespace
+
+CaseResult slope_case(const sim::Material& m) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CaseResult r;
+  r.name = "slope/" + m.name;
+  r.unit = "deg";
+  // A patch on a plane collider with friction mu: it must stay below the angle atan(mu) and
+  // slide above it. Bisection on the angle for the onset of sliding (> 5 mm down in 0.5 s).
+  const double mu = 0.5, critical = std::atan(mu);
+  double lo = 0.8 * critical, hi = 1.2 * critical;
+  const bool lo_stays = slope_displacement(m, lo, mu, 0.5, &r.vertices) > -0.005;
+  const bool hi_slides = slope_displacement(m, hi, mu, 0.5, nullptr) < -0.005;
+  for (int k = 0; k < 4 && lo_stays && hi_slides; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (slope_displacement(m, mid, mu, 0.5, nullptr) < -0.005 ? hi : lo) = mid;
+  }
+  r.expected = critical * 180 / kPi;
+  r.measured = lo_stays && hi_slides ? 0.5 * (lo + hi) * 180 / kPi : NAN;
+  r.detail = "mu " + std::to_string(mu) + ": stays at " + std::to_string(lo * 180 / kPi) + " deg, slides at " +
+             std::to_string(hi * 180 / kPi) + " deg";
+  r.seconds = seconds_since(t0);
+  return finish(r, 0.1);
+}
+
+CaseResult pinch_case(const sim::Material& m) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CaseResult r;
+  r.name = "pinch/" + m.name;
+  r.unit = "m";
+  // A strip squeezed between two pads holds its weight with enough friction (mu = 1.5) and slips
+  // with too little (mu = 0.1): its mean fall after 0.5 s.
+  const double held = pinch_fall(m, 1.5, 0.5, &r.vertices);
+  const double slipped = pinch_fall(m, 0.1, 0.5, nullptr);
+  r.expected = 0;
+  r.measured = held;
+  r.detail = "mean fall " + std::to_string(held * 1e3) + " mm with mu 1.5, " + std::to_string(slipped * 1e3) +
+             " mm with mu 0.1 (0.5 s)";
+  r.seconds = seconds_since(t0);
+  r.rel_error = held;
+  r.tolerance = 0.005;
+  r.pass = std::isfinite(held) && std::isfinite(slipped) && held < 0.005 && slipped > 0.02;
   return r;
 }
 

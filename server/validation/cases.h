@@ -28,6 +28,7 @@ struct CaseResult {
   std::string detail;     ///< what was measured and how, for humans
   int vertices = 0;
   double seconds = 0;
+  int intersections = -1;  ///< most intersecting triangle pairs after any step (-1: not tracked)
 };
 
 /// ASTM D1388 cantilever of a 2.5 cm wide strip: finds the overhang at which the chord from the
@@ -58,6 +59,12 @@ CaseResult hang_case(const sim::Material& m);
 /// self/fold: a square folded twice by kinematic grips on the table and released; passes with
 /// zero intersecting triangle pairs after every step.
 CaseResult fold_case(const sim::Material& m);
+/// slope: a patch on a tilted plane collider with friction 0.5 stays below atan(mu) and slides
+/// above it; the onset angle is bisected and must be within 10% of atan(mu).
+CaseResult slope_case(const sim::Material& m);
+/// pinch: a strip squeezed between two box pads holds with friction 1.5 (< 5 mm fall in 0.5 s)
+/// and slips with 0.1 (> 2 cm).
+CaseResult pinch_case(const sim::Material& m);
 
 /// A case by name, run on demand.
 struct NamedCase {

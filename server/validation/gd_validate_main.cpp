@@ -25,10 +25,12 @@ std::vector<std::string> split(const std::string& s) {
 
 nlohmann::json to_json(const gd::validation::CaseResult& r) {
   auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
-  return {{"name", r.name},           {"expected", num(r.expected)}, {"measured", num(r.measured)},
+  nlohmann::json j = {{"name", r.name},           {"expected", num(r.expected)}, {"measured", num(r.measured)},
           {"rel_error", num(r.rel_error)}, {"pass", r.pass},          {"tolerance", r.tolerance},
           {"unit", r.unit},           {"vertices", r.vertices},      {"seconds", r.seconds},
           {"detail", r.detail}};
+  if (r.intersections >= 0) j["intersections"] = r.intersections;
+  return j;
 }
 
 }  // namespace

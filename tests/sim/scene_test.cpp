@@ -221,3 +221,52 @@ TEST(SceneSelfContact, SheetLandsOnSheet) {
 
 }  // namespace
 }  // namespace gd::sim
+
+namespace gd::sim {
+namespace {
+
+TEST(SceneColliders, BadPosesAreInputErrorsOrFailedSteps) {
+  SceneOptions o;
+  o.table = false;
+  auto s = Scene::create(lifted_square(0.1, 0.02, 0.5), cotton(), o);
+  Collider box = Collider::box(Vec3(0.01, 0.01, 0.01));
+  box.set_pose([](double) { return Eigen::Isometry3d(Eigen::Translation3d(NAN, 0, 0)); });
+  EXPECT_THROW(s->add_collider(box), InputError);
+  Collider later = Collider::capsule(0.01, 0.02);
+  later.set_pose([](double t) { return Eigen::Isometry3d(Eigen::Translation3d(t > 0.02 ? NAN : 0.0, 0, 0)); });
+  const int id = s->add_collider(later);
+  EXPECT_FALSE(s->step(10));
+  EXPECT_TRUE(s->failed());
+  EXPECT_NE(s->failure().find("t="), std::string::npos) << s->failure();
+  EXPECT_NO_THROW(s->remove_collider(id));
+  EXPECT_THROW(s->remove_collider(id), InputError);
+}
+
+// A capsule sweeping through a hanging sheet pushes it aside: no vertex ends inside it.
+TEST(SceneColliders, MovingCapsulePushesClothAside) {
+  SceneOptions o;
+  o.table = false;
+  Mesh m = make_rect(0.2, 0.2, 0.01);
+  for (Vec3& p : m.x) p = Vec3(p.x(), 0, 0.4 + p.y());  // hanging in the xz plane
+  auto s = Scene::create(m, cotton(), o);
+  s->pin(vertices_where(m, [](const Vec3& p) { return p.z() > 0.6 - 1e-9; }));
+  Collider rod = Collider::capsule(0.01, 0.05);  // axis along local z, turned to lie along x
+  rod.set_pose([](double t) {
+    Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+    p.translate(Vec3(0.1, -0.05 + 0.2 * t, 0.5));
+    p.rotate(Eigen::AngleAxisd(M_PI / 2, Vec3::UnitY()));
+    return p;
+  });
+  rod.set_friction(0.3);
+  s->add_collider(rod);
+  ASSERT_TRUE(s->step(100)) << s->failure();  // 0.5 s: the rod moves 10 cm through y = 0
+  double min_d = 1e9;
+  for (const Vec3& p : s->positions()) min_d = std::min(min_d, rod.query(p, s->time()).distance);
+  EXPECT_GT(min_d, 0.0);
+  double max_y = -1e9;
+  for (const Vec3& p : s->positions()) max_y = std::max(max_y, p.y());
+  EXPECT_GT(max_y, 0.02);  // the sheet was pushed along with the rod
+}
+
+}  // namespace
+}  // namespace gd::sim

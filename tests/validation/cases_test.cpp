@@ -72,3 +72,16 @@ TEST(SelfFold, NoIntersectionsThroughTwoFolds) {
 
 }  // namespace
 }  // namespace gd::validation
+
+namespace gd::validation {
+namespace {
+
+// Friction against a kinematic collider: a patch stays on a plane tilted below atan(mu) and
+// slides above it; the onset is within 10% of atan(mu).
+TEST(Slope, SlidingStartsAtTheFrictionAngle) { expect_pass(slope_case(library().get("cotton"))); }
+
+// A strip pinched between two box pads holds its weight with enough friction, slips without.
+TEST(Pinch, HoldsWithFrictionSlipsWithout) { expect_pass(pinch_case(library().get("cotton"))); }
+
+}  // namespace
+}  // namespace gd::validation

@@ -45,7 +45,7 @@ GD_HD Real contact_barrier(Real g, Real dhat, Real kappa, Real* db, Real* d2b) {
     return Real(INFINITY);
   }
   const Real s = g - dhat;
-  const Real lg = log(g / dhat);
+  const Real lg = ::log(g / dhat);
   if (db) *db = -kappa * (Real(2) * s * lg + s * s / g);
   if (d2b) *d2b = -kappa * (Real(2) * lg + Real(4) * s / g - s * s / (g * g));
   return -kappa * s * s * lg;

@@ -24,7 +24,7 @@ GD_HD Real plane_barrier_function(Real d, Real dhat, Real kappa, Real* db, Real*
     return Real(INFINITY);
   }
   const Real s = d - dhat;
-  const Real lg = log(d / dhat);
+  const Real lg = ::log(d / dhat);
   if (db) *db = -kappa * (Real(2) * s * lg + s * s / d);
   if (d2b) *d2b = -kappa * (Real(2) * lg + Real(4) * s / d - s * s / (d * d));
   return -kappa * s * s * lg;

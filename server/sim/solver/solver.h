@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "sim/contact/collider.h"
 #include "sim/solver/options.h"
 #include "sim/solver/scene_data.h"
 
@@ -50,6 +51,8 @@ class SolverBase {
   virtual void get_positions(std::vector<double>& x) = 0;
   virtual void get_velocities(std::vector<double>& v) = 0;
   virtual void set_state(const std::vector<double>& x, const std::vector<double>& v) = 0;
+  /// Kinematic colliders for the next step: their poses at the start (t0) and end (t1) of it.
+  virtual void set_colliders(const std::vector<Collider>& colliders, double t0, double t1) = 0;
   /// Constant external forces (3 per vertex, N), e.g. a hanging load.
   virtual void set_external_forces(const std::vector<double>& f) = 0;
   virtual EnergyReport energies() = 0;

@@ -26,6 +26,7 @@
 #include "sim/energy/table_friction.h"
 #include "sim/contact/barrier.h"
 #include "sim/contact/ccd.h"
+#include "sim/contact/collider.h"
 #include "sim/contact/friction.h"
 #include "sim/solver/preconditioner.h"
 #include "sim/solver/self_contact.h"
@@ -80,6 +81,12 @@ struct View {
   const double* f_ext;   // external forces, N (3 per vertex)
   const int* kin;            // 1 for kinematic vertices held by a spring (self-contact mode)
   const double* kin_target;  // their targets at the end of the step (3 per vertex)
+  // kinematic colliders: shape, poses (R0 row-major, t0, R1, t1: 24 doubles), friction, meshes
+  int n_col = 0;
+  const ColliderShape* col_shape;
+  const double* col_pose;
+  const double* col_mu;
+  ColliderMeshView col_mesh;
   // self-contact: candidate pairs (line search, CCD), active pairs (Hessian), lagged friction
   int n_cand = 0, n_act = 0, n_fr = 0;
   const int* cand_v;
@@ -146,6 +153,31 @@ GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Ve
     e += 0.5 * k * d.squaredNorm();
     if (g) *g += k * d;
     if (H) *H += k * Mat3::Identity();
+  }
+  if (!V.fixed[i]) {  // kinematic colliders: barrier at the end pose, friction lagged
+    for (int c = 0; c < V.n_col; ++c) {
+      const double* q = V.col_pose + 24 * c;
+      const Mat3 R0 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q);
+      const Vec3 t0(q[9], q[10], q[11]);
+      const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+      const Vec3 t1(q[21], q[22], q[23]);
+      const Real kappa = P.kappa_per_mass * m;
+      Mat3 Hc;
+      e += point_collider_energy(x, R1, t1, V.col_shape[c], 0.0, P.dhat, kappa, g ? &gk : nullptr, H ? &Hc : nullptr,
+                                 HessianKind::kProjected, &V.col_mesh);
+      if (g) *g += gk;
+      if (H) *H += Hc;
+      if (V.col_mu[c] > 0) {
+        const ColliderContactFrame f =
+            collider_contact_frame(xt, R0, t0, R1, t1, V.col_shape[c], 0.0, P.dhat, kappa, &V.col_mesh);
+        if (f.lambda > 0) {
+          e += point_collider_friction(x, xt, f.surface_displacement, f.T, V.col_mu[c], f.lambda, P.friction_eps,
+                                       g ? &gk : nullptr, H ? &Hc : nullptr);
+          if (g) *g += gk;
+          if (H) *H += Hc;
+        }
+      }
+    }
   }
   if (P.table && !V.fixed[i]) {
     const Real kappa = P.kappa_per_mass * m;
@@ -330,6 +362,29 @@ class Solver final : public SolverBase {
 
   void set_external_forces(const std::vector<double>& f) override { Exec::upload(f_ext_, f); }
 
+  void set_colliders(const std::vector<Collider>& colliders, double t0, double t1) override {
+    colliders_ = &colliders;
+    col_t1_ = t1;
+    n_col_ = static_cast<int>(colliders.size());
+    if (n_col_ == 0) return;
+    const PackedColliders packed = pack_colliders(colliders);
+    std::vector<double> poses, mu;
+    for (const Collider& c : colliders) {
+      for (const double t : {t0, t1}) {
+        const Eigen::Isometry3d p = c.checked_pose(t);
+        for (int r = 0; r < 3; ++r)
+          for (int k = 0; k < 3; ++k) poses.push_back(p.linear()(r, k));
+        for (int r = 0; r < 3; ++r) poses.push_back(p.translation()[r]);
+      }
+      mu.push_back(c.friction());
+    }
+    Exec::upload(col_shape_, packed.shapes);
+    Exec::upload(col_vertices_, packed.vertices);
+    Exec::upload(col_tris_, packed.triangles);
+    Exec::upload(col_pose_, poses);
+    Exec::upload(col_mu_, mu);
+  }
+
   EnergyReport energies() override {
     const detail::View V = view();
     const double* x = Exec::ptr(x_);
@@ -404,6 +459,11 @@ class Solver final : public SolverBase {
     V.f_ext = Exec::ptr(f_ext_);
     V.kin = Exec::ptr(kin_flag_);
     V.kin_target = Exec::ptr(kin_target_);
+    V.n_col = n_col_;
+    V.col_shape = Exec::ptr(col_shape_);
+    V.col_pose = Exec::ptr(col_pose_);
+    V.col_mu = Exec::ptr(col_mu_);
+    V.col_mesh = ColliderMeshView{Exec::ptr(col_vertices_), Exec::ptr(col_tris_)};
     V.n_cand = n_cand_;
     V.cand_v = Exec::ptr(cand_v_);
     V.cand_type = Exec::ptr(cand_type_);
@@ -460,6 +520,18 @@ class Solver final : public SolverBase {
       }
       detail::store3(x, i, xt + step);
     });
+    if (n_col_ > 0) {
+      // A collider may move into the cloth during the step: start Newton from a guess with
+      // every free vertex at least dhat/2 outside each collider's end pose.
+      Exec::download(host_x_, x_);
+      for (int i = 0; i < n_; ++i) {
+        if (kin_fixed_host_[i]) continue;
+        Vec3 p(host_x_[3 * i], host_x_[3 * i + 1], host_x_[3 * i + 2]);
+        for (const Collider& c : *colliders_) p = c.project_out(p, col_t1_, 0.5 * P_.dhat);
+        for (int k = 0; k < 3; ++k) host_x_[3 * i + k] = p[k];
+      }
+      Exec::upload(x_, host_x_);
+    }
     if (self_) {
       // Lagged friction from the contacts at the start of the step; then make the predictor
       // safe: candidates along x_t -> x, and the whole motion scaled back by CCD where needed.
@@ -808,7 +880,31 @@ class Solver final : public SolverBase {
   }
 
   /// Largest step fraction along dx that keeps the state free of crossings (CCD).
-  double max_step() { return std::min(table_ccd_bound(), self_ccd_bound()); }
+  double max_step() { return std::min({table_ccd_bound(), self_ccd_bound(), collider_step_bound()}); }
+
+  /// Conservative bound against colliders (distance is 1-Lipschitz): no free vertex moves more
+  /// than 90% of its distance to a collider's surface in one step.
+  double collider_step_bound() {
+    if (n_col_ == 0) return 1.0;
+    const detail::View V = view();
+    const double* x = Exec::ptr(x_);
+    const double* dx = Exec::ptr(dx_);
+    const double inv = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
+      if (V.fixed[i]) return 0.0;
+      const Real len = detail::load3(dx, i).norm();
+      if (len == 0) return 0.0;
+      double worst = 0;
+      for (int c = 0; c < V.n_col; ++c) {
+        const double* q = V.col_pose + 24 * c;
+        const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+        const Vec3 t1(q[21], q[22], q[23]);
+        const Real d = collider_world_distance(detail::load3(x, i), R1, t1, V.col_shape[c], &V.col_mesh, nullptr, nullptr);
+        worst = fmax(worst, d > 0 ? len / (0.9 * d) : 1e12);
+      }
+      return worst;
+    }, Exec::kParallelMinHeavy);
+    return inv > 1.0 ? 1.0 / inv : 1.0;
+  }
 
   /// Largest step fraction keeping every free vertex at least 10% of its distance above the
   /// table (continuous collision detection against a plane is exact and cheap).
@@ -919,6 +1015,14 @@ class Solver final : public SolverBase {
   // self-contact (host bookkeeping, device pair lists)
   std::unique_ptr<SelfContact> self_;
   double kappa_scale_ = 1;
+  // kinematic colliders (host objects owned by the Scene; packed copies on the backend)
+  const std::vector<Collider>* colliders_ = nullptr;
+  double col_t1_ = 0;
+  int n_col_ = 0;
+  Vec<ColliderShape> col_shape_;
+  Vec<Vec3> col_vertices_;
+  Vec<Eigen::Vector3i> col_tris_;
+  Vec<double> col_pose_, col_mu_;
   std::vector<double> host_x_, host_xt_, host_dx_;
   int n_cand_ = 0, n_act_ = 0, n_fr_ = 0;
   Vec<int> cand_v_, cand_type_, act_v_, act_type_, fr_v_;
