@@ -22,6 +22,7 @@
 #include <Eigen/Geometry>
 
 #include "sim/contact/distance.h"
+#include "sim/energy/log_barrier.h"
 #include "sim/energy/psd_project.h"
 #include "sim/types.h"
 
@@ -34,21 +35,7 @@ namespace gd::sim {
 ///   b'' = -kappa [2 ln(g/dhat) + 4 (g - dhat)/g - (g - dhat)²/g²]
 /// b is C² at dhat; on (0, dhat) b > 0, b' < 0 and b'' > 0.
 GD_HD Real contact_barrier(Real g, Real dhat, Real kappa, Real* db, Real* d2b) {
-  if (g >= dhat) {
-    if (db) *db = Real(0);
-    if (d2b) *d2b = Real(0);
-    return Real(0);
-  }
-  if (!(g > Real(0))) {
-    if (db) *db = Real(0);
-    if (d2b) *d2b = Real(0);
-    return Real(INFINITY);
-  }
-  const Real s = g - dhat;
-  const Real lg = ::log(g / dhat);
-  if (db) *db = -kappa * (Real(2) * s * lg + s * s / g);
-  if (d2b) *d2b = -kappa * (Real(2) * lg + Real(4) * s / g - s * s / (g * g));
-  return -kappa * s * s * lg;
+  return log_barrier(g, dhat, kappa, db, d2b);
 }
 
 /// Normal contact force magnitude (N) of a pair at mid-surface distance `distance` (m):

@@ -4,30 +4,14 @@
 
 #include <cmath>
 
+#include "sim/energy/log_barrier.h"
 #include "sim/types.h"
 
 namespace gd::sim {
 
-/// Barrier function of the distance d (m), J:
-///   b(d) = -kappa (d - dhat)² ln(d / dhat)  for 0 < d < dhat,  0 for d >= dhat,  +inf for d <= 0.
-/// Writes b'(d) (N) and b''(d) (N/m) when non-null (0 for d >= dhat and for d <= 0). b is C² at
-/// dhat; on (0, dhat) b > 0, b' < 0 and b'' > 0.
+/// The barrier of the distance d to the plane (log_barrier.h).
 GD_HD Real plane_barrier_function(Real d, Real dhat, Real kappa, Real* db, Real* d2b) {
-  if (d >= dhat) {
-    if (db) *db = Real(0);
-    if (d2b) *d2b = Real(0);
-    return Real(0);
-  }
-  if (!(d > Real(0))) {
-    if (db) *db = Real(0);
-    if (d2b) *d2b = Real(0);
-    return Real(INFINITY);
-  }
-  const Real s = d - dhat;
-  const Real lg = ::log(d / dhat);
-  if (db) *db = -kappa * (Real(2) * s * lg + s * s / d);
-  if (d2b) *d2b = -kappa * (Real(2) * lg + Real(4) * s / d - s * s / (d * d));
-  return -kappa * s * s * lg;
+  return log_barrier(d, dhat, kappa, db, d2b);
 }
 
 /// Barrier energy of a vertex against the plane n.p = offset (n unit, pointing to the free side),
