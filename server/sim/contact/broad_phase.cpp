@@ -343,7 +343,9 @@ void layer_bounds(const RTCBoundsFunctionArguments* args) {
 class EmbreeBroadPhase final : public BroadPhase {
  public:
   explicit EmbreeBroadPhase(Topo topo) : topo_(std::move(topo)) {
-    device_ = rtcNewDevice(nullptr);
+    // One thread: the solver's OpenMP threads already use the cores, and TBB workers spinning
+    // beside them slow both down (the broad phase is a few per cent of a step).
+    device_ = rtcNewDevice("threads=1");
     GD_DEMAND(device_ != nullptr, "rtcNewDevice failed (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
     rtcSetDeviceErrorFunction(device_, embree_error, nullptr);
     init_layer(&vertices_, &boxes_.vertices, topo_.n);
