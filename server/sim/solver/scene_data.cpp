@@ -105,8 +105,7 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
   for (int h = 0; h < nh; ++h) {
     const Eigen::Vector4i& hv = topo.hinges[h];
     for (int k = 0; k < 4; ++k) d.hinges[4 * h + k] = hv[k];
-    const int ta = topo.hinge_tris[h][0], tb = topo.hinge_tris[h][1];
-    const Real a_sum = d.tri_rest[ta].area + d.tri_rest[tb].area;
+    const int ta = topo.hinge_tris[h][0];
     // Edge direction in pattern space of triangle ta: bending about an edge along the weft
     // curves the warp, so its rigidity is the warp one.
     Vec2 e2d;
@@ -120,12 +119,12 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
       GD_DEMAND(i0 >= 0 && i1 >= 0, "hinge edge not in its triangle");
       e2d = (corners[ta][i1] - corners[ta][i0]);
     }
-    const Real elen = e2d.norm();
-    const Vec2 eh = e2d / elen;
+    const Vec2 eh = e2d.normalized();
     HingeRest& r = d.hinge_rest[h];
     r.stiffness = mat.bend_warp * eh.y() * eh.y() + mat.bend_weft * eh.x() * eh.x();
-    r.coef = std::sqrt(3.0) * elen / a_sum;  // sum over hinges = G/2 kappa^2 area (docs/physics.md)
-    r.area = a_sum / 3.0;
+    // Curvature scale and area of the hinge from its rest shape (docs/physics.md).
+    r.coef = use_uv ? hinge_rest_coef(mesh.uv[hv[0]], mesh.uv[hv[1]], mesh.uv[hv[2]], mesh.uv[hv[3]], &r.area)
+                    : hinge_rest_coef(mesh.x[hv[0]], mesh.x[hv[1]], mesh.x[hv[2]], mesh.x[hv[3]], &r.area);
     r.kappa_n = mat.bend_kappa_n;
     r.theta0 = use_uv ? 0.0
                       : dihedral_angle(mesh.x[hv[0]], mesh.x[hv[1]], mesh.x[hv[2]], mesh.x[hv[3]]);

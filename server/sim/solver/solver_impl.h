@@ -62,6 +62,15 @@ struct Params {
   Real membrane_ref = 0;  // N/m, the material's largest stretch stiffness
 };
 
+/// A list of contact pairs: 4 vertices, type (0 VF, 1 EE), barrier stiffness, EE mollifier.
+struct PairView {
+  int n = 0;
+  const int* v = nullptr;
+  const int* type = nullptr;
+  const double* kappa = nullptr;
+  const double* eps = nullptr;
+};
+
 /// Raw pointers into the backend's arrays (host or device), copied into kernels.
 struct View {
   int n = 0, nt = 0, nh = 0;
@@ -88,27 +97,21 @@ struct View {
   const double* col_mu;
   ColliderMeshView col_mesh;
   // self-contact: candidate pairs (line search, CCD), active pairs (Hessian), lagged friction
-  int n_cand = 0, n_act = 0, n_fr = 0;
-  const int* cand_v;
-  const int* cand_type;
-  const double* cand_kappa;
-  const double* cand_eps;
-  const int* act_v;
-  const int* act_type;
-  const double* act_kappa;
-  const double* act_eps;
+  PairView cand, act;
+  int n_fr = 0;
   const int* fr_v;
   const double* fr_w;
   const double* fr_T;
   const double* fr_lambda;
 };
 
-/// Self-contact barrier of one pair (vertex-face or edge-edge), PSD-projected Hessian.
-GD_HD Real pair_barrier(const Params& P, const int* v, int type, Real kappa, Real eps_x, const double* x, Vec12* g,
-                        Mat12* H) {
-  const Vec3 a = load3(x, v[0]), b = load3(x, v[1]), c = load3(x, v[2]), d = load3(x, v[3]);
-  return type == 0 ? vf_contact_energy(a, b, c, d, 0.0, P.dhat_self, kappa, g, H, HessianKind::kProjected)
-                   : ee_contact_energy(a, b, c, d, 0.0, P.dhat_self, kappa, eps_x, g, H, HessianKind::kProjected);
+/// Self-contact barrier of pair c of a list (vertex-face or edge-edge), PSD-projected Hessian.
+GD_HD Real pair_barrier(const Params& P, const PairView& L, int c, const double* x, Vec12* g, Mat12* H) {
+  const int* v = L.v + 4 * c;
+  const Vec3 a = load3(x, v[0]), b = load3(x, v[1]), q = load3(x, v[2]), d = load3(x, v[3]);
+  return L.type[c] == 0
+             ? vf_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], g, H, HessianKind::kProjected)
+             : ee_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], L.eps[c], g, H, HessianKind::kProjected);
 }
 
 /// Lagged cloth-cloth friction of friction pair k.
@@ -342,6 +345,7 @@ class Solver final : public SolverBase {
       }
     }
     end_step();                                        // v = (x - x_t)/h
+    if (self_) Exec::download(host_x_, x_);            // host copy for the two checks below
     adapt_barrier_stiffness();                         // stiffer barriers if gaps got tiny
     check_intersections(&st);                          // exact count; untangle if any (fail-safe)
     if (self_) {
@@ -464,16 +468,8 @@ class Solver final : public SolverBase {
     V.col_pose = Exec::ptr(col_pose_);
     V.col_mu = Exec::ptr(col_mu_);
     V.col_mesh = ColliderMeshView{Exec::ptr(col_vertices_), Exec::ptr(col_tris_)};
-    V.n_cand = n_cand_;
-    V.cand_v = Exec::ptr(cand_v_);
-    V.cand_type = Exec::ptr(cand_type_);
-    V.cand_kappa = Exec::ptr(cand_kappa_);
-    V.cand_eps = Exec::ptr(cand_eps_);
-    V.n_act = n_act_;
-    V.act_v = Exec::ptr(act_v_);
-    V.act_type = Exec::ptr(act_type_);
-    V.act_kappa = Exec::ptr(act_kappa_);
-    V.act_eps = Exec::ptr(act_eps_);
+    V.cand = cand_.view();
+    V.act = act_.view();
     V.n_fr = n_fr_;
     V.fr_v = Exec::ptr(fr_v_);
     V.fr_w = Exec::ptr(fr_w_);
@@ -557,12 +553,8 @@ class Solver final : public SolverBase {
     Exec::download(host_x_, x_);
     self_->select_active(host_x_, kin_fixed_host_);
     const ContactPairs& a = self_->active();
-    n_act_ = a.size();
-    Exec::upload(act_v_, a.v);
-    Exec::upload(act_type_, a.type);
-    Exec::upload(act_kappa_, a.kappa);
-    Exec::upload(act_eps_, a.eps_x);
-    Exec::resize(act_H_, 144 * static_cast<size_t>(n_act_));
+    act_.upload(a);
+    Exec::resize(act_H_, 144 * static_cast<size_t>(act_.n));
     upload_candidates();  // select_active drops pairs already at zero distance
   }
 
@@ -579,11 +571,7 @@ class Solver final : public SolverBase {
 
   void upload_candidates() {
     const ContactPairs& c = self_->candidates();
-    n_cand_ = c.size();
-    Exec::upload(cand_v_, c.v);
-    Exec::upload(cand_type_, c.type);
-    Exec::upload(cand_kappa_, c.kappa);
-    Exec::upload(cand_eps_, c.eps_x);
+    cand_.upload(c);
   }
 
   void upload_friction() {
@@ -600,20 +588,19 @@ class Solver final : public SolverBase {
   /// weight rests at dhat/2, but grippers and stacked layers press harder. When a pair's gap
   /// closes below a tenth of dhat the stiffness doubles (up to 1e4 x). (The table keeps its
   /// weight-calibrated stiffness: cloth rests on it under gravity alone.)
+  /// host_x_ holds the end-of-step positions.
   void adapt_barrier_stiffness() {
     if (!self_) return;
-    Exec::download(host_x_, x_);
     if (self_->min_active_distance(host_x_) < 0.1 * P_.dhat_self && kappa_scale_ < 1e4) {
       kappa_scale_ *= 2;
       self_->set_kappa_scale(kappa_scale_);
     }
   }
 
-  /// Exact count of intersecting triangle pairs after the step; the untangling fail-safe runs
-  /// when there are any.
+  /// Exact count of intersecting triangle pairs after the step (host_x_ holds the positions);
+  /// the untangling fail-safe runs when there are any.
   void check_intersections(StepStats* st) {
     if (!self_ || !opt_.check_intersections) return;
-    Exec::download(host_x_, x_);
     st->intersecting_pairs = self_->count_intersections(host_x_);
     if (st->intersecting_pairs > 0 && opt_.untangle) {
       st->untangled = true;
@@ -659,11 +646,11 @@ class Solver final : public SolverBase {
     // block matrix, their off-diagonal blocks stay with the pair (applied in spmv).
     double* HA = Exec::ptr(act_H_);
     double* HF = Exec::ptr(fr_H_);
-    Exec::for_each(V.n_act, [=] GD_HD_LAMBDA(int c) {
+    Exec::for_each(V.act.n, [=] GD_HD_LAMBDA(int c) {
       Vec12 ge;
       Mat12 He;
-      detail::pair_barrier(P, V.act_v + 4 * c, V.act_type[c], V.act_kappa[c], V.act_eps[c], x, &ge, &He);
-      scatter_pair(V, V.act_v + 4 * c, ge, He, g, H, HA + 144 * c);
+      detail::pair_barrier(P, V.act, c, x, &ge, &He);
+      scatter_pair(V, V.act.v + 4 * c, ge, He, g, H, HA + 144 * c);
     }, kSerialOnCpu);
     Exec::for_each(V.n_fr, [=] GD_HD_LAMBDA(int k) {
       Vec12 ge;
@@ -736,9 +723,8 @@ class Solver final : public SolverBase {
     e += Exec::sum(V.nh, [=] GD_HD_LAMBDA(int h) { return detail::hinge_terms(V, P, h, x, nullptr, nullptr); },
                    Exec::kParallelMinHeavy);
     if (self_) {
-      e += Exec::sum(V.n_cand, [=] GD_HD_LAMBDA(int c) {
-        return detail::pair_barrier(P, V.cand_v + 4 * c, V.cand_type[c], V.cand_kappa[c], V.cand_eps[c], x, nullptr,
-                                    nullptr);
+      e += Exec::sum(V.cand.n, [=] GD_HD_LAMBDA(int c) {
+        return detail::pair_barrier(P, V.cand, c, x, nullptr, nullptr);
       }, Exec::kParallelMinHeavy);
       e += Exec::sum(V.n_fr, [=] GD_HD_LAMBDA(int k) { return detail::pair_friction(V, P, k, x, nullptr, nullptr); },
                      Exec::kParallelMinHeavy);
@@ -770,7 +756,7 @@ class Solver final : public SolverBase {
       detail::store3(y, i, acc);
     }, Exec::kParallelMinHeavy);
     if (!self_) return;
-    pair_spmv(V.n_act, V.act_v, Exec::ptr(act_H_), x, y);
+    pair_spmv(V.act.n, V.act.v, Exec::ptr(act_H_), x, y);
     pair_spmv(V.n_fr, V.fr_v, Exec::ptr(fr_H_), x, y);
   }
 
@@ -927,17 +913,17 @@ class Solver final : public SolverBase {
 
   /// Largest fraction of dx along which no candidate pair closes more than 90% of its gap.
   double self_ccd_bound() {
-    if (!self_ || n_cand_ == 0) return 1.0;
+    if (!self_ || cand_.n == 0) return 1.0;
     const detail::View V = view();
     const double* x = Exec::ptr(x_);
     const double* dx = Exec::ptr(dx_);
-    const double inv = Exec::max(V.n_cand, [=] GD_HD_LAMBDA(int c) {
-      const int* v = V.cand_v + 4 * c;
+    const double inv = Exec::max(V.cand.n, [=] GD_HD_LAMBDA(int c) {
+      const int* v = V.cand.v + 4 * c;
       const Vec3 a = detail::load3(x, v[0]), b = detail::load3(x, v[1]), q = detail::load3(x, v[2]),
                  d = detail::load3(x, v[3]);
       const Vec3 da = detail::load3(dx, v[0]), db = detail::load3(dx, v[1]), dq = detail::load3(dx, v[2]),
                  dd = detail::load3(dx, v[3]);
-      const Real alpha = V.cand_type[c] == 0 ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, 0.0)
+      const Real alpha = V.cand.type[c] == 0 ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, 0.0)
                                              : edge_edge_ccd(a, b, q, d, da, db, dq, dd, 0.0);
       return alpha >= 1.0 ? 0.0 : (alpha > 1e-12 ? 1.0 / alpha : 1e12);
     }, Exec::kParallelMinHeavy);
@@ -1024,9 +1010,26 @@ class Solver final : public SolverBase {
   Vec<Eigen::Vector3i> col_tris_;
   Vec<double> col_pose_, col_mu_;
   std::vector<double> host_x_, host_xt_, host_dx_;
-  int n_cand_ = 0, n_act_ = 0, n_fr_ = 0;
-  Vec<int> cand_v_, cand_type_, act_v_, act_type_, fr_v_;
-  Vec<double> cand_kappa_, cand_eps_, act_kappa_, act_eps_, act_H_, fr_w_, fr_T_, fr_lambda_, fr_H_;
+  /// A pair list on the backend (candidates for the line search and CCD, active pairs for the Hessian).
+  struct DevicePairs {
+    int n = 0;
+    Vec<int> v, type;
+    Vec<double> kappa, eps;
+    void upload(const ContactPairs& p) {
+      n = p.size();
+      Exec::upload(v, p.v);
+      Exec::upload(type, p.type);
+      Exec::upload(kappa, p.kappa);
+      Exec::upload(eps, p.eps_x);
+    }
+    detail::PairView view() const {
+      return {n, Exec::ptr(v), Exec::ptr(type), Exec::ptr(kappa), Exec::ptr(eps)};
+    }
+  };
+  DevicePairs cand_, act_;
+  int n_fr_ = 0;
+  Vec<int> fr_v_;
+  Vec<double> act_H_, fr_w_, fr_T_, fr_lambda_, fr_H_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   bool ldlt_analyzed_ = false;
 };

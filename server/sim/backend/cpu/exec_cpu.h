@@ -66,7 +66,6 @@ struct CpuExec {
   /// Add into memory owned by the current element's colour (exclusive by construction).
   static inline void add(double* p, double v) { *p += v; }
 
-  static void synchronize() {}
 };
 
 }  // namespace gd::sim

@@ -75,7 +75,6 @@ struct CudaExec {
 #endif
   }
 
-  static void synchronize() { cudaDeviceSynchronize(); }
 };
 
 }  // namespace gd::sim
