@@ -115,13 +115,24 @@ void validate_mesh(const Mesh& m) {
                                    m.x[i].x(), m.x[i].y(), m.x[i].z()));
   }
   const bool has_uv = !m.uv.empty();
-  if (has_uv && int(m.uv.size()) != nv)
-    throw InputError(fmt::format("mesh has {} uvs but {} vertices; give one uv per vertex or none",
-                                 m.uv.size(), nv));
+  const bool indexed_uv = !m.uv_tris.empty();
+  if (indexed_uv && !has_uv) throw InputError("mesh has uv_tris but no uvs; give both or neither");
+  if (has_uv && !indexed_uv && int(m.uv.size()) != nv)
+    throw InputError(fmt::format(
+        "mesh has {} uvs but {} vertices; give one uv per vertex, uv indices per triangle, or none",
+        m.uv.size(), nv));
+  if (indexed_uv && m.uv_tris.size() != m.tris.size())
+    throw InputError(fmt::format("mesh has {} uv triangles but {} triangles; give one per triangle",
+                                 m.uv_tris.size(), m.tris.size()));
+  for (size_t t = 0; t < m.uv_tris.size(); ++t)
+    for (int k = 0; k < 3; ++k)
+      if (m.uv_tris[t][k] < 0 || m.uv_tris[t][k] >= int(m.uv.size()))
+        throw InputError(fmt::format("uv triangle {} references uv {}, but the mesh has {} uvs", t,
+                                     m.uv_tris[t][k], m.uv.size()));
   for (size_t i = 0; i < m.uv.size(); ++i) {
     if (!m.uv[i].allFinite())
       throw InputError(
-          fmt::format("vertex {} has a non-finite uv ({}, {})", i, m.uv[i].x(), m.uv[i].y()));
+          fmt::format("uv {} is non-finite ({}, {})", i, m.uv[i].x(), m.uv[i].y()));
   }
   for (size_t t = 0; t < m.tris.size(); ++t) {
     const Eigen::Vector3i& f = m.tris[t];
@@ -150,9 +161,14 @@ void validate_mesh(const Mesh& m) {
   int n_edges = 0;
   for_each_edge(h, [&](size_t i, size_t) {
     len3 += (m.x[h[i].lo] - m.x[h[i].hi]).norm();
-    if (has_uv) len2 += (m.uv[h[i].lo] - m.uv[h[i].hi]).norm();
     ++n_edges;
   });
+  if (has_uv) {
+    for (size_t t = 0; t < m.tris.size(); ++t)
+      for (int k = 0; k < 3; ++k)
+        len2 += (corner_uv(m, int(t), k) - corner_uv(m, int(t), (k + 1) % 3)).norm();
+    len2 *= Real(n_edges) / (3.0 * m.tris.size());
+  }
   const Real mean3 = len3 / n_edges, mean2 = len2 / n_edges;
   if (mean3 < 1e-5)
     throw InputError(fmt::format(
@@ -172,7 +188,7 @@ void validate_mesh(const Mesh& m) {
           "triangle {} ({}, {}, {}) is degenerate: 3D area {:.3g} m² is below {:.3g} m²", t, f[0],
           f[1], f[2], a3, min3));
     if (!has_uv) continue;
-    const Real a2 = tri_area(m.uv[f[0]], m.uv[f[1]], m.uv[f[2]]);
+    const Real a2 = tri_area(corner_uv(m, int(t), 0), corner_uv(m, int(t), 1), corner_uv(m, int(t), 2));
     if (a2 < min2)
       throw InputError(fmt::format(
           "triangle {} ({}, {}, {}) is degenerate in uv: uv area {:.3g} m² is below {:.3g} m²", t,
@@ -199,6 +215,29 @@ void validate_mesh(const Mesh& m) {
   }
 
   throw_if_non_manifold(h);
+
+  // Feature edges must be edges of the mesh.
+  auto is_edge = [&](int a, int b) {
+    const int lo = std::min(a, b), hi = std::max(a, b);
+    const auto it = std::lower_bound(h.begin(), h.end(), std::make_pair(lo, hi), [](const HalfEdge& e, const std::pair<int, int>& k) {
+      return std::make_pair(e.lo, e.hi) < k;
+    });
+    return it != h.end() && it->lo == lo && it->hi == hi;
+  };
+  for (size_t i = 0; i < m.creases.size(); ++i) {
+    const Crease& c = m.creases[i];
+    if (c.a < 0 || c.b < 0 || c.a >= nv || c.b >= nv || !is_edge(c.a, c.b))
+      throw InputError(fmt::format("crease {} ({}, {}) is not an edge of the mesh", i, c.a, c.b));
+    if (!(std::isfinite(c.bend_scale) && c.bend_scale >= 0 && c.bend_scale <= 100))
+      throw InputError(fmt::format("crease {} has bend_scale {}; use a value in [0, 100]", i, c.bend_scale));
+  }
+  for (size_t i = 0; i < m.elastic_edges.size(); ++i) {
+    const ElasticEdge& e = m.elastic_edges[i];
+    if (e.a < 0 || e.b < 0 || e.a >= nv || e.b >= nv || !is_edge(e.a, e.b))
+      throw InputError(fmt::format("elastic edge {} ({}, {}) is not an edge of the mesh", i, e.a, e.b));
+    if (!(std::isfinite(e.ratio) && e.ratio > 0.1 && e.ratio <= 2))
+      throw InputError(fmt::format("elastic edge {} has rest-length ratio {}; use a value in (0.1, 2]", i, e.ratio));
+  }
 }
 
 Topology build_topology(const Mesh& m) {
@@ -342,10 +381,12 @@ void write_obj(const Mesh& m, const std::vector<Vec3>& positions, const std::str
   const bool uv = !m.uv.empty();
   for (const Vec3& p : x) out << fmt::format("v {} {} {}\n", p.x(), p.y(), p.z());
   for (const Vec2& t : m.uv) out << fmt::format("vt {} {}\n", t.x(), t.y());
-  for (const auto& f : m.tris) {
-    if (uv)
-      out << fmt::format("f {0}/{0} {1}/{1} {2}/{2}\n", f[0] + 1, f[1] + 1, f[2] + 1);
-    else
+  for (size_t t = 0; t < m.tris.size(); ++t) {
+    const auto& f = m.tris[t];
+    if (uv) {
+      const Eigen::Vector3i u = m.uv_tris.empty() ? f : m.uv_tris[t];
+      out << fmt::format("f {}/{} {}/{} {}/{}\n", f[0] + 1, u[0] + 1, f[1] + 1, u[1] + 1, f[2] + 1, u[2] + 1);
+    } else
       out << fmt::format("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);
   }
   out.close();
@@ -358,7 +399,8 @@ Mesh read_obj(const std::string& path) {
   Mesh m;
   std::vector<Vec2> vts;
   std::vector<int> vt_of;  // per vertex: its vt index, -1 if none seen yet
-  bool uv_ok = true;
+  bool uv_ok = true, seams = false;
+  std::vector<Eigen::Vector3i> uv_tris;
   std::string line;
   int line_no = 0;
   auto fail = [&](const std::string& what) {
@@ -405,7 +447,7 @@ Mesh read_obj(const std::string& path) {
     } else if (tok[0] == "f") {
       if (tok.size() < 4) throw fail("a face needs at least 3 vertices");
       vt_of.resize(m.x.size(), -1);
-      std::vector<int> face;
+      std::vector<int> face, face_vt;
       for (size_t k = 1; k < tok.size(); ++k) {
         const std::string_view t = tok[k];
         const size_t s1 = t.find('/');
@@ -416,21 +458,28 @@ Mesh read_obj(const std::string& path) {
                                              : t.substr(s1 + 1, t.find('/', s1 + 1) - s1 - 1);
         if (vt_part.empty()) {
           uv_ok = false;
+          face_vt.push_back(-1);
           continue;
         }
         const int vt = index(vt_part, vts.size(), "texture");
+        face_vt.push_back(vt);
         if (vt_of[v] < 0)
           vt_of[v] = vt;
         else if (vt_of[v] != vt && vts[vt_of[v]] != vts[vt])
-          uv_ok = false;  // a uv seam: this vertex has two different uvs
+          seams = true;  // this vertex has two different uvs: keep uvs per corner
       }
-      for (size_t k = 1; k + 1 < face.size(); ++k)
+      for (size_t k = 1; k + 1 < face.size(); ++k) {
         m.tris.emplace_back(face[0], face[k], face[k + 1]);
+        uv_tris.emplace_back(face_vt[0], face_vt[k], face_vt[k + 1]);
+      }
     }
   }
   if (in.bad()) throw InputError(fmt::format("error reading OBJ file '{}'", path));
   vt_of.resize(m.x.size(), -1);
-  if (uv_ok && std::none_of(vt_of.begin(), vt_of.end(), [](int t) { return t < 0; })) {
+  if (uv_ok && seams) {
+    m.uv = std::move(vts);
+    m.uv_tris = std::move(uv_tris);
+  } else if (uv_ok && std::none_of(vt_of.begin(), vt_of.end(), [](int t) { return t < 0; })) {
     m.uv.resize(m.x.size());
     for (size_t i = 0; i < m.x.size(); ++i) m.uv[i] = vts[vt_of[i]];
   }

@@ -12,18 +12,44 @@
 
 namespace gd::sim {
 
+/// A hinge whose bending stiffness is scaled, e.g. a pressed fold line of a pleat (scale < 1).
+struct Crease {
+  int a = 0, b = 0;     ///< the edge's vertices (either order)
+  Real bend_scale = 1;  ///< multiplies the material's bending stiffness on this edge
+};
+
+/// An elastic edge (waistband, cuff): the triangles that contain it have their rest length
+/// along the edge scaled by `ratio` (< 1 gathers the fabric), their rest width unchanged.
+struct ElasticEdge {
+  int a = 0, b = 0;  ///< the edge's vertices (either order)
+  Real ratio = 1;    ///< rest-length ratio along the edge, in (0, 2]
+};
+
 /// A triangle mesh of one garment piece or garment.
 struct Mesh {
   std::vector<Vec3> x;  ///< vertex positions, m
-  /// Empty, or one per vertex: 2D sewing-pattern (rest) coordinates in metres;
-  /// axis 0 = warp, axis 1 = weft.
+  /// 2D sewing-pattern (rest) coordinates in metres; axis 0 = warp, axis 1 = weft. Empty (rest
+  /// shape from the 3D positions), one per vertex (uv_tris empty), or indexed by uv_tris.
   std::vector<Vec2> uv;
   std::vector<Eigen::Vector3i> tris;  ///< vertex indices; counter-clockwise seen from the front
+  /// Empty, or one triple of uv indices per triangle: a vertex on a seam then has one pattern
+  /// coordinate per panel (as OBJ `f v/vt` corners do).
+  std::vector<Eigen::Vector3i> uv_tris;
+  std::vector<Crease> creases;             ///< edges with scaled bending (fold lines)
+  std::vector<ElasticEdge> elastic_edges;  ///< edges with a rest-length ratio
 };
+
+/// True when the mesh carries pattern coordinates.
+inline bool has_uv(const Mesh& m) { return !m.uv.empty(); }
+/// Pattern coordinate of corner k (0..2) of triangle t; the mesh must have uvs.
+inline const Vec2& corner_uv(const Mesh& m, int t, int k) {
+  return m.uv[m.uv_tris.empty() ? m.tris[t][k] : m.uv_tris[t][k]];
+}
 
 /// Checks that `m` can be simulated. Throws InputError with a specific message for: no vertices
 /// or triangles, index out of range, non-finite positions or uvs, a uv count that differs from
-/// the vertex count, degenerate triangles (3D or uv area below max(1e-12 m², 1e-6 · mean edge²)),
+/// the vertex count (without uv_tris) or uv_tris that do not match the triangles, creases or
+/// elastic edges that are not edges of the mesh or have bad values, degenerate triangles (3D or uv area below max(1e-12 m², 1e-6 · mean edge²)),
 /// duplicate triangles (same vertex set), non-manifold edges (more than 2 triangles), and
 /// absurd scale (bounding-box diagonal > 100 m or mean edge < 1e-5 m).
 void validate_mesh(const Mesh& m);
@@ -71,14 +97,14 @@ Real mesh_area(const Mesh& m);
 /// Mean length of the unique edges, m.
 Real mean_edge_length(const Mesh& m);
 
-/// Writes `m` as a Wavefront OBJ (v, vt when uvs exist, f). `positions`, when non-empty,
+/// Writes `m` as a Wavefront OBJ (v, vt when uvs exist, f with v/vt corners). `positions`, when non-empty,
 /// replaces m.x (it must then have one entry per vertex). Throws InputError if the file cannot
 /// be written.
 void write_obj(const Mesh& m, const std::vector<Vec3>& positions, const std::string& path);
 
 /// Minimal OBJ reader: v, vt and f lines (v, v/vt, v//vn, v/vt/vn; negative indices; polygons
-/// fan-triangulated); other statements are ignored. uv is filled only if every vertex has exactly
-/// one vt value, otherwise it is left empty. Throws InputError with the line number on malformed
+/// fan-triangulated); other statements are ignored. When every face corner has a vt, uv holds
+/// them: one per vertex if each vertex has a single value, else indexed by uv_tris (seams). Throws InputError with the line number on malformed
 /// input. The result is not validated; call validate_mesh.
 Mesh read_obj(const std::string& path);
 

@@ -200,7 +200,7 @@ TEST(MeshValidate, RejectsEachDefect) {
     expect_rejected(m, "3 uvs but 4 vertices");
     m = square();
     m.uv[3].x() = std::numeric_limits<Real>::infinity();
-    expect_rejected(m, "vertex 3 has a non-finite uv");
+    expect_rejected(m, "uv 3 is non-finite");
   }
   {
     Mesh m = square();
@@ -270,11 +270,16 @@ TEST(Obj, ReadsPolygonsAndIndexForms) {
   EXPECT_EQ(m.tris[2], Vector3i(1, 4, 2));
   EXPECT_TRUE(m.uv.empty());  // no vt at all
 
-  // A uv seam (vertex 1 with two different vt) leaves uv empty.
+  // A uv seam (vertex 0 with two different vt) keeps the uvs per corner.
   std::ofstream(path) << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
                          "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 5 5\n"
                          "f 1/1 2/2 3/3\nf 1/5 3/3 4/4\n";
-  EXPECT_TRUE(read_obj(path).uv.empty());
+  const Mesh seam = read_obj(path);
+  ASSERT_EQ(seam.uv.size(), 5u);
+  ASSERT_EQ(seam.uv_tris.size(), 2u);
+  EXPECT_EQ(seam.uv_tris[1], Vector3i(4, 2, 3));
+  EXPECT_EQ(corner_uv(seam, 1, 0), Vec2(5, 5));
+  EXPECT_EQ(corner_uv(seam, 0, 0), Vec2(0, 0));
   std::filesystem::remove(path);
 }
 

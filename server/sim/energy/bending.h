@@ -192,17 +192,22 @@ GD_HD Real dihedral_angle_derivatives(const Vec3& x0, const Vec3& x1, const Vec3
 /// across a row of edges, κ_hinge = sqrt(3)/R on those edges and 0 on the others), so the
 /// quartic kappa_n term of bending_energy comes out 1.2x to 3x its continuum value
 /// A G κ⁴/(4 kappa_n²) on an equilateral mesh, depending on the bending direction.
-GD_HD Real hinge_rest_coef(const Vec3& X0, const Vec3& X1, const Vec3& X2, const Vec3& X3,
-                           Real* area) {
-  const Real a1 = Real(0.5) * (X1 - X0).cross(X2 - X0).norm();
-  const Real a2 = Real(0.5) * (X0 - X1).cross(X3 - X1).norm();
+GD_HD Real hinge_rest_coef(Real edge_length, Real a1, Real a2, Real* area) {
   const Real sum = a1 + a2;
   if (!(sum > Real(0))) {
     if (area) *area = Real(0);
     return Real(0);
   }
   if (area) *area = sum / Real(3);
-  return sqrt(Real(3)) * (X1 - X0).norm() / sum;
+  return sqrt(Real(3)) * edge_length / sum;
+}
+
+/// hinge_rest_coef from the rest positions of the hinge's four vertices.
+GD_HD Real hinge_rest_coef(const Vec3& X0, const Vec3& X1, const Vec3& X2, const Vec3& X3,
+                           Real* area) {
+  const Real a1 = Real(0.5) * (X1 - X0).cross(X2 - X0).norm();
+  const Real a2 = Real(0.5) * (X0 - X1).cross(X3 - X1).norm();
+  return hinge_rest_coef((X1 - X0).norm(), a1, a2, area);
 }
 
 /// hinge_rest_coef for 2D pattern (rest) coordinates (m), embedded in the z = 0 plane.

@@ -3,6 +3,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <unordered_map>
 
 #include "sim/demand.h"
 #include "sim/log.h"
@@ -13,9 +15,10 @@ namespace {
 /// 2D rest coordinates of a triangle's corners: pattern UVs, or the 3D triangle flattened into a
 /// frame whose first axis is the world x axis projected onto the triangle (the warp direction of
 /// garments laid out as RGBench lays them) or, if that degenerates, the first edge.
-void rest_corners(const Mesh& m, const Eigen::Vector3i& t, bool use_uv, Vec2 p[3]) {
+void rest_corners(const Mesh& m, int ti, bool use_uv, Vec2 p[3]) {
+  const Eigen::Vector3i& t = m.tris[ti];
   if (use_uv) {
-    for (int k = 0; k < 3; ++k) p[k] = m.uv[t[k]];
+    for (int k = 0; k < 3; ++k) p[k] = corner_uv(m, ti, k);
     return;
   }
   const Vec3 x0 = m.x[t[0]], e1 = m.x[t[1]] - x0, e2 = m.x[t[2]] - x0;
@@ -27,6 +30,27 @@ void rest_corners(const Mesh& m, const Eigen::Vector3i& t, bool use_uv, Vec2 p[3
   p[0] = Vec2::Zero();
   p[1] = Vec2(e1.dot(a1), e1.dot(a2));
   p[2] = Vec2(e2.dot(a1), e2.dot(a2));
+}
+
+/// Key of an undirected edge.
+uint64_t edge_key(int a, int b) {
+  const auto lo = static_cast<uint64_t>(std::min(a, b)), hi = static_cast<uint64_t>(std::max(a, b));
+  return lo << 32 | hi;
+}
+
+/// Shrinks (or stretches) a triangle's rest corners along its edge (a, b) by `ratio`, leaving
+/// the width across the edge unchanged: p -> p0 + (I + (ratio - 1) d d^T)(p - p0).
+void scale_along_edge(const Eigen::Vector3i& tri, int a, int b, Real ratio, Vec2 p[3]) {
+  int ia = -1, ib = -1;
+  for (int k = 0; k < 3; ++k) {
+    if (tri[k] == a) ia = k;
+    if (tri[k] == b) ib = k;
+  }
+  if (ia < 0 || ib < 0) return;
+  const Vec2 d = (p[ib] - p[ia]).normalized();
+  const Mat2 M = Mat2::Identity() + (ratio - 1) * d * d.transpose();
+  const Vec2 o = p[ia];
+  for (int k = 0; k < 3; ++k) p[k] = o + M * (p[k] - o);
 }
 
 }  // namespace
@@ -69,7 +93,9 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
   for (int i = 0; i < d.n; ++i)
     for (int c = 0; c < 3; ++c) d.x[3 * i + c] = mesh.x[i][c];
 
-  const bool use_uv = opt.rest_from_uv && !mesh.uv.empty();
+  const bool use_uv = opt.rest_from_uv && has_uv(mesh);
+  std::unordered_map<uint64_t, Real> elastic;  // edge -> rest-length ratio
+  for (const ElasticEdge& e : mesh.elastic_edges) elastic[edge_key(e.a, e.b)] = e.ratio;
   const int nt = static_cast<int>(mesh.tris.size());
   d.mass.assign(d.n, 0.0);
   d.tris.resize(3 * nt);
@@ -78,7 +104,11 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
   for (int t = 0; t < nt; ++t) {
     const auto& tri = mesh.tris[t];
     Vec2 p[3];
-    rest_corners(mesh, tri, use_uv, p);
+    rest_corners(mesh, t, use_uv, p);
+    for (int k = 0; k < 3 && !elastic.empty(); ++k) {
+      const auto it = elastic.find(edge_key(tri[k], tri[(k + 1) % 3]));
+      if (it != elastic.end()) scale_along_edge(tri, tri[k], tri[(k + 1) % 3], it->second, p);
+    }
     corners[t] = {p[0], p[1], p[2]};
     Mat2 Dm;
     Dm.col(0) = p[1] - p[0];
@@ -99,6 +129,8 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
   }
 
   const Topology topo = build_topology(mesh);
+  std::unordered_map<uint64_t, Real> creases;  // edge -> bending scale
+  for (const Crease& c : mesh.creases) creases[edge_key(c.a, c.b)] = c.bend_scale;
   const int nh = static_cast<int>(topo.hinges.size());
   d.hinges.resize(4 * nh);
   d.hinge_rest.resize(nh);
@@ -122,9 +154,24 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
     const Vec2 eh = e2d.normalized();
     HingeRest& r = d.hinge_rest[h];
     r.stiffness = mat.bend_warp * eh.y() * eh.y() + mat.bend_weft * eh.x() * eh.x();
-    // Curvature scale and area of the hinge from its rest shape (docs/physics.md).
-    r.coef = use_uv ? hinge_rest_coef(mesh.uv[hv[0]], mesh.uv[hv[1]], mesh.uv[hv[2]], mesh.uv[hv[3]], &r.area)
-                    : hinge_rest_coef(mesh.x[hv[0]], mesh.x[hv[1]], mesh.x[hv[2]], mesh.x[hv[3]], &r.area);
+    if (!creases.empty()) {
+      const auto it = creases.find(edge_key(hv[0], hv[1]));
+      if (it != creases.end()) r.stiffness *= it->second;
+    }
+    // Curvature scale and area of the hinge from its rest shape (docs/physics.md); with uvs
+    // the two wings may come from different panels (a seam), so each wing uses its own corners.
+    if (use_uv) {
+      const int tb = topo.hinge_tris[h][1];
+      const auto area2 = [](const std::array<Vec2, 3>& c) {
+        Mat2 D;
+        D.col(0) = c[1] - c[0];
+        D.col(1) = c[2] - c[0];
+        return 0.5 * std::abs(D.determinant());
+      };
+      r.coef = hinge_rest_coef(e2d.norm(), area2(corners[ta]), area2(corners[tb]), &r.area);
+    } else {
+      r.coef = hinge_rest_coef(mesh.x[hv[0]], mesh.x[hv[1]], mesh.x[hv[2]], mesh.x[hv[3]], &r.area);
+    }
     r.kappa_n = mat.bend_kappa_n;
     r.theta0 = use_uv ? 0.0
                       : dihedral_angle(mesh.x[hv[0]], mesh.x[hv[1]], mesh.x[hv[2]], mesh.x[hv[3]]);
