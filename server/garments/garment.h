@@ -36,6 +36,12 @@ struct Landmarks {
   int right_shoulder_vertex = -1;      ///< mesh vertex nearest right_shoulder
 };
 
+/// One pattern piece of a generated garment.
+struct PanelInfo {
+  std::string name;   ///< e.g. "body_front", "left_sleeve_back"
+  bool front = true;  ///< on the top layer (false: the bottom layer)
+};
+
 struct Garment {
   std::string type;          ///< "towel", "tshirt", ..., or "mesh" for an imported OBJ
   sim::Mesh mesh;            ///< laid flat in the garment frame; pattern uvs (per corner) when generated
@@ -43,6 +49,12 @@ struct Garment {
   Landmarks landmarks;
   Real length = 0;           ///< extent along x, m
   Real width = 0;            ///< extent along y, m
+  /// Generated garments: the panels, and per triangle the panel it belongs to. Empty for
+  /// imported meshes.
+  std::vector<PanelInfo> panels;
+  std::vector<int> triangle_panel;
+  /// Generated garments: the mesher's vertex spacing (m); imported: the mean edge length.
+  Real spacing = 0;
 };
 
 }  // namespace gd::garments

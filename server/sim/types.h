@@ -30,6 +30,10 @@ enum class HessianKind {
   kNone,       ///< value (and gradient) only
   kExact,      ///< the true second derivative (may be indefinite); used by finite-difference tests
   kProjected,  ///< a positive semi-definite approximation; what the Newton solver assembles
+  /// Contact barriers only: the barrier's curvature along the distance gradient, c ∇d ∇dᵀ with
+  /// c >= 0 (PSD by construction, no eigen-decomposition). It drops b'(d) ∇²d, which is negative
+  /// semi-definite where the distance is convex and is what a projection mostly removes.
+  kGaussNewton,
 };
 
 /// Standard gravity, m/s^2.

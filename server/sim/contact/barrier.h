@@ -110,6 +110,8 @@ GD_HD Real barrier_of_distance2(Real d2, const VecN<12>& g2, const MatN<12>* H2,
   if (grad) *grad = db * gD;
   if (hess && H2) *hess = d2b * (gD * gD.transpose()) + (db / (Real(2) * D)) * *H2 - (db / D) * (gD * gD.transpose());
   // (∇²D = ∇²d²/(2D) - ∇d²∇d²ᵀ/(4D³) = ∇²d²/(2D) - ∇D∇Dᵀ/D.)
+  // Without H2: the Gauss-Newton form (b'' - b'/D) ∇D∇Dᵀ, PSD since b'' > 0 > b'.
+  if (hess && !H2) *hess = (d2b - db / D) * (gD * gD.transpose());
   return E;
 }
 
@@ -139,8 +141,9 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
   }
   VecN<12> g2;
   MatN<12> H2;
-  point_triangle_distance2(p, t0, t1, t2, region, &g2, want_hess ? &H2 : nullptr);
-  const Real E = contact_detail::barrier_of_distance2(d2, g2, want_hess ? &H2 : nullptr, offset, dhat,
+  const bool exact_h2 = want_hess && kind != HessianKind::kGaussNewton;
+  point_triangle_distance2(p, t0, t1, t2, region, &g2, exact_h2 ? &H2 : nullptr);
+  const Real E = contact_detail::barrier_of_distance2(d2, g2, exact_h2 ? &H2 : nullptr, offset, dhat,
                                                       kappa, grad, want_hess ? hess : nullptr);
   if (want_hess && kind == HessianKind::kProjected) project_psd<12>(hess);
   return E;
@@ -173,14 +176,20 @@ GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, con
   if (!want) return m * contact_barrier(sqrt(d2) - offset, dhat, kappa, nullptr, nullptr);
   VecN<12> g2, gB;
   MatN<12> H2, HB;
-  edge_edge_distance2(a0, a1, b0, b1, region, &g2, want_hess ? &H2 : nullptr);
-  const Real B = contact_detail::barrier_of_distance2(d2, g2, want_hess ? &H2 : nullptr, offset, dhat,
+  // Gauss-Newton only where the mollifier is inactive (m = 1, zero derivatives); near-parallel
+  // edges keep the projected full Hessian.
+  const bool gauss_newton = kind == HessianKind::kGaussNewton && m == Real(1) && gm.isZero(0);
+  const bool exact_h2 = want_hess && !gauss_newton;
+  edge_edge_distance2(a0, a1, b0, b1, region, &g2, exact_h2 ? &H2 : nullptr);
+  const Real B = contact_detail::barrier_of_distance2(d2, g2, exact_h2 ? &H2 : nullptr, offset, dhat,
                                                       kappa, &gB, want_hess ? &HB : nullptr);
   if (grad) *grad = m * gB + B * gm;
-  if (want_hess) {
+  if (want_hess && gauss_newton) {
+    *hess = HB;
+  } else if (want_hess) {
     const MatN<12> cross = gm * gB.transpose();
     *hess = m * HB + B * Hm + cross + cross.transpose();
-    if (kind == HessianKind::kProjected) project_psd<12>(hess);
+    if (kind != HessianKind::kExact) project_psd<12>(hess);
   }
   return m * B;
 }

@@ -22,6 +22,13 @@ enum class BendingHessianKind {
                    ///< convergence at large rotations (static solves, validation)
 };
 
+/// How the self-contact barrier Hessians are made positive semi-definite for Newton.
+enum class ContactHessianKind {
+  kGaussNewton,  ///< curvature along the distance gradient only: PSD by construction, cheaper per pair
+                 ///< but weaker (more Newton/PCG iterations in motion; leaves more for untangling)
+  kProjected,    ///< the exact 12x12 Hessian with negative eigenvalues clamped (Jacobi): the default
+};
+
 struct SceneOptions {
   // --- time stepping and solver ---------------------------------------------------------
   Real dt = 1.0 / 200.0;          ///< time step, s
@@ -56,6 +63,7 @@ struct SceneOptions {
   Real self_friction = -1;         ///< cloth-cloth Coulomb coefficient (< 0: the material's)
   bool check_intersections = true; ///< exact intersecting-pair count after every step
   bool untangle = true;            ///< run the untangling fail-safe when intersections are found
+  ContactHessianKind contact_hessian = ContactHessianKind::kProjected;
 
   // --- air drag ---------------------------------------------------------------------------
   Real air_density = 1.2;         ///< kg/m^3

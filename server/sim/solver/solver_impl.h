@@ -56,6 +56,7 @@ struct Params {
   Real air_density = 0, drag_cd = 0, drag_linear = 0, drag_tangent_ratio = 0;
   Real beta_membrane = 0, beta_bend = 0, alpha_mass = 0;
   bool bending_exact_projected = false;
+  HessianKind contact_hessian = HessianKind::kGaussNewton;  ///< self-contact pairs
   bool self_contact = false;
   Real dhat_self = 0, mu_self = 0;
   Real kin_stiffness = 1e3;
@@ -110,8 +111,8 @@ GD_HD Real pair_barrier(const Params& P, const PairView& L, int c, const double*
   const int* v = L.v + 4 * c;
   const Vec3 a = load3(x, v[0]), b = load3(x, v[1]), q = load3(x, v[2]), d = load3(x, v[3]);
   return L.type[c] == 0
-             ? vf_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], g, H, HessianKind::kProjected)
-             : ee_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], L.eps[c], g, H, HessianKind::kProjected);
+             ? vf_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], g, H, P.contact_hessian)
+             : ee_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], L.eps[c], g, H, P.contact_hessian);
 }
 
 /// Lagged cloth-cloth friction of friction pair k.
@@ -308,6 +309,8 @@ class Solver final : public SolverBase {
     P_.beta_bend = opt.bending_damping;
     P_.alpha_mass = opt.mass_damping;
     P_.bending_exact_projected = opt.bending_hessian == BendingHessianKind::kProjectedExact;
+    P_.contact_hessian = opt.contact_hessian == ContactHessianKind::kGaussNewton ? HessianKind::kGaussNewton
+                                                                                 : HessianKind::kProjected;
     P_.membrane_ref = d.stiffness_ref;
     P_.self_contact = opt.self_contact && d.triangles() > 1;
     if (P_.self_contact) {
@@ -555,6 +558,7 @@ class Solver final : public SolverBase {
     const ContactPairs& a = self_->active();
     act_.upload(a);
     Exec::resize(act_H_, 144 * static_cast<size_t>(act_.n));
+    Exec::resize(act_gd_, 48 * static_cast<size_t>(act_.n));
     upload_candidates();  // select_active drops pairs already at zero distance
   }
 
@@ -582,6 +586,7 @@ class Solver final : public SolverBase {
     Exec::upload(fr_T_, f.T);
     Exec::upload(fr_lambda_, f.lambda);
     Exec::resize(fr_H_, 144 * static_cast<size_t>(n_fr_));
+    Exec::resize(fr_gd_, 48 * static_cast<size_t>(n_fr_));
   }
 
   /// IPC-style adaptive stiffness of the self-contact barrier: it starts so that a vertex's
@@ -644,40 +649,58 @@ class Solver final : public SolverBase {
     if (!self_) return;
     // Contact pairs couple vertices outside the mesh pattern: their diagonal blocks go into the
     // block matrix, their off-diagonal blocks stay with the pair (applied in spmv).
+    // Two passes per list: the pair terms in parallel into per-pair storage, then their gradient
+    // and diagonal blocks added into shared rows (serial on the CPU, atomics on the GPU).
     double* HA = Exec::ptr(act_H_);
     double* HF = Exec::ptr(fr_H_);
+    double* GA = Exec::ptr(act_gd_);
+    double* GF = Exec::ptr(fr_gd_);
     Exec::for_each(V.act.n, [=] GD_HD_LAMBDA(int c) {
       Vec12 ge;
       Mat12 He;
       detail::pair_barrier(P, V.act, c, x, &ge, &He);
-      scatter_pair(V, V.act.v + 4 * c, ge, He, g, H, HA + 144 * c);
-    }, kSerialOnCpu);
+      store_pair(V, V.act.v + 4 * c, ge, He, HA + 144 * c, GA + 48 * c);
+    }, Exec::kParallelMinHeavy);
     Exec::for_each(V.n_fr, [=] GD_HD_LAMBDA(int k) {
       Vec12 ge;
       Mat12 He;
       detail::pair_friction(V, P, k, x, &ge, &He);
-      scatter_pair(V, V.fr_v + 4 * k, ge, He, g, H, HF + 144 * k);
-    }, kSerialOnCpu);
+      store_pair(V, V.fr_v + 4 * k, ge, He, HF + 144 * k, GF + 48 * k);
+    }, Exec::kParallelMinHeavy);
+    Exec::for_each(V.act.n, [=] GD_HD_LAMBDA(int c) { add_pair(V, V.act.v + 4 * c, GA + 48 * c, g, H); }, kSerialOnCpu);
+    Exec::for_each(V.n_fr, [=] GD_HD_LAMBDA(int k) { add_pair(V, V.fr_v + 4 * k, GF + 48 * k, g, H); }, kSerialOnCpu);
   }
 
   /// Loops that add into shared rows without colouring: serial on the CPU, atomics on the GPU.
   static constexpr int kSerialOnCpu = Exec::kColoring ? 0x7fffffff : 0;
 
-  GD_HD static void scatter_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12& He, double* g,
-                                 double* H, double* Hpair) {
+  /// Splits a pair's gradient and Hessian (Dirichlet rows/columns dropped): off-diagonal blocks
+  /// into Hpair (row-major 12x12, diagonal blocks zero), gradient and diagonal blocks into gd
+  /// (12 + 4 x 9 values) for add_pair.
+  GD_HD static void store_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12& He,
+                               double* Hpair, double* gd) {
     for (int a = 0; a < 4; ++a) {
       const bool fa = V.fixed[vs[a]];
-      if (!fa)
-        for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, ge(3 * a + c));
+      for (int c = 0; c < 3; ++c) gd[3 * a + c] = fa ? 0.0 : ge(3 * a + c);
       for (int b = 0; b < 4; ++b) {
         const bool keep = !fa && !V.fixed[vs[b]];
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) {
             const double h = keep ? He(3 * a + r, 3 * b + c) : 0.0;
-            Hpair[36 * a + 12 * r + 3 * b + c] = a == b ? 0.0 : h;  // row-major 12x12
-            if (a == b && keep) Exec::add(H + 9 * V.diag[vs[a]] + 3 * r + c, h);
+            Hpair[36 * a + 12 * r + 3 * b + c] = a == b ? 0.0 : h;
+            if (a == b) gd[12 + 9 * a + 3 * r + c] = h;
           }
       }
+    }
+  }
+
+  /// Adds a stored pair's gradient and diagonal blocks into g and the block matrix.
+  GD_HD static void add_pair(const detail::View& V, const int* vs, const double* gd, double* g, double* H) {
+    for (int a = 0; a < 4; ++a) {
+      if (V.fixed[vs[a]]) continue;
+      for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, gd[3 * a + c]);
+      double* blk = H + 9 * V.diag[vs[a]];
+      for (int k = 0; k < 9; ++k) Exec::add(blk + k, gd[12 + 9 * a + k]);
     }
   }
 
@@ -1030,6 +1053,7 @@ class Solver final : public SolverBase {
   int n_fr_ = 0;
   Vec<int> fr_v_;
   Vec<double> act_H_, fr_w_, fr_T_, fr_lambda_, fr_H_;
+  Vec<double> act_gd_, fr_gd_;  ///< per pair: gradient (12) and diagonal blocks (4 x 9), see store_pair
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   bool ldlt_analyzed_ = false;
 };

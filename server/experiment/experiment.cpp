@@ -1,0 +1,373 @@
+#include "experiment/experiment.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+#include "garments/generator.h"
+#include "garments/obj_import.h"
+#include "metrics/alignment.h"
+#include "metrics/cloud_io.h"
+#include "metrics/report.h"
+#include "sim/demand.h"
+#include "sim/log.h"
+#include "sim/material.h"
+#include "sim/scene.h"
+#include "tasks/frames.h"
+#include "tasks/trajectory.h"
+
+namespace gd::experiment {
+namespace fs = std::filesystem;
+using sim::InputError;
+using sim::Vec3;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && std::equal(suffix.rbegin(), suffix.rend(), s.rbegin(),
+                                                 [](char a, char b) { return std::tolower(a) == std::tolower(b); });
+}
+
+metrics::Cloud to_cloud(const std::vector<Vec3>& x) {
+  metrics::Cloud c(x.size());
+  for (size_t i = 0; i < x.size(); ++i) c[i] = x[i].cast<float>();
+  return c;
+}
+
+/// Shape statistics of the cloth at one instant.
+struct Shape {
+  double min_z = 0, max_z = 0, mean_z = 0, extent_x = 0, extent_y = 0;
+};
+Shape shape_of(const std::vector<Vec3>& x) {
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  double z = 0;
+  for (const Vec3& p : x) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p), z += p.z();
+  return {lo.z(), hi.z(), x.empty() ? 0.0 : z / double(x.size()), hi.x() - lo.x(), hi.y() - lo.y()};
+}
+
+/// First time at which an arm's gripper is below the closing threshold (fixed-point grab time of
+/// generated trajectories); the trajectory start if it never closes.
+double first_close_time(const tasks::ArmTrajectory& a, double threshold) {
+  for (const tasks::ArmSample& s : a.samples())
+    if (s.gripper < threshold) return s.t;
+  return a.empty() ? 0.0 : a.start_time();
+}
+
+std::string shared_dir() {
+  if (const char* e = std::getenv("GD_SHARED_DIR"); e && *e) return e;
+#ifdef GD_DEFAULT_SHARED_DIR
+  return GD_DEFAULT_SHARED_DIR;
+#else
+  return "";
+#endif
+}
+
+/// The simulation of one experiment: scene, controller, bookkeeping of statistics and the
+/// time series. advance() is the only place that steps the scene.
+class Run {
+ public:
+  Run(std::unique_ptr<sim::Scene> scene, tasks::GripperController controller, double frame_interval,
+      const ProgressFn& progress, double end_time)
+      : scene_(std::move(scene)),
+        controller_(std::move(controller)),
+        frame_interval_(frame_interval),
+        progress_(progress),
+        end_time_(end_time) {
+    record();
+  }
+
+  /// Steps until the scene time reaches t (overshoot < 1 dt); false once the scene has failed.
+  bool advance(double t) {
+    while (scene_->time() < t - 1e-12) {
+      if (scene_->failed()) return false;
+      controller_.update(*scene_, scene_->time() + scene_->options().dt);
+      const bool ok = scene_->step();
+      const sim::StepStats& s = scene_->last_stats();
+      ++steps_;
+      intersecting_max_ = std::max(intersecting_max_, s.intersecting_pairs);
+      contacts_max_ = std::max(contacts_max_, s.contacts);
+      newton_ += s.newton_iters;
+      pcg_ += s.pcg_iters;
+      if (!ok) return false;
+      if (scene_->time() >= next_record_ - 1e-9) record();
+      if (progress_) progress_(scene_->time(), end_time_, s);
+    }
+    return !scene_->failed();
+  }
+
+  sim::Scene& scene() { return *scene_; }
+  const tasks::GripperController& controller() const { return controller_; }
+  int steps() const { return steps_; }
+  int intersecting_max() const { return intersecting_max_; }
+  int contacts_max() const { return contacts_max_; }
+  long newton() const { return newton_; }
+  long pcg() const { return pcg_; }
+
+  void write_timeseries(const std::string& path) const {
+    std::ofstream f(path);
+    if (!f) throw InputError(fmt::format("cannot write '{}'", path));
+    f << "t,min_z,max_z,mean_z,extent_x,extent_y,kinetic,contacts,intersecting_pairs,newton_iters,pcg_iters,ms\n";
+    for (const std::string& r : rows_) f << r << "\n";
+  }
+
+ private:
+  void record() {
+    const std::vector<Vec3> x = scene_->positions();
+    const Shape s = shape_of(x);
+    const sim::StepStats& st = scene_->last_stats();
+    rows_.push_back(fmt::format("{:.5f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6e},{},{},{},{},{:.3f}", scene_->time(),
+                                s.min_z, s.max_z, s.mean_z, s.extent_x, s.extent_y, scene_->energies().kinetic,
+                                st.contacts, st.intersecting_pairs, st.newton_iters, st.pcg_iters,
+                                1e3 * st.seconds));
+    next_record_ = scene_->time() + frame_interval_;
+  }
+
+  std::unique_ptr<sim::Scene> scene_;
+  tasks::GripperController controller_;
+  double frame_interval_;
+  ProgressFn progress_;
+  double end_time_;
+  double next_record_ = 0;
+  int steps_ = 0, intersecting_max_ = 0, contacts_max_ = 0;
+  long newton_ = 0, pcg_ = 0;
+  std::vector<std::string> rows_;
+};
+
+}  // namespace
+
+sim::SceneOptions ExperimentConfig::default_scene_options() {
+  sim::SceneOptions o;
+  o.self_contact = true;
+  return o;
+}
+
+void ExperimentConfig::validate() const {
+  tasks::task_kind_from_name(task);  // throws with the known names
+  if (mode != "pseudo" && mode != "fixed_point")
+    throw InputError(fmt::format("unknown mode '{}'; use pseudo or fixed_point", mode));
+  if (out_dir.empty()) throw InputError("no output directory given (--out DIR)");
+  if (garment.empty()) throw InputError("no garment given: a garment type or an .obj path");
+  if (!(frame_interval > 0) || !std::isfinite(frame_interval))
+    throw InputError(fmt::format("frame_interval must be positive (got {})", frame_interval));
+  if (!(settle_after >= 0) || !std::isfinite(settle_after))
+    throw InputError(fmt::format("settle_after must be >= 0 s (got {})", settle_after));
+  if (keep_frames < 0) throw InputError("keep_frames must be >= 0");
+  scene.validate();
+  task_params.validate();
+}
+
+garments::Garment make_experiment_garment(const ExperimentConfig& c) {
+  if (ends_with(c.garment, ".obj")) return garments::load_garment_obj(c.garment);
+  return garments::make_garment(c.garment, c.vertices);
+}
+
+bool plot_report(const std::string& dir) {
+  std::vector<std::string> pythons;
+  if (const char* e = std::getenv("GD_PYTHON"); e && *e) pythons.emplace_back(e);
+#ifdef GD_BUILD_VENV_PYTHON
+  pythons.emplace_back(GD_BUILD_VENV_PYTHON);
+#endif
+  pythons.emplace_back("python3");
+  const std::string script = std::string(GD_SOURCE_DIR) + "/scripts/plot_report.py";
+  if (!fs::exists(script)) {
+    gd::log().warn("plots skipped: {} not found", script);
+    return false;
+  }
+  for (const std::string& py : pythons) {
+    if (py != "python3" && !fs::exists(py)) continue;
+    const std::string probe = fmt::format("'{}' -c 'import matplotlib' >/dev/null 2>&1", py);
+    if (std::system(probe.c_str()) != 0) continue;
+    const std::string cmd = fmt::format("'{}' '{}' '{}' >&2", py, script, dir);
+    if (std::system(cmd.c_str()) == 0) return true;
+    gd::log().warn("plots: '{}' failed", cmd);
+    return false;
+  }
+  gd::log().warn("plots skipped: no Python with matplotlib (set GD_PYTHON or run scripts/build)");
+  return false;
+}
+
+ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn& progress) {
+  config.validate();
+  const auto t0 = Clock::now();
+  fs::create_directories(config.out_dir);
+  const std::string out = config.out_dir;
+  const tasks::TaskKind kind = tasks::task_kind_from_name(config.task);
+  const bool fixed_point = config.mode == "fixed_point";
+
+  // Garment, placed at RGBench's initial pose.
+  garments::Garment garment = make_experiment_garment(config);
+  const Eigen::Isometry3d place = tasks::default_garment_pose();
+  sim::Mesh mesh = garment.mesh;
+  for (Vec3& p : mesh.x) p = place * p;
+  const sim::Material material = sim::MaterialLibrary::load_default().get(config.material);
+
+  // Capture and trajectory.
+  std::optional<metrics::Capture> capture;
+  if (!config.capture_dir.empty()) {
+    metrics::CaptureOptions co;
+    co.experiment_library = config.experiment_library;
+    capture = metrics::load_capture(config.capture_dir, co);
+  }
+  tasks::DualArmTrajectory traj;
+  std::string traj_source;
+  if (!config.trajectory_file.empty()) {
+    traj = tasks::read_trajectory(config.trajectory_file);
+    traj_source = config.trajectory_file;
+  } else if (capture) {
+    if (!capture->has_left_joints || !capture->has_right_joints)
+      throw InputError(fmt::format("capture '{}' has no joints/{{left,right}}_arm_joint_states_and_end_pose.csv; "
+                                   "give a trajectory file (--trajectory)",
+                                   capture->dir));
+    traj = tasks::read_rgbench_joints(capture->left_joints_csv, capture->right_joints_csv);
+    traj_source = "capture joints";
+  } else {
+    traj = tasks::make_task(config.task, garment, place, config.task_params);
+    traj_source = "generated " + config.task;
+  }
+  tasks::write_trajectory_csv(out + "/trajectory.csv", traj);
+
+  // Grippers.
+  tasks::GripperOptions go = config.grippers;
+  go.mode = fixed_point ? tasks::GraspMode::kFixedPoint : tasks::GraspMode::kPseudoGrasp;
+  go.action = kind;
+  if (fixed_point) {
+    go.grab_time = capture && capture->has_window ? capture->window.start_calculate_time
+                                                  : first_close_time(traj.left, go.close_threshold);
+    go.shoulder_vertices = config.shoulder_vertices;
+    if (go.shoulder_vertices[0] < 0) go.shoulder_vertices[0] = garment.landmarks.left_shoulder_vertex;
+    if (go.shoulder_vertices[1] < 0) go.shoulder_vertices[1] = garment.landmarks.right_shoulder_vertex;
+  }
+  tasks::GripperController controller(traj, go);
+  const double prepare = controller.sim_prepare_time();
+
+  // Schedule: with a capture, RGBench's per-real-frame loop; otherwise the trajectory + settling.
+  std::vector<metrics::ScheduledFrame> schedule;
+  double end_time = controller.end_time() + config.settle_after;
+  if (capture) {
+    schedule = metrics::evaluation_schedule(*capture, traj.master_start_time, prepare);
+    if (schedule.empty())
+      throw InputError(fmt::format("capture '{}': no frame at or after the trajectory's start time {:.6f}",
+                                   capture->dir, traj.master_start_time));
+    end_time = 0;
+    for (const auto& f : schedule)
+      if (metrics::in_record_window(capture->window, f.compensated - prepare)) end_time = f.compensated;
+    if (end_time <= 0) end_time = schedule.back().compensated;
+  }
+
+  auto scene = sim::Scene::create(mesh, material, config.scene);
+  gd::log().info("experiment: {} ({} vertices, {} triangles), {}, {} in {} mode from {}, {:.2f} s simulated",
+                 garment.type, scene->vertex_count(), mesh.tris.size(), config.material, config.task, config.mode,
+                 traj_source, end_time);
+  const std::vector<Vec3> x0 = scene->positions();
+  sim::write_obj(mesh, x0, out + "/initial.obj");
+  Run run(std::move(scene), std::move(controller), config.frame_interval, progress, end_time);
+
+  ExperimentResult result;
+  nlohmann::json& s = result.summary;
+  if (capture) {
+    metrics::EvalOptions eo;
+    eo.master_start_time = traj.master_start_time;
+    eo.prepare_time = prepare;
+    eo.keep_frames = config.keep_frames;
+    if (config.icp) {
+      metrics::IcpReport rep;
+      const Eigen::Matrix4d T = metrics::refine_world_to_camera(
+          to_cloud(x0), metrics::frame_in_camera(*capture, schedule.front().frame), capture->world_to_camera, {}, &rep);
+      eo.world_to_camera = T;
+      s["icp"] = {{"accepted", rep.accepted},  {"converged", rep.converged},     {"fitness", rep.fitness},
+                  {"rotation_deg", rep.rotation_deg}, {"translation", rep.translation}};
+    }
+    const metrics::EvalResult ev = metrics::run_evaluation(*capture, eo, [&](double t) {
+      metrics::SimSample smp;
+      if (!run.advance(t)) return smp;  // no vertices: the frame is skipped
+      smp.vertices = to_cloud(run.scene().positions());
+      smp.sim_time = run.scene().time();
+      return smp;
+    });
+    result.rows = ev.rows;
+    const metrics::Summary sum = metrics::summarize(ev.rows, capture->window);
+    nlohmann::json extra = {{"garment", capture->garment.empty() ? garment.type : capture->garment},
+                            {"action", config.task},
+                            {"sample", capture->sample},
+                            {"simulator", "garmentdynamics"},
+                            {"mode", config.mode},
+                            {"camera_delay", capture->camera_delay}};
+    metrics::write_metrics_csv(out + "/metrics.csv", ev.rows, capture->window);
+    metrics::write_summary_json(out + "/metrics_summary.json", ev.rows, capture->window, extra);
+    metrics::write_report_frames(out, ev.kept);
+    const nlohmann::json mean = metrics::to_json(sum.mean), sd = metrics::to_json(sum.std_dev);
+    for (auto it = mean.begin(); it != mean.end(); ++it) s[it.key()] = it.value();
+    s["metrics_std"] = sd;
+    s["frames_in_window"] = sum.frames;
+    s["camera_delay"] = capture->camera_delay;
+    s["capture"] = capture->dir;
+    const std::string base = config.baselines_csv.empty() ? shared_dir() + "/data/rgbench/paper_baselines.csv"
+                                                          : config.baselines_csv;
+    if (fs::exists(base)) {
+      const std::string g = extra["garment"];
+      metrics::write_comparison(out, g, config.task, "fixed_point", "garmentdynamics (ours)", sum.mean, 1,
+                                metrics::load_paper_baselines(base, g, config.task));
+    }
+  } else {
+    run.advance(end_time);
+  }
+  if (progress) progress(end_time, end_time, run.scene().last_stats());
+
+  // Files and summary.
+  sim::Scene& sc = run.scene();
+  const std::vector<Vec3> xf = sc.positions();
+  sim::write_obj(mesh, xf, out + "/final.obj");
+  run.write_timeseries(out + "/timeseries.csv");
+  const Shape fin = shape_of(xf), ini = shape_of(x0);
+  const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+  s["garment"] = garment.type;
+  s["garment_source"] = config.garment;
+  s["material"] = config.material;
+  s["task"] = config.task;
+  s["mode"] = config.mode;
+  s["trajectory"] = traj_source;
+  s["vertices"] = sc.vertex_count();
+  s["triangles"] = mesh.tris.size();
+  s["steps"] = run.steps();
+  s["frames"] = capture ? result.rows.size() : static_cast<size_t>(std::floor(sc.time() / config.frame_interval)) + 1;
+  s["dt"] = config.scene.dt;
+  s["sim_seconds"] = sc.time();
+  s["wall_seconds"] = wall;
+  s["ms_per_step"] = run.steps() > 0 ? 1e3 * wall / run.steps() : 0.0;
+  s["newton_per_step"] = run.steps() > 0 ? double(run.newton()) / run.steps() : 0.0;
+  s["pcg_per_step"] = run.steps() > 0 ? double(run.pcg()) / run.steps() : 0.0;
+  s["self_contact"] = config.scene.self_contact;
+  s["contacts_max"] = run.contacts_max();
+  s["intersecting_pairs_max"] = run.intersecting_max();
+  s["untangle_runs"] = sc.untangle_runs();
+  s["failed"] = sc.failed();
+  s["failure"] = sc.failure();
+  s["backend"] = sc.backend();
+  s["initial"] = {{"min_z", ini.min_z}, {"max_z", ini.max_z}, {"extent_x", ini.extent_x}, {"extent_y", ini.extent_y}};
+  s["final"] = {{"min_z", fin.min_z}, {"max_z", fin.max_z}, {"mean_z", fin.mean_z}, {"extent_x", fin.extent_x},
+                {"extent_y", fin.extent_y}};
+  s["garment_length"] = garment.length;
+  s["garment_width"] = garment.width;
+  nlohmann::json ev = nlohmann::json::array();
+  for (const tasks::GripperEvent& e : run.controller().events())
+    ev.push_back({{"t", e.t}, {"arm", tasks::arm_name(e.arm)}, {"grasp", e.grasp}, {"vertices", e.vertices.size()}});
+  s["grasp_events"] = ev;
+  {
+    std::ofstream f(out + "/summary.json");
+    if (!f) throw InputError(fmt::format("cannot write '{}/summary.json'", out));
+    f << s.dump(2) << "\n";
+  }
+  if (capture && config.plots) plot_report(out);
+  if (sc.failed()) gd::log().error("experiment: the simulation failed: {}", sc.failure());
+  gd::log().info("experiment: {} steps in {:.1f} s ({:.0f} ms/step), max intersecting pairs {}, untangling {} times",
+                 run.steps(), wall, s["ms_per_step"].get<double>(), run.intersecting_max(), sc.untangle_runs());
+  return result;
+}
+
+}  // namespace gd::experiment

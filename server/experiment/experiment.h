@@ -1,0 +1,90 @@
+#pragma once
+/// \file
+/// One RGBench-style experiment, end to end: a garment (generated from its pattern, or an OBJ)
+/// with a fabric, placed on the table at RGBench's initial pose; a two-arm manipulation (a
+/// generated Grasp/Fling/Fold, a trajectory file, or a capture's joints CSVs) replayed by the
+/// pseudo-mode grippers (ours, or RGBench's fixed-point semantics); self-contact on; and, when
+/// a capture is given, RGBench's evaluation loop against its real point clouds. Writes
+///
+///     OUT/initial.obj, OUT/final.obj     the garment at t = 0 and at the end (world frame)
+///     OUT/trajectory.csv                 the end-effector trajectory replayed (docs/tasks.md)
+///     OUT/timeseries.csv                 per recorded frame: t, heights, extents, energies, contacts
+///     OUT/summary.json                   see ExperimentResult::summary
+///     with a capture:  OUT/metrics.csv (RGBench's shape), OUT/comparison.{csv,md} (paper
+///                      baselines beside ours), OUT/frames/*.ply, and the PNG plots of
+///                      scripts/plot_report.py (metrics_over_time.png, frames.png)
+///
+/// This is what `gd run` calls and what the service's jobs will call.
+
+#include <array>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "garments/garment.h"
+#include "metrics/capture.h"
+#include "sim/solver/options.h"
+#include "sim/solver/solver.h"
+#include "tasks/generators.h"
+#include "tasks/grippers.h"
+
+namespace gd::experiment {
+
+struct ExperimentConfig {
+  /// A garment type (garments::garment_types()) or the path of an .obj mesh.
+  std::string garment = "tshirt";
+  std::string material = "cotton";       ///< a name in the material library
+  std::string task = "fold";             ///< grasp | fold | fling
+  std::string mode = "pseudo";           ///< pseudo (jaw-radius grasp) | fixed_point (RGBench's)
+  int vertices = 2000;                   ///< target vertex count of a generated garment
+  /// An RGBench capture directory (optional): its joints CSVs drive the arms (unless
+  /// trajectory_file is given) and its point clouds are compared with the simulation.
+  std::string capture_dir;
+  std::string experiment_library;        ///< RGBench's experiment_library.yaml for the capture's timing
+  std::string trajectory_file;           ///< our CSV/JSON trajectory (optional)
+  std::string out_dir;                   ///< required
+  sim::SceneOptions scene = default_scene_options();
+  tasks::TaskParams task_params;
+  tasks::GripperOptions grippers;        ///< mode/action/grab_time/shoulders are filled in from the above
+  /// Fixed-point fling pins [left, right]; -1: the garment's shoulder landmark vertices.
+  std::array<int, 2> shoulder_vertices{-1, -1};
+  double settle_after = 1.0;             ///< s simulated after the trajectory ends (no capture)
+  double frame_interval = 0.1;           ///< s between rows of timeseries.csv
+  bool icp = false;                      ///< refine the capture's camera transform by ICP first
+  int keep_frames = 4;                   ///< (sim, real) pairs kept for frames.png
+  std::string baselines_csv;             ///< RGBench's paper_baselines.csv (empty: look in GD_SHARED_DIR)
+  bool plots = true;                     ///< run scripts/plot_report.py when a Python is found
+
+  /// SceneOptions for manipulation: the defaults with self-contact on.
+  static sim::SceneOptions default_scene_options();
+  /// Throws InputError naming the bad field (unknown task/mode, no out_dir, ...).
+  void validate() const;
+};
+
+/// Reported once per step: scene time, the time the run ends, the step's solver statistics.
+using ProgressFn = std::function<void(double sim_time, double end_time, const sim::StepStats&)>;
+
+struct ExperimentResult {
+  /// vertices, triangles, garment, material, task, mode, steps, frames, dt, sim_seconds,
+  /// wall_seconds, ms_per_step, intersecting_pairs_max, untangle_runs, failed, failure,
+  /// min_z_final, max_z_final, extent_x_final, extent_y_final, grasp events; with a capture
+  /// also the seven metrics (means over the calculate window), metrics_std, frames_in_window,
+  /// camera_delay, icp.
+  nlohmann::json summary;
+  std::vector<metrics::FrameRow> rows;  ///< per evaluated real frame (capture runs)
+};
+
+/// Runs the experiment and writes its files. Throws InputError for bad configuration or input
+/// files; a simulation that fails (non-finite state) is reported in the summary, not thrown.
+ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn& progress = {});
+
+/// Builds the garment of a config (generated or imported), in its own frame.
+garments::Garment make_experiment_garment(const ExperimentConfig& config);
+
+/// Runs `python scripts/plot_report.py dir` with the first Python that has matplotlib
+/// (GD_PYTHON, the build's venv, python3). Returns false (and logs why) when none could.
+bool plot_report(const std::string& dir);
+
+}  // namespace gd::experiment

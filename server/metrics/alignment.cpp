@@ -1,0 +1,145 @@
+#include "metrics/alignment.h"
+
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl/features/normal_3d_omp.h>
+#include <pcl/registration/icp.h>
+#include <pcl/search/kdtree.h>
+#include <spdlog/fmt/fmt.h>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "sim/demand.h"
+#include "sim/log.h"
+
+namespace gd::metrics {
+namespace {
+
+pcl::PointCloud<pcl::PointXYZ>::Ptr to_pcl(const Cloud& c) {
+  auto pc = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+  pc->reserve(c.size());
+  for (const auto& p : c)
+    if (p.allFinite()) pc->push_back(pcl::PointXYZ(p.x(), p.y(), p.z()));
+  pc->width = uint32_t(pc->size());
+  pc->height = 1;
+  pc->is_dense = true;
+  return pc;
+}
+
+pcl::PointCloud<pcl::PointNormal>::Ptr to_pcl_normals(const Cloud& c) {
+  auto pc = std::make_shared<pcl::PointCloud<pcl::PointNormal>>();
+  pc->reserve(c.size());
+  for (const auto& p : c) {
+    if (!p.allFinite()) continue;
+    pcl::PointNormal q;
+    q.x = p.x();
+    q.y = p.y();
+    q.z = p.z();
+    q.normal_x = q.normal_y = q.normal_z = 0;
+    q.curvature = 0;
+    pc->push_back(q);
+  }
+  pc->width = uint32_t(pc->size());
+  pc->height = 1;
+  pc->is_dense = true;
+  return pc;
+}
+
+template <class Icp>
+void configure(Icp& icp, const IcpOptions& o) {
+  icp.setMaxCorrespondenceDistance(o.max_correspondence_distance);
+  icp.setMaximumIterations(o.max_iterations);
+  icp.setTransformationEpsilon(o.transformation_epsilon);
+  icp.setEuclideanFitnessEpsilon(o.euclidean_fitness_epsilon);
+}
+
+}  // namespace
+
+Eigen::Matrix4d refine_world_to_camera(const Cloud& sim_world, const Cloud& real_camera,
+                                       const Eigen::Matrix4d& initial, const IcpOptions& o,
+                                       IcpReport* report) {
+  if (sim_world.empty() || real_camera.empty())
+    throw sim::InputError("ICP needs a non-empty sim cloud and real cloud");
+  if (!(o.max_correspondence_distance > 0) || o.max_iterations < 1)
+    throw sim::InputError(fmt::format(
+        "ICP options: max_correspondence_distance ({}) must be > 0 and max_iterations ({}) >= 1",
+        o.max_correspondence_distance, o.max_iterations));
+  // Point-to-point ICP converges best from the sparser cloud onto the denser one (a simulated
+  // mesh has ~1 cm vertex spacing, a segmented capture a few mm), so the sparser one is the
+  // source. D maps the source onto the target, both in the (initial) world frame.
+  const Eigen::Matrix4d cam_to_world0 = initial.inverse();
+  const bool sim_is_source = sim_world.size() <= real_camera.size();
+  const Cloud real_world0 = transform_cloud(real_camera, cam_to_world0);
+  const Cloud& src = sim_is_source ? sim_world : real_world0;
+  const Cloud& dst = sim_is_source ? real_world0 : sim_world;
+
+  Eigen::Matrix4d D;
+  bool converged = false;
+  double fitness = 0;
+  if (o.point_to_plane) {
+    // Point-to-plane: target normals from the k nearest neighbours; no sliding along the cloth.
+    auto target = to_pcl_normals(dst);
+    pcl::NormalEstimationOMP<pcl::PointNormal, pcl::PointNormal> ne;
+    ne.setInputCloud(target);
+    ne.setSearchMethod(std::make_shared<pcl::search::KdTree<pcl::PointNormal>>());
+    ne.setKSearch(std::max(3, o.normal_neighbours));
+    ne.compute(*target);  // fills normal_x/y/z and curvature, keeps the points
+    // Points without a usable normal (isolated) would poison the linear solve.
+    target->erase(std::remove_if(target->begin(), target->end(),
+                                 [](const pcl::PointNormal& p) {
+                                   return !std::isfinite(p.normal_x) || !std::isfinite(p.normal_y) ||
+                                          !std::isfinite(p.normal_z);
+                                 }),
+                  target->end());
+    target->width = uint32_t(target->size());
+    target->height = 1;
+    if (target->empty()) throw sim::InputError("ICP: no target normal could be estimated");
+    pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal, double> icp;
+    icp.setInputSource(to_pcl_normals(src));
+    icp.setInputTarget(target);
+    configure(icp, o);
+    pcl::PointCloud<pcl::PointNormal> aligned;
+    icp.align(aligned);
+    D = icp.getFinalTransformation();
+    converged = icp.hasConverged();
+    fitness = icp.getFitnessScore(o.max_correspondence_distance);
+  } else {
+    pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ, double> icp;
+    icp.setInputSource(to_pcl(src));
+    icp.setInputTarget(to_pcl(dst));
+    configure(icp, o);
+    pcl::PointCloud<pcl::PointXYZ> aligned;
+    icp.align(aligned);
+    D = icp.getFinalTransformation();
+    converged = icp.hasConverged();
+    fitness = icp.getFitnessScore(o.max_correspondence_distance);
+  }
+
+  IcpReport r;
+  r.converged = converged;
+  r.fitness = fitness;
+  const Eigen::AngleAxisd aa(Eigen::Matrix3d(D.topLeftCorner<3, 3>()));
+  r.rotation_deg = std::abs(aa.angle()) * 180.0 / std::numbers::pi;
+  r.translation = D.topRightCorner<3, 1>().norm();
+  r.accepted = r.converged && r.rotation_deg <= o.max_rotation_deg && r.translation <= o.max_translation;
+  Eigen::Matrix4d out = initial;
+  if (r.accepted) {
+    // sim_world = C * real_camera with C the corrected camera-to-world: C = D^-1 C0 when the sim
+    // cloud was moved onto the real one, C = D C0 otherwise.
+    out = sim_is_source ? Eigen::Matrix4d(initial * D) : Eigen::Matrix4d(initial * D.inverse());
+    gd::log().info("ICP: fitness {:.3e} m², correction {:.3f} deg / {:.4f} m ({} source, {} target points)",
+                   r.fitness, r.rotation_deg, r.translation, src.size(), dst.size());
+  } else {
+    gd::log().warn("ICP: correction rejected (converged {}, {:.3f} deg / {:.4f} m, fitness {:.3e} m²); "
+                   "keeping the initial world_to_camera",
+                   r.converged, r.rotation_deg, r.translation, r.fitness);
+  }
+  if (report) *report = r;
+  return out;
+}
+
+}  // namespace gd::metrics

@@ -1,0 +1,262 @@
+#include "tasks/generators.h"
+
+#include <spdlog/fmt/fmt.h>
+
+#include <array>
+#include <cmath>
+
+#include "sim/demand.h"
+#include "tasks/grippers.h"
+
+namespace gd::tasks {
+
+using sim::InputError;
+
+void TaskParams::validate() const {
+  auto positive = [](double v, const char* name) {
+    if (!(std::isfinite(v) && v > 0)) throw InputError(fmt::format("task parameter {} must be a positive number", name));
+  };
+  auto nonneg = [](double v, const char* name) {
+    if (!(std::isfinite(v) && v >= 0)) throw InputError(fmt::format("task parameter {} must be a finite number >= 0", name));
+  };
+  auto finite = [](double v, const char* name) {
+    if (!std::isfinite(v)) throw InputError(fmt::format("task parameter {} must be finite", name));
+  };
+  positive(time_scale, "time_scale");
+  positive(sample_dt, "sample_dt");
+  nonneg(start_delay, "start_delay");
+  nonneg(approach_height, "approach_height");
+  positive(approach_duration, "approach_duration");
+  positive(close_duration, "close_duration");
+  finite(grasp_inset, "grasp_inset");
+  finite(lift_height, "lift_height");
+  positive(lift_duration, "lift_duration");
+  nonneg(hold_duration, "hold_duration");
+  finite(fling_height, "fling_height");
+  nonneg(fling_pause, "fling_pause");
+  nonneg(fling_distance, "fling_distance");
+  positive(fling_peak_speed, "fling_peak_speed");
+  finite(fling_spread, "fling_spread");
+  nonneg(fold_lift, "fold_lift");
+  positive(fold_lift_duration, "fold_lift_duration");
+  finite(fold_margin, "fold_margin");
+  finite(fold_arc, "fold_arc");
+  positive(fold_duration, "fold_duration");
+  nonneg(place_height, "place_height");
+  positive(lower_duration, "lower_duration");
+  nonneg(retreat_height, "retreat_height");
+  positive(retreat_duration, "retreat_duration");
+  nonneg(settle_duration, "settle_duration");
+}
+
+namespace {
+
+/// Minimum-jerk profile: 0 -> 1 with zero velocity and acceleration at both ends.
+double min_jerk(double u) { return u * u * u * (10.0 + u * (-15.0 + 6.0 * u)); }
+
+/// Peak speed of a minimum-jerk stroke is 1.875 * distance / duration.
+constexpr double kMinJerkPeak = 1.875;
+constexpr double kPi = 3.14159265358979323846;
+
+/// Both arms' end-effector positions and the common gripper opening at one waypoint.
+struct Waypoint {
+  std::array<Vec3, 2> pos;
+  double gripper = kGripperOpen;
+};
+
+/// Appends minimum-jerk segments between waypoints to both arms' sample lists.
+class Builder {
+ public:
+  Builder(const Waypoint& start, double sample_dt) : cur_(start), dt_(sample_dt) { emit(0.0, start); }
+
+  /// Moves to `to` over `duration` seconds (a hold when the positions do not change).
+  void move(const Waypoint& to, double duration) {
+    if (duration <= 0) return;
+    const bool moves = (to.pos[0] - cur_.pos[0]).norm() > 0 || (to.pos[1] - cur_.pos[1]).norm() > 0;
+    // Still arms and a linear gripper ramp need only the end sample (the trajectory interpolates).
+    const int n = moves ? std::max(1, static_cast<int>(std::ceil(duration / dt_ - 1e-9))) : 1;
+    for (int k = 1; k <= n; ++k) {
+      const double u = static_cast<double>(k) / n;
+      const double s = min_jerk(u);
+      Waypoint w;
+      for (int a = 0; a < 2; ++a) w.pos[a] = cur_.pos[a] + s * (to.pos[a] - cur_.pos[a]);
+      w.gripper = cur_.gripper + u * (to.gripper - cur_.gripper);
+      emit(t_ + u * duration, w);
+    }
+    t_ += duration;
+    cur_ = to;
+  }
+  /// Like move, plus a vertical bump of `arc` metres: z += arc * sin(pi * s(u)), s the
+  /// minimum-jerk progress (zero at both ends).
+  void move_arc(const Waypoint& to, double arc, double duration) {
+    if (arc == 0) return move(to, duration);
+    if (duration <= 0) return;
+    const int n = std::max(1, static_cast<int>(std::ceil(duration / dt_ - 1e-9)));
+    for (int k = 1; k <= n; ++k) {
+      const double u = static_cast<double>(k) / n;
+      const double s = min_jerk(u);
+      Waypoint w;
+      for (int a = 0; a < 2; ++a)
+        w.pos[a] = cur_.pos[a] + s * (to.pos[a] - cur_.pos[a]) + Vec3(0, 0, arc * std::sin(kPi * s));
+      w.gripper = cur_.gripper + u * (to.gripper - cur_.gripper);
+      emit(t_ + u * duration, w);
+    }
+    t_ += duration;
+    cur_ = to;
+  }
+  void hold(double duration) { move(cur_, duration); }
+  /// Opens or closes the gripper in place.
+  void gripper(double opening, double duration) {
+    Waypoint w = cur_;
+    w.gripper = opening;
+    move(w, duration);
+  }
+  const Waypoint& current() const { return cur_; }
+
+  DualArmTrajectory finish() const {
+    DualArmTrajectory out;
+    out.left = ArmTrajectory(samples_[0], "generated left arm trajectory");
+    out.right = ArmTrajectory(samples_[1], "generated right arm trajectory");
+    return out;
+  }
+
+ private:
+  void emit(double t, const Waypoint& w) {
+    for (int a = 0; a < 2; ++a) samples_[a].push_back({t, w.pos[a], top_down_orientation(), w.gripper});
+  }
+  Waypoint cur_;
+  double dt_;
+  double t_ = 0;
+  std::array<std::vector<ArmSample>, 2> samples_;
+};
+
+/// World-frame quantities every generator needs.
+struct Setup {
+  std::array<Vec3, 2> grasp;  ///< [left, right] grasp points, world
+  Vec3 forward;               ///< garment +x in the world (unit)
+  double length = 0, width = 0;
+  double shoulder_distance = 0;
+  double hem_x = 0;           ///< garment-frame x of the hem (far) end
+  std::array<Vec3, 2> grasp_local;  ///< grasp points in the garment frame
+};
+
+Setup setup(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
+  p.validate();
+  if (!T.matrix().allFinite()) throw InputError("task generator: the garment pose has non-finite entries");
+  if (!(std::isfinite(g.length) && g.length > 0 && std::isfinite(g.width) && g.width > 0))
+    throw InputError(fmt::format("task generator: garment length ({}) and width ({}) must be positive", g.length, g.width));
+  const auto& lm = g.landmarks;
+  if (!lm.left_shoulder.allFinite() || !lm.right_shoulder.allFinite() || !lm.left_hem.allFinite() ||
+      !lm.right_hem.allFinite())
+    throw InputError("task generator: the garment's landmarks must be finite");
+  if ((lm.left_shoulder - lm.right_shoulder).norm() < 1e-6)
+    throw InputError("task generator: the garment's left and right shoulder landmarks coincide (landmarks not set?)");
+  if (lm.left_shoulder.y() <= lm.right_shoulder.y())
+    throw InputError(fmt::format(
+        "task generator: the left shoulder landmark (y={}) must lie on the +y side of the right one (y={}) in the "
+        "garment frame (the left arm's side)",
+        lm.left_shoulder.y(), lm.right_shoulder.y()));
+  Setup s;
+  s.length = g.length;
+  s.width = g.width;
+  s.forward = T.linear() * Vec3::UnitX();
+  s.grasp_local = {lm.left_shoulder + p.grasp_inset * Vec3::UnitX(), lm.right_shoulder + p.grasp_inset * Vec3::UnitX()};
+  for (int a = 0; a < 2; ++a) s.grasp[a] = T * s.grasp_local[a];
+  s.shoulder_distance = (s.grasp[0] - s.grasp[1]).norm();
+  // The hem: its landmarks when set (beyond the shoulders), else the garment's length.
+  const double hem = 0.5 * (lm.left_hem.x() + lm.right_hem.x());
+  s.hem_x = hem > 0.5 * (lm.left_shoulder.x() + lm.right_shoulder.x()) ? hem : g.length;
+  return s;
+}
+
+Waypoint at(const std::array<Vec3, 2>& pos, double gripper) {
+  Waypoint w;
+  w.pos = pos;
+  w.gripper = gripper;
+  return w;
+}
+
+std::array<Vec3, 2> raised(const std::array<Vec3, 2>& p, double dz) {
+  return {p[0] + Vec3(0, 0, dz), p[1] + Vec3(0, 0, dz)};
+}
+
+/// Start above the grasp points, descend, close: the common opening of every task.
+Builder approach_and_close(const Setup& s, const TaskParams& p) {
+  const double k = p.time_scale;
+  Builder b(at(raised(s.grasp, p.approach_height), kGripperOpen), p.sample_dt);
+  b.hold(p.start_delay * k);
+  b.move(at(s.grasp, kGripperOpen), p.approach_duration * k);
+  b.gripper(0.0, p.close_duration * k);
+  return b;
+}
+
+}  // namespace
+
+DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
+  const Setup s = setup(g, T, p);
+  const double k = p.time_scale;
+  const double lift = p.lift_height >= 0 ? p.lift_height : s.length + 0.1;
+  Builder b = approach_and_close(s, p);
+  b.move(at(raised(s.grasp, lift), 0.0), p.lift_duration * k);
+  b.hold(p.hold_duration * k);
+  return b.finish();
+}
+
+DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
+  const Setup s = setup(g, T, p);
+  const double k = p.time_scale;
+  const double height = p.fling_height >= 0 ? p.fling_height : s.length + 0.15;
+  Builder b = approach_and_close(s, p);
+  const std::array<Vec3, 2> up = raised(s.grasp, height);
+  b.move(at(up, 0.0), p.lift_duration * k);
+  b.hold(p.fling_pause * k);
+  // The sweep: forward along world +x (away from the robots), then back, spreading the arms to
+  // fling_spread about their midpoint on the way back.
+  const double d = p.fling_distance;
+  const double stroke = d > 0 ? kMinJerkPeak * d / p.fling_peak_speed : 0.0;
+  const Vec3 fwd(d, 0, 0);
+  b.move(at({up[0] + fwd, up[1] + fwd}, 0.0), stroke);
+  const double spread = p.fling_spread >= 0 ? p.fling_spread : s.shoulder_distance;
+  const Vec3 mid = 0.5 * (up[0] + up[1]);
+  Vec3 across = up[0] - up[1];
+  across.z() = 0;
+  across = across.norm() > 1e-9 ? across.normalized() : Vec3::UnitY();
+  const std::array<Vec3, 2> end{mid + 0.5 * spread * across, mid - 0.5 * spread * across};
+  b.move(at(end, 0.0), std::max(stroke, 1e-3));
+  b.hold(p.hold_duration * k);
+  return b.finish();
+}
+
+DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
+  const Setup s = setup(g, T, p);
+  const double k = p.time_scale;
+  Builder b = approach_and_close(s, p);
+  b.move(at(raised(s.grasp, p.fold_lift), 0.0), p.fold_lift_duration * k);
+  // Forward (garment +x) to the hem minus the margin, at the lift height.
+  std::array<Vec3, 2> over;
+  for (int a = 0; a < 2; ++a) {
+    const double dx = s.hem_x - p.fold_margin - s.grasp_local[a].x();
+    if (dx <= 0)
+      throw InputError(fmt::format("fold: fold_margin {} m leaves no forward motion (hem at x={} m, grasp at x={} m)",
+                                   p.fold_margin, s.hem_x, s.grasp_local[a].x()));
+    over[a] = s.grasp[a] + dx * s.forward;
+  }
+  b.move_arc(at(raised(over, p.fold_lift), 0.0), p.fold_arc >= 0 ? p.fold_arc : 0.35 * s.length, p.fold_duration * k);
+  b.move(at(raised(over, p.place_height), 0.0), p.lower_duration * k);
+  b.gripper(kGripperOpen, p.close_duration * k);
+  b.move(at(raised(over, p.place_height + p.retreat_height), kGripperOpen), p.retreat_duration * k);
+  b.hold(p.settle_duration * k);
+  return b.finish();
+}
+
+DualArmTrajectory make_task(const std::string& name, const garments::Garment& g, const Eigen::Isometry3d& T,
+                            const TaskParams& p) {
+  switch (task_kind_from_name(name)) {
+    case TaskKind::kGrasp: return make_grasp(g, T, p);
+    case TaskKind::kFling: return make_fling(g, T, p);
+    case TaskKind::kFold: return make_fold(g, T, p);
+  }
+  throw InputError(fmt::format("unknown task '{}'", name));
+}
+
+}  // namespace gd::tasks

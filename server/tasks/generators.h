@@ -1,0 +1,93 @@
+#pragma once
+/// \file
+/// Two-arm Grasp, Fling and Fold trajectories after the RGBench paper's task descriptions,
+/// parameterised by the garment's size and landmarks (docs/tasks.md):
+///
+/// * Grasp: from the flat garment both arms descend onto grasp points at the shoulders, close,
+///   lift vertically until the garment hangs clear of the table, and hold.
+/// * Fling: grasp the shoulders, lift until the garment hangs clear, then a rapid forward-then-
+///   backward sweep (+x, then back) that makes it flutter; it ends held in the air with the arms
+///   apart at about the shoulder distance, so the garment hangs spread.
+/// * Fold: grasp the shoulders, lift slightly, translate forward towards the hem so the top half
+///   lands on the bottom half, lower, open, retreat upwards.
+///
+/// The garment lies as RGBench's T-shirt mesh does (garments/garment.h): length along +x away
+/// from the robots, shoulders at the small-x end. Grasp points are the shoulder landmarks mapped
+/// to the world with `garment_to_world` (frames.h default_garment_pose()). The gripper points its
+/// jaw down (top_down_orientation()), is 0.035 m open and 0 closed. Between waypoints the arms move
+/// along minimum-jerk profiles, sampled every `sample_dt`; the result starts at t = 0 with
+/// master_start_time 0, and can be replayed by GripperController in pseudo-grasp mode.
+
+#include <Eigen/Geometry>
+#include <string>
+
+#include "garments/garment.h"
+#include "tasks/trajectory.h"
+
+namespace gd::tasks {
+
+/// Durations (s), distances (m) and speeds (m/s) of the generators. Negative "auto" values are
+/// derived from the garment. Defaults give tasks of 10-15 s, like RGBench's captures.
+struct TaskParams {
+  /// Multiplies every duration except the fling sweep (whose timing follows fling_peak_speed);
+  /// < 1 makes quasi-static parts faster, e.g. for tests.
+  double time_scale = 1.0;
+  double sample_dt = 0.01;            ///< s between trajectory samples (not scaled)
+
+  double start_delay = 1.0;           ///< s at rest, open, above the grasp points
+  double approach_height = 0.08;      ///< m above the grasp points where the arms start
+  double approach_duration = 2.0;     ///< s to descend onto the grasp points
+  double close_duration = 0.6;        ///< s for the gripper to close (or open)
+  /// m added to each grasp point along garment +x (inwards from the collar edge); 0: the landmark.
+  double grasp_inset = 0.0;
+
+  // Grasp
+  double lift_height = -1;            ///< m above the grasp point; < 0: garment length + 0.1
+  double lift_duration = 4.0;         ///< s
+  double hold_duration = 3.0;         ///< s held still at the end (grasp, fling)
+
+  // Fling
+  double fling_height = -1;           ///< m above the grasp point; < 0: garment length + 0.15
+  double fling_pause = 1.0;           ///< s held still before the sweep (lets the swing die down)
+  double fling_distance = 0.25;       ///< m forward (+x) and back
+  double fling_peak_speed = 1.0;      ///< m/s peak speed of each minimum-jerk stroke
+  /// m between the arms at the end; < 0: the shoulder distance (the arms keep their grasp spacing).
+  double fling_spread = -1;
+
+  // Fold
+  double fold_lift = 0.06;            ///< m lifted before translating
+  double fold_lift_duration = 1.0;    ///< s
+  /// m short of the hem where the shoulders are put down, measured along garment x.
+  double fold_margin = 0.03;
+  double fold_duration = 3.5;         ///< s for the forward translation
+  /// m of extra height in the middle of the translation (z = fold_lift + fold_arc * sin(pi s)):
+  /// the top half then hangs from the grippers instead of being dragged over the bottom half
+  /// (which, without cloth self-contact, drags the whole garment over the table). 0: a straight,
+  /// level translation as in the paper's description; < 0: automatic, 0.35 * garment length.
+  double fold_arc = -1;
+  double place_height = 0.01;         ///< m above the grasp height where the gripper opens
+  double lower_duration = 1.0;        ///< s
+  double retreat_height = 0.1;        ///< m lifted after opening
+  double retreat_duration = 1.0;      ///< s
+  double settle_duration = 2.0;       ///< s of stillness at the end of a fold
+
+  /// Throws InputError naming a bad value (non-finite, non-positive durations, ...).
+  void validate() const;
+};
+
+/// Grasp: approach, close on the shoulders, lift by lift_height, hold.
+DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
+                             const TaskParams& p = {});
+/// Fling: approach, close, lift by fling_height, pause, forward-and-back sweep (spreading the
+/// arms to fling_spread on the way back), hold.
+DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
+                             const TaskParams& p = {});
+/// Fold: approach, close, lift by fold_lift, translate to the hem minus fold_margin, lower, open,
+/// retreat, settle.
+DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
+                            const TaskParams& p = {});
+/// "grasp" | "fold" | "fling"; InputError otherwise.
+DualArmTrajectory make_task(const std::string& name, const garments::Garment& g,
+                            const Eigen::Isometry3d& garment_to_world, const TaskParams& p = {});
+
+}  // namespace gd::tasks

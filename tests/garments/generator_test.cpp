@@ -1,0 +1,244 @@
+#include "garments/generator.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <set>
+
+#include "garments/test_util.h"
+#include "sim/demand.h"
+
+namespace gd::garments {
+namespace {
+
+using testing::boundary_loops;
+using testing::edge_counts;
+
+struct Expect {
+  std::string type;
+  int loops;
+  std::vector<std::string> seams;
+  bool creases, elastic;
+};
+
+const std::vector<Expect>& expectations() {
+  static const std::vector<Expect> e = {
+      {"towel", 1, {}, false, false},
+      {"tshirt", 4, {"left_shoulder", "right_shoulder", "left_side", "right_side", "left_sleeve_under",
+                     "right_sleeve_under", "left_sleeve_top", "left_armhole_front", "right_armhole_back"}, false, false},
+      {"long_sleeve", 4, {"left_shoulder", "right_side", "left_sleeve_under", "right_sleeve_top"}, false, true},
+      {"dress", 4, {"left_shoulder", "right_shoulder", "left_side", "right_side"}, false, false},
+      {"skirt", 2, {"left_side", "right_side"}, false, true},
+      {"pleat_skirt", 2, {"left_side", "right_side"}, true, true},
+      {"cake_skirt", 2, {"left_side_tier0", "right_side_tier2", "tier1_front", "tier2_back"}, false, true},
+      {"hoodie", 4, {"left_shoulder", "left_side", "left_sleeve_under", "hood_left_side", "hood_right_side",
+                     "hood_front_neck", "hood_back_neck"}, false, true},
+      {"coat", 3, {"left_shoulder", "right_shoulder", "left_side", "right_side", "left_sleeve_under",
+                   "right_sleeve_under"}, false, false},
+  };
+  return e;
+}
+
+TEST(Generator, TypesAreListed) {
+  std::vector<std::string> names;
+  for (const Expect& e : expectations()) names.push_back(e.type);
+  EXPECT_EQ(garment_types(), names);
+}
+
+class EveryType : public ::testing::TestWithParam<Expect> {};
+
+TEST_P(EveryType, GeneratesAValidSewnGarment) {
+  const Expect& ex = GetParam();
+  const Garment g = make_garment(ex.type, 1000);
+  const sim::Mesh& m = g.mesh;
+  EXPECT_EQ(g.type, ex.type);
+  ASSERT_NO_THROW(sim::validate_mesh(m));
+  ASSERT_NO_THROW(sim::build_topology(m));
+  EXPECT_NEAR(double(m.x.size()), 1000.0, 200.0);
+
+  // Manifold with consistent orientation, every vertex used.
+  for (const auto& [e, n] : edge_counts(m)) ASSERT_TRUE(n == 1 || n == 2) << e.first << "-" << e.second;
+  EXPECT_EQ(testing::orientation_conflicts(m), 0);
+  std::vector<int> used(m.x.size(), 0);
+  for (const auto& f : m.tris)
+    for (int k = 0; k < 3; ++k) used[f[k]] = 1;
+  EXPECT_EQ(std::count(used.begin(), used.end(), 0), 0);
+
+  // Openings are separate boundary loops.
+  bool simple = false;
+  EXPECT_EQ(boundary_loops(m, &simple), ex.loops);
+  EXPECT_TRUE(simple) << "a boundary vertex is pinched";
+
+  // The claimed seams exist and join two panels at every vertex.
+  std::set<std::string> names;
+  for (const SeamInfo& s : g.seams) names.insert(s.name);
+  for (const std::string& s : ex.seams) EXPECT_TRUE(names.count(s)) << "missing seam " << s;
+  ASSERT_EQ(g.triangle_panel.size(), m.tris.size());
+  std::vector<std::set<int>> panels_at(m.x.size());
+  for (size_t t = 0; t < m.tris.size(); ++t)
+    for (int k = 0; k < 3; ++k) panels_at[m.tris[t][k]].insert(g.triangle_panel[t]);
+  auto ec = edge_counts(m);
+  for (const SeamInfo& s : g.seams) {
+    EXPECT_GE(s.vertices.size(), 2u) << s.name;
+    for (int v : s.vertices) EXPECT_GE(panels_at[v].size(), 2u) << s.name << " vertex " << v;
+    for (size_t k = 0; k + 1 < s.vertices.size(); ++k)  // consecutive seam vertices form an interior edge
+      EXPECT_EQ((ec[std::make_pair(std::min(s.vertices[k], s.vertices[k + 1]), std::max(s.vertices[k], s.vertices[k + 1]))]), 2)
+          << s.name;
+  }
+
+  // No coincident vertices; flat, in the garment frame.
+  EXPECT_GT(testing::min_vertex_distance(m), 1e-3);
+  Vec3 lo = m.x[0], hi = lo;
+  for (const Vec3& p : m.x) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  EXPECT_NEAR(lo.x(), 0, 1e-12);
+  EXPECT_NEAR(lo.z(), 0, 1e-12);
+  EXPECT_LE(hi.z(), 0.0051);
+  EXPECT_NEAR(lo.y() + hi.y(), 0, 1e-9);  // centred on y = 0
+  EXPECT_NEAR(g.length, hi.x() - lo.x(), 1e-12);
+  EXPECT_NEAR(g.width, hi.y() - lo.y(), 1e-12);
+
+  // The pattern is the flat shape: uv areas match 3D areas.
+  ASSERT_EQ(m.uv_tris.size(), m.tris.size());
+  double a2 = 0, a3 = 0;
+  int tilted = 0;
+  for (size_t t = 0; t < m.tris.size(); ++t) {
+    const Vec2 u = sim::corner_uv(m, int(t), 1) - sim::corner_uv(m, int(t), 0);
+    const Vec2 v = sim::corner_uv(m, int(t), 2) - sim::corner_uv(m, int(t), 0);
+    const double uv_area = 0.5 * (u.x() * v.y() - u.y() * v.x());
+    const Eigen::Vector3i& f = m.tris[t];
+    const double area = 0.5 * (m.x[f[1]] - m.x[f[0]]).cross(m.x[f[2]] - m.x[f[0]]).norm();
+    EXPECT_GT(uv_area, 0) << "uv triangle " << t << " is clockwise";
+    // Triangles touching a seam tilt from the seam (between the layers) up or down to their
+    // layer, so their 3D area is a little larger than the pattern's.
+    EXPECT_LE(uv_area / area, 1.0 + 1e-9) << "triangle " << t;
+    EXPECT_GT(uv_area / area, 0.75) << "triangle " << t;
+    if (uv_area / area < 0.95) ++tilted;
+    a2 += uv_area, a3 += area;
+  }
+  EXPECT_LT(tilted, 0.02 * m.tris.size());
+  EXPECT_NEAR(a2 / a3, 1.0, 0.01);
+
+  // Feature edges.
+  EXPECT_EQ(!m.creases.empty(), ex.creases);
+  EXPECT_EQ(!m.elastic_edges.empty(), ex.elastic);
+
+  // Landmarks on the mesh, grasp points near the small-x end on the top layer, hems far.
+  const Landmarks& lm = g.landmarks;
+  ASSERT_GE(lm.left_shoulder_vertex, 0);
+  ASSERT_GE(lm.right_shoulder_vertex, 0);
+  EXPECT_EQ(lm.left_shoulder, m.x[lm.left_shoulder_vertex]);
+  EXPECT_EQ(lm.right_shoulder, m.x[lm.right_shoulder_vertex]);
+  EXPECT_GT(lm.left_shoulder.y(), 0.05);
+  EXPECT_LT(lm.right_shoulder.y(), -0.05);
+  EXPECT_LT(lm.left_shoulder.x(), 0.45 * g.length);
+  EXPECT_NEAR(lm.left_shoulder.z(), hi.z(), 1e-12);
+  EXPECT_GT(lm.left_hem.x(), 0.9 * g.length);
+  EXPECT_GT(lm.left_hem.y(), 0.1);
+  EXPECT_LT(lm.right_hem.y(), -0.1);
+}
+
+INSTANTIATE_TEST_SUITE_P(Garments, EveryType, ::testing::ValuesIn(expectations()),
+                         [](const auto& info) { return info.param.type; });
+
+TEST(Generator, TshirtMatchesRgbenchSize) {
+  const Garment g = make_garment("tshirt", 1000);
+  EXPECT_NEAR(g.length, 0.77, 0.03);
+  EXPECT_NEAR(g.width, 0.98, 0.03);
+}
+
+TEST(Generator, VertexCountFollowsTheTarget) {
+  for (int target : {500, 5000}) {
+    const Garment g = make_garment("tshirt", target);
+    EXPECT_NEAR(double(g.mesh.x.size()) / target, 1.0, 0.2) << target;
+  }
+  const Garment towel = make_garment("towel", 2000);
+  EXPECT_NEAR(double(towel.mesh.x.size()) / 2000, 1.0, 0.2);
+}
+
+TEST(Generator, PleatFoldsAreCreasesAndWarpFollowsTheGrain) {
+  GarmentParams p;
+  p.pleats = 6;
+  p.fold_bend_scale = 0.2;
+  const Garment g = make_garment("pleat_skirt", 1500, p);
+  ASSERT_FALSE(g.mesh.creases.empty());
+  for (const sim::Crease& c : g.mesh.creases) {
+    EXPECT_DOUBLE_EQ(c.bend_scale, 0.2);
+    // A fold runs from waist to hem: its edges point mostly along x.
+    const Vec3 d = (g.mesh.x[c.a] - g.mesh.x[c.b]).normalized();
+    EXPECT_GT(std::abs(d.x()), 0.9);
+  }
+  // The body grain runs along x: uv axis 0 differences follow x differences on the front panel.
+  const sim::Mesh& m = g.mesh;
+  for (size_t t = 0; t < 20; ++t) {
+    const Vec2 du = sim::corner_uv(m, int(t), 1) - sim::corner_uv(m, int(t), 0);
+    const Vec3 dx = m.x[m.tris[t][1]] - m.x[m.tris[t][0]];
+    EXPECT_NEAR(du.x(), dx.x(), 1e-9);
+  }
+}
+
+TEST(Generator, CoatFrontPanelsHaveAGap) {
+  GarmentParams p;
+  p.front_gap = 0.04;
+  const Garment g = make_garment("coat", 1500, p);
+  // No front-layer vertex lies in the gap (|y| < 0.02 - eps) below the neckline.
+  const double z_top = g.landmarks.left_shoulder.z();
+  int in_gap = 0;
+  for (const Vec3& x : g.mesh.x)
+    if (std::abs(x.z() - z_top) < 1e-9 && std::abs(x.y()) < 0.02 - 1e-9 && x.x() > 0.1) ++in_gap;
+  EXPECT_EQ(in_gap, 0);
+}
+
+TEST(Generator, BadInputIsRejectedWithAClearMessage) {
+  try {
+    make_garment("poncho", 1000);
+    FAIL() << "no error";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("poncho"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("cake_skirt"), std::string::npos);
+  }
+  EXPECT_THROW(make_garment("tshirt", 100), sim::InputError);
+  EXPECT_THROW(make_garment("tshirt", 300000), sim::InputError);
+  GarmentParams bad;
+  bad.length = -1;
+  EXPECT_THROW(make_garment("skirt", 1000, bad), sim::InputError);
+  GarmentParams narrow;
+  narrow.neck_width = 0.7;
+  EXPECT_THROW(make_garment("tshirt", 1000, narrow), sim::InputError);
+}
+
+}  // namespace
+}  // namespace gd::garments
+
+namespace gd::garments {
+namespace {
+
+// Sizes and timings for the docs: gd_garments_tests --gtest_also_run_disabled_tests
+// --gtest_filter='*PrintStats*' (GD_GARMENT_OBJ_DIR=dir also writes the meshes as OBJ).
+TEST(Generator, DISABLED_PrintStats) {
+  for (int target : {1000, 5000, 40000, 200000}) {
+    for (const std::string& type : garment_types()) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const Garment g = make_garment(type, target);
+      const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      double min_angle = 180;
+      for (const auto& f : g.mesh.tris)
+        for (int k = 0; k < 3; ++k) {
+          const Vec2 a = g.mesh.x[f[(k + 1) % 3]].head<2>() - g.mesh.x[f[k]].head<2>();
+          const Vec2 b = g.mesh.x[f[(k + 2) % 3]].head<2>() - g.mesh.x[f[k]].head<2>();
+          min_angle = std::min(min_angle, std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180 / M_PI);
+        }
+      std::printf("%-12s target %6d: %6zu vertices %6zu triangles %2zu seams %2d loops %4zu creases %4zu elastic  %.3f x %.3f m  spacing %.4f  min angle %.1f  min dist %.4f  %7.1f ms\n",
+                  type.c_str(), target, g.mesh.x.size(), g.mesh.tris.size(), g.seams.size(), testing::boundary_loops(g.mesh),
+                  g.mesh.creases.size(), g.mesh.elastic_edges.size(), g.length, g.width, g.spacing, min_angle,
+                  testing::min_vertex_distance(g.mesh), ms);
+      if (const char* dir = std::getenv("GD_GARMENT_OBJ_DIR"); dir && target == 1000)
+        sim::write_obj(g.mesh, {}, std::string(dir) + "/" + type + ".obj");
+    }
+  }
+}
+
+}  // namespace
+}  // namespace gd::garments

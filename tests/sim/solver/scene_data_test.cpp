@@ -1,0 +1,117 @@
+// Rest data from per-corner pattern coordinates (seams), creases and elastic edges.
+#include "sim/solver/scene_data.h"
+
+#include <gtest/gtest.h>
+
+#include "sim/demand.h"
+#include "sim/material.h"
+
+namespace gd::sim {
+namespace {
+
+Material cotton() { return MaterialLibrary::load_default().get("cotton"); }
+
+/// The same rect with its uvs given per corner, every panel-corner moved by `offset` for the
+/// triangles with centroid x > half (as if the right half were a separate pattern piece).
+Mesh with_corner_uvs(const Mesh& m, const Vec2& offset) {
+  Mesh out = m;
+  out.uv.clear();
+  out.uv_tris.clear();
+  const Real half = 0.5 * (m.x[0].x() + m.x.back().x());
+  for (size_t t = 0; t < m.tris.size(); ++t) {
+    const auto& f = m.tris[t];
+    const Real cx = (m.x[f[0]].x() + m.x[f[1]].x() + m.x[f[2]].x()) / 3;
+    Eigen::Vector3i u;
+    for (int k = 0; k < 3; ++k) {
+      u[k] = static_cast<int>(out.uv.size());
+      out.uv.push_back(m.uv[f[k]] + (cx > half ? offset : Vec2::Zero()));
+    }
+    out.uv_tris.push_back(u);
+  }
+  return out;
+}
+
+TEST(SceneDataRest, PerCornerUvsGiveTheSameRestDataAsPerVertexUvs) {
+  const Mesh m = make_rect(0.2, 0.1, 0.02);
+  const Mesh seam = with_corner_uvs(m, Vec2(3.0, -2.0));
+  validate_mesh(seam);
+  const SceneData a = build_scene_data(m, cotton(), {}), b = build_scene_data(seam, cotton(), {});
+  ASSERT_EQ(a.tri_rest.size(), b.tri_rest.size());
+  for (size_t t = 0; t < a.tri_rest.size(); ++t) {
+    EXPECT_NEAR(a.tri_rest[t].area, b.tri_rest[t].area, 1e-15);
+    EXPECT_TRUE(a.tri_rest[t].Dm_inv.isApprox(b.tri_rest[t].Dm_inv, 1e-12));
+  }
+  ASSERT_EQ(a.hinge_rest.size(), b.hinge_rest.size());
+  for (size_t h = 0; h < a.hinge_rest.size(); ++h) {
+    EXPECT_NEAR(a.hinge_rest[h].coef, b.hinge_rest[h].coef, 1e-9 * a.hinge_rest[h].coef);
+    EXPECT_NEAR(a.hinge_rest[h].area, b.hinge_rest[h].area, 1e-15);
+    EXPECT_EQ(a.hinge_rest[h].stiffness, b.hinge_rest[h].stiffness);
+  }
+}
+
+TEST(SceneDataRest, CreaseScalesOnlyItsHinge) {
+  Mesh m = make_rect(0.2, 0.1, 0.02);
+  const Topology topo = build_topology(m);
+  const Eigen::Vector4i h0 = topo.hinges[5];
+  m.creases.push_back({h0[1], h0[0], 0.1});  // either order
+  validate_mesh(m);
+  const SceneData plain = build_scene_data(make_rect(0.2, 0.1, 0.02), cotton(), {});
+  const SceneData creased = build_scene_data(m, cotton(), {});
+  for (size_t h = 0; h < plain.hinge_rest.size(); ++h)
+    EXPECT_DOUBLE_EQ(creased.hinge_rest[h].stiffness, plain.hinge_rest[h].stiffness * (h == 5 ? 0.1 : 1.0));
+}
+
+TEST(SceneDataRest, ElasticEdgeShortensRestLengthAlongItOnly) {
+  Mesh m = make_rect(0.2, 0.1, 0.02);
+  const Topology topo = build_topology(m);
+  const Eigen::Vector2i e = topo.edges[7];
+  m.elastic_edges.push_back({e[0], e[1], 0.8});
+  validate_mesh(m);
+  const SceneData d = build_scene_data(m, cotton(), {});
+  int touched = 0;
+  for (size_t t = 0; t < m.tris.size(); ++t) {
+    const auto& f = m.tris[t];
+    int ia = -1, ib = -1;
+    for (int k = 0; k < 3; ++k) {
+      if (f[k] == e[0]) ia = k;
+      if (f[k] == e[1]) ib = k;
+    }
+    // Rest corners relative to corner 0 are the columns of Dm = Dm_inv^-1.
+    const Mat2 Dm = d.tri_rest[t].Dm_inv.inverse();
+    const Vec2 p[3] = {Vec2::Zero(), Dm.col(0), Dm.col(1)};
+    const Real len_uv = (m.uv[f[1]] - m.uv[f[2]]).norm(), len_rest = (p[1] - p[2]).norm();
+    if (ia >= 0 && ib >= 0) {
+      ++touched;
+      const Vec2 along = p[ib] - p[ia], along_uv = m.uv[e[1]] - m.uv[e[0]];
+      EXPECT_NEAR(along.norm(), 0.8 * along_uv.norm(), 1e-12);
+      // Width across the edge (twice the area over the edge length) is unchanged.
+      EXPECT_NEAR(2 * d.tri_rest[t].area / along.norm(),
+                  std::abs(Mat2((Mat2() << along_uv, m.uv[f[3 - ia - ib]] - m.uv[e[0]]).finished()).determinant()) /
+                      along_uv.norm(),
+                  1e-12);
+    } else {
+      EXPECT_NEAR(len_rest, len_uv, 1e-12);
+    }
+  }
+  EXPECT_GE(touched, 1);
+}
+
+TEST(SceneDataRest, FeatureEdgesAndUvIndicesAreValidated) {
+  const Mesh good = make_rect(0.2, 0.1, 0.02);
+  Mesh m = good;
+  m.creases.push_back({0, static_cast<int>(m.x.size()) - 1, 0.5});
+  EXPECT_THROW(validate_mesh(m), InputError);
+  m = good;
+  const Eigen::Vector2i e = build_topology(good).edges[0];
+  m.elastic_edges.push_back({e[0], e[1], -1.0});
+  EXPECT_THROW(validate_mesh(m), InputError);
+  m = with_corner_uvs(good, Vec2::Zero());
+  m.uv_tris.pop_back();
+  EXPECT_THROW(validate_mesh(m), InputError);
+  m = with_corner_uvs(good, Vec2::Zero());
+  m.uv_tris[0][1] = 100000;
+  EXPECT_THROW(validate_mesh(m), InputError);
+}
+
+}  // namespace
+}  // namespace gd::sim

@@ -1,0 +1,198 @@
+// Grasp / Fling / Fold generators: the shape of the trajectories, bad input, and the physical
+// outcome of replaying them in pseudo-grasp mode on a small garment (no self-contact).
+#include "tasks/generators.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "sim/demand.h"
+#include "tasks/grippers.h"
+#include "tasks/task_test_util.h"
+
+namespace gd::tasks {
+namespace {
+
+using sim::InputError;
+using testing::extent;
+using testing::max_z;
+using testing::min_z;
+
+garments::Garment small_garment() { return testing::rect_garment(0.4, 0.3, 0.025); }
+
+/// Largest speed between consecutive samples, m/s.
+double max_speed(const ArmTrajectory& t) {
+  double v = 0;
+  const auto& s = t.samples();
+  for (size_t k = 1; k < s.size(); ++k) v = std::max(v, (s[k].position - s[k - 1].position).norm() / (s[k].t - s[k - 1].t));
+  return v;
+}
+
+/// First time at which the gripper is closed (< 1 cm), or -1.
+double first_closed(const ArmTrajectory& t) {
+  for (const auto& s : t.samples())
+    if (s.gripper < 0.01) return s.t;
+  return -1;
+}
+
+// --- trajectory shapes -----------------------------------------------------------------------
+
+TEST(Generators, GraspDescendsOntoTheShouldersClosesAndLiftsVertically) {
+  const garments::Garment g = small_garment();
+  const Eigen::Isometry3d T = default_garment_pose();
+  const DualArmTrajectory t = make_grasp(g, T);
+  EXPECT_EQ(t.master_start_time, 0.0);
+  EXPECT_GE(t.end_time(), 8.0);  // like RGBench's captures
+  EXPECT_LE(t.end_time(), 20.0);
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    const ArmTrajectory& arm = t.arm(a);
+    const Vec3 shoulder = T * (a == Arm::kLeft ? g.landmarks.left_shoulder : g.landmarks.right_shoulder);
+    const ArmSample first = arm.samples().front(), last = arm.samples().back();
+    EXPECT_DOUBLE_EQ(first.gripper, kGripperOpen);
+    EXPECT_LT((first.position - (shoulder + Vec3(0, 0, 0.08))).norm(), 1e-12);
+    const double tc = first_closed(arm);
+    ASSERT_GT(tc, 0);
+    EXPECT_LT((arm.sample(tc).position - shoulder).norm(), 1e-9);  // closes on the shoulder
+    EXPECT_DOUBLE_EQ(last.gripper, 0.0);
+    EXPECT_LT((last.position - (shoulder + Vec3(0, 0, g.length + 0.1))).norm(), 1e-12);
+    EXPECT_NEAR(last.orientation.angularDistance(top_down_orientation()), 0, 1e-12);
+    EXPECT_LT(max_speed(arm), 0.3);  // smooth, no teleports
+    for (const auto& s : arm.samples()) EXPECT_NEAR(s.position.y(), shoulder.y(), 1e-12);
+  }
+}
+
+TEST(Generators, FlingSweepsForwardAndBackAtTheRequestedSpeedAndEndsSpread) {
+  const garments::Garment g = small_garment();
+  TaskParams p;
+  p.fling_spread = 0.35;
+  const DualArmTrajectory t = make_fling(g, default_garment_pose(), p);
+  const Vec3 l0 = default_garment_pose() * g.landmarks.left_shoulder;
+  double max_x = -1;
+  for (const auto& s : t.left.samples()) max_x = std::max(max_x, s.position.x());
+  EXPECT_NEAR(max_x, l0.x() + 0.25, 1e-9);
+  EXPECT_NEAR(max_speed(t.left), 1.0, 0.05);
+  const Vec3 el = t.left.samples().back().position, er = t.right.samples().back().position;
+  EXPECT_NEAR(el.y() - er.y(), 0.35, 1e-9);
+  EXPECT_NEAR(el.x(), l0.x(), 1e-9);
+  EXPECT_NEAR(el.z(), l0.z() + g.length + 0.15, 1e-9);
+  EXPECT_DOUBLE_EQ(t.left.samples().back().gripper, 0.0);
+}
+
+TEST(Generators, FoldCarriesTheShouldersToTheHemAndLetsGo) {
+  const garments::Garment g = small_garment();
+  const Eigen::Isometry3d T = default_garment_pose();
+  TaskParams straight;
+  straight.fold_arc = 0;  // the paper's level translation
+  for (const TaskParams& p : {TaskParams(), straight}) {
+  const DualArmTrajectory t = make_fold(g, T, p);
+  const double peak = p.fold_arc == 0 ? 0.06 : 0.06 + 0.35 * g.length;
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    const ArmTrajectory& arm = t.arm(a);
+    const Vec3 shoulder = T * (a == Arm::kLeft ? g.landmarks.left_shoulder : g.landmarks.right_shoulder);
+    double max_z_closed = 0, open_again = -1;
+    const double tc = first_closed(arm);
+    for (const auto& s : arm.samples()) {
+      if (s.t > tc && s.gripper < 0.01) max_z_closed = std::max(max_z_closed, s.position.z() - shoulder.z());
+      if (s.t > tc && s.gripper >= 0.01 && open_again < 0) open_again = s.t;
+    }
+    EXPECT_NEAR(max_z_closed, peak, 1e-9);  // lifted slightly (plus the arc)
+    ASSERT_GT(open_again, 0);
+    const Vec3 at_release = arm.sample(open_again).position;
+    EXPECT_NEAR(at_release.x(), shoulder.x() + g.length - 0.03, 1e-9);
+    EXPECT_NEAR(at_release.z(), shoulder.z() + 0.01, 1e-9);
+    EXPECT_DOUBLE_EQ(arm.samples().back().gripper, kGripperOpen);
+    EXPECT_GT(arm.samples().back().position.z(), at_release.z() + 0.05);  // retreated
+    EXPECT_LT(max_speed(arm), 0.4);
+  }
+  }
+}
+
+TEST(Generators, TimeScaleShortensTheQuasiStaticParts) {
+  const garments::Garment g = small_garment();
+  TaskParams p;
+  const double full = make_fold(g, default_garment_pose(), p).end_time();
+  p.time_scale = 0.5;
+  EXPECT_NEAR(make_fold(g, default_garment_pose(), p).end_time(), 0.5 * full, 1e-9);
+}
+
+TEST(Generators, BadInputIsAnInputError) {
+  const garments::Garment g = small_garment();
+  const Eigen::Isometry3d T = default_garment_pose();
+  EXPECT_THROW(make_task("wave", g, T), InputError);
+  EXPECT_NO_THROW(make_task("fold", g, T));
+  TaskParams p;
+  p.time_scale = 0;
+  EXPECT_THROW(make_grasp(g, T, p), InputError);
+  p = TaskParams();
+  p.fold_margin = 1.0;  // beyond the garment
+  EXPECT_THROW(make_fold(g, T, p), InputError);
+  garments::Garment no_landmarks = g;
+  no_landmarks.landmarks = garments::Landmarks();
+  EXPECT_THROW(make_grasp(no_landmarks, T), InputError);
+  garments::Garment swapped = g;
+  std::swap(swapped.landmarks.left_shoulder, swapped.landmarks.right_shoulder);
+  EXPECT_THROW(make_fling(swapped, T), InputError);
+  garments::Garment flat = g;
+  flat.length = 0;
+  EXPECT_THROW(make_fold(flat, T), InputError);
+}
+
+// --- physical outcomes (pseudo grasp, no self-contact) ------------------------------------------
+
+struct Outcome {
+  std::vector<Vec3> x;
+  double seconds = 0;
+};
+
+/// Replays `traj` on the small garment placed at RGBench's default pose, then `extra` seconds more.
+Outcome replay(const DualArmTrajectory& traj, double extra = 0) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto scene = testing::make_scene(testing::placed(small_garment()));
+  GripperController c(traj);
+  EXPECT_TRUE(run_until(*scene, c, traj.end_time() + extra)) << scene->failure();
+  Outcome o;
+  o.x = scene->positions();
+  o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("  %zu vertices, %.2f s simulated in %.2f s; x extent %.3f, y extent %.3f, z in [%.4f, %.4f]\n",
+              o.x.size(), scene->time(), o.seconds, extent(o.x, 0), extent(o.x, 1), min_z(o.x), max_z(o.x));
+  return o;
+}
+
+TEST(TaskOutcome, GraspLiftsTheGarmentClearOfTheTable) {
+  TaskParams p;
+  p.time_scale = 0.3;
+  const Outcome o = replay(make_grasp(small_garment(), default_garment_pose(), p));
+  EXPECT_GT(min_z(o.x), 0.01);
+}
+
+TEST(TaskOutcome, FoldLeavesItOnTheTableAtAboutHalfItsLength) {
+  const garments::Garment g = small_garment();
+  TaskParams p;
+  p.time_scale = 0.5;
+  const Outcome o = replay(make_fold(g, default_garment_pose(), p), 1.0);
+  // Flat on the table except the fold's loop: an unpressed 180-degree fold of cotton (bending
+  // length about 1.2 cm) stands 3-4 cm high at the fold line, so the bound on the highest point is
+  // 4.5 cm; three in four vertices lie within 1 cm of the table (the rest are in the loop).
+  EXPECT_LT(max_z(o.x), 0.045);
+  std::vector<double> z;
+  for (const Vec3& q : o.x) z.push_back(q.z());
+  std::sort(z.begin(), z.end());
+  EXPECT_LT(z[z.size() * 3 / 4], 0.01);
+  EXPECT_GT(extent(o.x, 0), 0.4 * g.length);
+  EXPECT_LT(extent(o.x, 0), 0.65 * g.length);
+}
+
+TEST(TaskOutcome, FlingEndsInTheAirSpread) {
+  const garments::Garment g = small_garment();
+  TaskParams p;
+  p.time_scale = 0.3;
+  const Outcome o = replay(make_fling(g, default_garment_pose(), p));
+  EXPECT_GT(min_z(o.x), 0.01);
+  EXPECT_GT(extent(o.x, 1), 0.6 * g.width);
+}
+
+}  // namespace
+}  // namespace gd::tasks
