@@ -7,6 +7,9 @@
 ///       files it writes); prints a short summary.
 ///   gd metrics --sim A --real B [--json]
 ///       RGBench's seven sim-to-real metrics between two clouds (PCD, PLY or OBJ vertices).
+///   gd synth-capture --garment G --task T --out DIR [...]
+///       a synthetic capture in RGBench's layout filmed from a reference simulation (for
+///       trying `gd run --capture` without the real dataset).
 ///
 /// Exit codes: 0 success, 1 the simulation failed, 2 bad input (with a message on stderr).
 
@@ -19,6 +22,7 @@
 
 #include "experiment/experiment.h"
 #include "experiment/progress.h"
+#include "experiment/synthetic_capture.h"
 #include "garments/generator.h"
 #include "metrics/cloud_io.h"
 #include "metrics/cloud_metrics.h"
@@ -117,6 +121,26 @@ int main(int argc, char** argv) {
   met->add_option("--real", real_path, "real cloud (PCD, PLY or OBJ), same frame")->required();
   met->add_flag("--json", json, "print one JSON object");
 
+  ExperimentConfig ref;
+  gd::experiment::SyntheticCaptureOptions sco;
+  bool ref_no_self_contact = false;
+  auto* syn = app.add_subcommand("synth-capture",
+                                 "write a synthetic capture in RGBench's layout from a reference simulation");
+  syn->add_option("--garment", ref.garment, "garment type or .obj path")->capture_default_str();
+  syn->add_option("--material", ref.material, "fabric")->capture_default_str();
+  syn->add_option("--task", ref.task, "grasp | fold | fling")->capture_default_str();
+  syn->add_option("--vertices", ref.vertices, "target vertex count of the reference")->capture_default_str();
+  syn->add_option("--dt", ref.scene.dt, "reference time step, s")->capture_default_str();
+  syn->add_option("--time-scale", ref.task_params.time_scale, "speed factor of the task's slow parts")
+      ->capture_default_str();
+  syn->add_option("--fps", sco.fps, "frames per second")->capture_default_str();
+  syn->add_option("--noise", sco.noise, "point noise, m (std per coordinate)")->capture_default_str();
+  syn->add_option("--dropout", sco.dropout, "fraction of points dropped")->capture_default_str();
+  syn->add_option("--camera-delay", sco.camera_delay, "camera delay written to capture.json, s")->capture_default_str();
+  syn->add_flag("--no-self-contact", ref_no_self_contact, "reference without self-contact");
+  std::string syn_out;
+  syn->add_option("--out", syn_out, "capture directory to write")->required();
+
   CLI11_PARSE(app, argc, argv);
   try {
     gd::log();  // the logger reads GD_LOG_LEVEL
@@ -132,6 +156,13 @@ int main(int argc, char** argv) {
       else if (backend == "auto") cfg.scene.backend = gd::sim::BackendKind::kAuto;
       else throw gd::sim::InputError("unknown backend '" + backend + "'; use cpu, cuda or auto");
       return cmd_run(cfg, quiet);
+    }
+    if (*syn) {
+      if (ref_no_self_contact) ref.scene.self_contact = false;
+      ref.out_dir = syn_out;
+      const auto c = gd::experiment::make_synthetic_capture(ref, sco, syn_out);
+      std::printf("wrote %d frames (%.2f s) to %s\n", c.frames, c.duration, c.dir.c_str());
+      return 0;
     }
     return cmd_metrics(sim_path, real_path, json);
   } catch (const gd::sim::InputError& e) {

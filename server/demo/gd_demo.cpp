@@ -15,7 +15,6 @@
 /// shows a progress bar on stderr and prints a short summary on stdout.
 
 #include <CLI/CLI.hpp>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -28,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "experiment/progress.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
@@ -49,35 +49,6 @@ constexpr double kEnergyIncreaseTol = 1e-9;
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-class ProgressBar {
- public:
-  explicit ProgressBar(int total) : total_(total), tty_(isatty(fileno(stderr)) != 0) {}
-  /// Redraws when another ~5% is done (and at the end).
-  void update(int done, double sim_t) {
-    const int pct = total_ > 0 ? static_cast<int>(100.0 * done / total_) : 100;
-    if (pct < next_pct_ && done < total_) return;
-    while (next_pct_ <= pct) next_pct_ += 5;
-    constexpr int kWidth = 40;
-    const int fill = total_ > 0 ? static_cast<int>(static_cast<double>(kWidth) * done / total_) : kWidth;
-    const double el = seconds_since(start_);
-    const double eta = done > 0 ? el * (total_ - done) / done : 0.0;
-    std::fprintf(stderr, "%s[%s%s] %3d%%  t = %.3f s  step %d/%d  elapsed %.1f s  eta %.1f s%s", tty_ ? "\r" : "",
-                 std::string(fill, '#').c_str(), std::string(kWidth - fill, '.').c_str(), pct, sim_t, done, total_,
-                 el, eta, tty_ ? "" : "\n");
-    if (tty_ && done >= total_) std::fprintf(stderr, "\n");
-    std::fflush(stderr);
-  }
-  /// Ends a partially drawn bar (on failure).
-  void finish() {
-    if (tty_) std::fprintf(stderr, "\n");
-  }
-
- private:
-  int total_;
-  bool tty_;
-  int next_pct_ = 0;
-  Clock::time_point start_ = Clock::now();
-};
 
 struct Row {
   double t, kinetic, stretch, bending, gravity, total, max_strain;
@@ -169,8 +140,8 @@ int main(int argc, char** argv) {
     double max_increase = 0;
     double step_seconds = 0;
     int done = 0;
-    ProgressBar bar(steps);
-    bar.update(0, 0.0);
+    gd::experiment::ProgressBar bar(steps, "steps");
+    bar.update(0);
     for (int i = 0; i < steps; ++i) {
       const auto t0 = Clock::now();
       const bool ok = scene->step();
@@ -189,7 +160,7 @@ int main(int argc, char** argv) {
         ++increase_steps;
         max_increase = std::max(max_increase, growth);
       }
-      bar.update(done, scene->time());
+      bar.update(done, fmt::format("t = {:.3f} s", scene->time()));
     }
     const double wall = seconds_since(t_wall);
 

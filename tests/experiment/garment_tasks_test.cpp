@@ -1,0 +1,67 @@
+// Every garment type survives Grasp, Fold and Fling with self-contact on: no intersecting
+// triangle pairs, no non-finite state, and the physical outcome the task is for.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <tuple>
+
+#include "experiment/experiment.h"
+#include "garments/generator.h"
+#include "sim/log.h"
+
+namespace gd::experiment {
+namespace {
+
+using Case = std::tuple<std::string, std::string>;  // garment type, task
+
+class GarmentTask : public ::testing::TestWithParam<Case> {};
+
+TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
+  const auto& [garment, task] = GetParam();
+  ExperimentConfig c;
+  c.garment = garment;
+  c.task = task;
+  // Coarse (this runs 27 times in CI); GD_TEST_VERTICES overrides for finer checks.
+  c.vertices = std::getenv("GD_TEST_VERTICES") ? std::atoi(std::getenv("GD_TEST_VERTICES")) : 400;
+  c.scene.dt = 0.01;
+  c.task_params.time_scale = 0.3;
+  c.settle_after = 0.3;
+  c.plots = false;
+  c.out_dir = (std::filesystem::temp_directory_path() / ("gd_garment_task_" + garment + "_" + task)).string();
+  ASSERT_TRUE(c.scene.self_contact);
+  const ExperimentResult r = run_experiment(c);
+  const auto& s = r.summary;
+  const auto& fin = s["final"];
+  gd::log().info("{}/{}: {} vertices, {} steps, {:.1f} s wall, max intersecting pairs {}, untangling {}, final {}",
+                 garment, task, s["vertices"].get<int>(), s["steps"].get<int>(), s["wall_seconds"].get<double>(),
+                 s["intersecting_pairs_max"].get<int>(), s["untangle_runs"].get<int>(), fin.dump());
+  ASSERT_FALSE(s["failed"].get<bool>()) << s["failure"];
+  EXPECT_EQ(s["intersecting_pairs_max"].get<int>(), 0);
+  const double length = s["garment_length"], width = s["garment_width"];
+  if (task == "grasp") {
+    EXPECT_GT(fin["min_z"].get<double>(), 0.01) << "the garment should hang clear of the table";
+  } else if (task == "fold") {
+    EXPECT_LT(fin["mean_z"].get<double>(), 0.03) << "the folded garment should lie on the table";
+    EXPECT_LT(fin["max_z"].get<double>(), 0.1);
+    const double ratio = fin["extent_x"].get<double>() / length;
+    EXPECT_GT(ratio, 0.35) << "folded length / length";
+    EXPECT_LT(ratio, 0.75) << "folded length / length";
+  } else {  // fling
+    EXPECT_GT(fin["min_z"].get<double>(), 0.01) << "the garment should end in the air";
+    EXPECT_GT(fin["extent_y"].get<double>(), 0.4 * width) << "the garment should hang spread";
+  }
+}
+
+std::string case_name(const ::testing::TestParamInfo<Case>& info) {
+  return std::get<0>(info.param) + "_" + std::get<1>(info.param);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllTypes, GarmentTask,
+                         ::testing::Combine(::testing::ValuesIn(garments::garment_types()),
+                                            ::testing::Values("grasp", "fold", "fling")),
+                         case_name);
+
+}  // namespace
+}  // namespace gd::experiment
