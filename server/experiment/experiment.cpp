@@ -276,9 +276,14 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     eo.prepare_time = prepare;
     eo.keep_frames = config.keep_frames;
     if (config.icp) {
+      // The first frame shows the garment flat on the table, as laid out (the paper aligns the
+      // initial state with a template); point-to-point, since point-to-plane cannot pin the
+      // in-plane motion of a flat sheet.
       metrics::IcpReport rep;
+      metrics::IcpOptions io;
+      io.point_to_plane = false;
       const Eigen::Matrix4d T = metrics::refine_world_to_camera(
-          to_cloud(x0), metrics::frame_in_camera(*capture, schedule.front().frame), capture->world_to_camera, {}, &rep);
+          to_cloud(x0), metrics::frame_in_camera(*capture, schedule.front().frame), capture->world_to_camera, io, &rep);
       eo.world_to_camera = T;
       s["icp"] = {{"accepted", rep.accepted},  {"converged", rep.converged},     {"fitness", rep.fitness},
                   {"rotation_deg", rep.rotation_deg}, {"translation", rep.translation}};

@@ -37,10 +37,11 @@ ExperimentConfig towel_grasp(int vertices, double dt) {
   return c;
 }
 
-/// The reference capture, written once for all tests of this file.
-const std::string& reference_capture() {
-  static const std::string dir = [] {
-    const std::string d = temp_dir("capture");
+/// The reference capture of a test (ctest runs each test in its own process, in parallel, so
+/// every test writes its own).
+std::string reference_capture(const std::string& tag) {
+  return [&] {
+    const std::string d = temp_dir("capture_" + tag);
     ExperimentConfig ref = towel_grasp(500, 0.005);
     ref.out_dir = d + "_ref";
     SyntheticCaptureOptions o;
@@ -49,13 +50,12 @@ const std::string& reference_capture() {
     make_synthetic_capture(ref, o, d);
     return d;
   }();
-  return dir;
 }
 
 double mean_cd(const ExperimentResult& r) { return r.summary["cd_l1_r2s"].get<double>(); }
 
 TEST(SyntheticCapture, WritesRgbenchLayout) {
-  const std::string& dir = reference_capture();
+  const std::string dir = reference_capture("layout");
   EXPECT_TRUE(fs::exists(dir + "/calibration/world_to_camera_transform.json"));
   EXPECT_TRUE(fs::exists(dir + "/joints/left_arm_joint_states_and_end_pose.csv"));
   EXPECT_TRUE(fs::exists(dir + "/joints/right_arm_joint_states_and_end_pose.csv"));
@@ -71,7 +71,7 @@ TEST(SyntheticCapture, WritesRgbenchLayout) {
 
 TEST(SyntheticCapture, RunnerRecoversTheReferenceWithTimeAlignment) {
   ExperimentConfig run = towel_grasp(250, 0.01);
-  run.capture_dir = reference_capture();
+  run.capture_dir = reference_capture("align");
   run.out_dir = temp_dir("run");
   const ExperimentResult r = run_experiment(run);
   ASSERT_FALSE(r.summary["failed"].get<bool>()) << r.summary["failure"];
@@ -114,7 +114,7 @@ TEST(SyntheticCapture, IcpRepairsAMiscalibratedCamera) {
   // The clouds were filmed with the true camera; the calibration file of this copy holds one that
   // is 2 degrees and 2 cm off.
   const std::string dir = temp_dir("miscalibrated");
-  fs::copy(reference_capture(), dir, fs::copy_options::recursive);
+  fs::copy(reference_capture("icp"), dir, fs::copy_options::recursive);
   const SyntheticCaptureOptions o;
   Eigen::Isometry3d wrong = o.world_to_camera;
   wrong.prerotate(Eigen::AngleAxisd(2.0 * M_PI / 180, Eigen::Vector3d(0.3, 1, 0.2).normalized()));
