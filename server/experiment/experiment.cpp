@@ -316,7 +316,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                                           : config.baselines_csv;
     if (fs::exists(base)) {
       const std::string g = extra["garment"];
-      metrics::write_comparison(out, g, config.task, "fixed_point", "garmentdynamics (ours)", sum.mean, 1,
+      metrics::write_comparison(out, g, config.task, config.mode, "garmentdynamics (ours)", sum.mean, 1,
                                 metrics::load_paper_baselines(base, g, config.task));
     }
   } else {
