@@ -45,7 +45,7 @@ TEST(SceneDataRest, PerCornerUvsGiveTheSameRestDataAsPerVertexUvs) {
   for (size_t h = 0; h < a.hinge_rest.size(); ++h) {
     EXPECT_NEAR(a.hinge_rest[h].coef, b.hinge_rest[h].coef, 1e-9 * a.hinge_rest[h].coef);
     EXPECT_NEAR(a.hinge_rest[h].area, b.hinge_rest[h].area, 1e-15);
-    EXPECT_EQ(a.hinge_rest[h].stiffness, b.hinge_rest[h].stiffness);
+    EXPECT_NEAR(a.hinge_rest[h].stiffness, b.hinge_rest[h].stiffness, 1e-9 * a.hinge_rest[h].stiffness);
   }
 }
 
