@@ -110,8 +110,8 @@ GD_HD Real barrier_of_distance2(Real d2, const VecN<12>& g2, const MatN<12>* H2,
   if (grad) *grad = db * gD;
   if (hess && H2) *hess = d2b * (gD * gD.transpose()) + (db / (Real(2) * D)) * *H2 - (db / D) * (gD * gD.transpose());
   // (∇²D = ∇²d²/(2D) - ∇d²∇d²ᵀ/(4D³) = ∇²d²/(2D) - ∇D∇Dᵀ/D.)
-  // Without H2: the Gauss-Newton form (b'' - b'/D) ∇D∇Dᵀ, PSD since b'' > 0 > b'.
-  if (hess && !H2) *hess = (d2b - db / D) * (gD * gD.transpose());
+  // Without H2: the Gauss-Newton form b'' ∇D∇Dᵀ (drops b' ∇²D), PSD since b'' > 0.
+  if (hess && !H2) *hess = d2b * (gD * gD.transpose());
   return E;
 }
 

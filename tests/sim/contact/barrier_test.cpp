@@ -258,3 +258,35 @@ TEST(ContactBarrier, ZeroBeyondDhatInfiniteAtContact) {
 
 }  // namespace
 }  // namespace gd::sim
+
+namespace gd::sim {
+namespace {
+
+// The Gauss-Newton pair Hessian is (b'' - b'/d) ∇d∇dᵀ: symmetric, PSD, rank one along the
+// gradient, and equal to the exact Hessian wherever the distance is linear (the point's own block
+// above a face).
+TEST(ContactBarrier, GaussNewtonHessianIsRankOnePsdAlongTheGradient) {
+  const Vec3 t0(0, 0, 0), t1(0.01, 0, 0), t2(0, 0.01, 0);
+  const Real dhat = 1e-3, kappa = 10;
+  for (const Real gap : {2e-4, 5e-4, 9e-4}) {
+    const Vec3 p(0.003, 0.002, gap);  // above the face interior
+    VecN<12> g;
+    MatN<12> Hgn, Hex;
+    vf_contact_energy(p, t0, t1, t2, 0.0, dhat, kappa, &g, &Hgn, HessianKind::kGaussNewton);
+    vf_contact_energy(p, t0, t1, t2, 0.0, dhat, kappa, nullptr, &Hex, HessianKind::kExact);
+    EXPECT_TRUE(Hgn.isApprox(Hgn.transpose(), 1e-12));
+    const Eigen::SelfAdjointEigenSolver<MatN<12>> es(Hgn);
+    EXPECT_GE(es.eigenvalues().minCoeff(), -1e-9 * es.eigenvalues().maxCoeff());
+    // Rank one, along the gradient.
+    EXPECT_LT(es.eigenvalues()(10), 1e-9 * es.eigenvalues()(11));
+    const VecN<12> v = es.eigenvectors().col(11);
+    EXPECT_NEAR(std::abs(v.dot(g.normalized())), 1.0, 1e-9);
+    // Face interior: d = n.(p - t0) is linear in p (∇²_pp d = 0), so the point's own block of
+    // the Gauss-Newton Hessian equals the exact one.
+    const Mat3 pp_gn = Hgn.topLeftCorner<3, 3>(), pp_ex = Hex.topLeftCorner<3, 3>();
+    EXPECT_TRUE(pp_gn.isApprox(pp_ex, 1e-9));
+  }
+}
+
+}  // namespace
+}  // namespace gd::sim
