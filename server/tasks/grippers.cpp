@@ -52,7 +52,7 @@ GripperController::GripperController(DualArmTrajectory traj, GripperOptions opti
   for (Arm a : {Arm::kLeft, Arm::kRight}) {
     if (traj_.arm(a).empty())
       throw InputError(fmt::format("gripper controller: the {} arm's trajectory has no samples", arm_name(a)));
-    arm_traj_[static_cast<int>(a)] = std::make_shared<const ArmTrajectory>(traj_.arm(a));
+    arm_traj_[static_cast<int>(a)] = std::make_shared<ArmTrajectory>(traj_.arm(a));
   }
 }
 
@@ -60,6 +60,12 @@ double GripperController::sim_prepare_time() const {
   if (options_.mode == GraspMode::kFixedPoint && options_.action == TaskKind::kFling)
     return options_.fling_prepare_time + options_.fling_wait_time;
   return 0;
+}
+
+void GripperController::append(Arm a, const ArmSample& s) {
+  const std::string what = fmt::format("{} arm command", arm_name(a));
+  arm_traj_[static_cast<int>(a)]->append(s, what);
+  traj_.arm(a).append(s, what);
 }
 
 ArmSample GripperController::ee(Arm a, double t) const {
@@ -158,7 +164,7 @@ void GripperController::update_pseudo(sim::Scene& scene, double t_end) {
         gd::log().debug("t={:.4f}: {} gripper closes on nothing (nearest free vertex {:.3f} m away)", t_now,
                         arm_name(arm), nearest_d);
       } else {
-        std::shared_ptr<const ArmTrajectory> traj = arm_traj_[a];
+        std::shared_ptr<const ArmTrajectory> traj = arm_traj_[a];  // sees later appends
         const double shift = sim_prepare_time();
         const int g = scene.attach(take, [traj, shift](double t) { return traj->pose(t - shift); });
         set_group(scene, a, g);

@@ -113,6 +113,11 @@ class GripperController {
   /// The end-effector sample of an arm at scene time t (trajectory time t - sim_prepare_time()).
   ArmSample ee(Arm a, double t) const;
 
+  /// Appends a sample to an arm's trajectory (trajectory time, after its last sample): live
+  /// control, where each step's command extends the trajectory. Held vertices follow the
+  /// extended motion. Throws InputError for an invalid or out-of-order sample.
+  void append(Arm a, const ArmSample& s);
+
   /// Releases every group this controller created (the vertices become free).
   void release_all(sim::Scene& scene);
 
@@ -122,7 +127,7 @@ class GripperController {
   void set_group(sim::Scene& scene, int arm, int group);
 
   DualArmTrajectory traj_;
-  std::array<std::shared_ptr<const ArmTrajectory>, 2> arm_traj_;
+  std::array<std::shared_ptr<ArmTrajectory>, 2> arm_traj_;  ///< shared with the attach poses
   GripperOptions options_;
   std::array<ArmState, 2> state_;
   std::array<int, 2> group_{-1, -1};     ///< scene group per arm (-1: none)

@@ -151,6 +151,16 @@ ArmTrajectory::ArmTrajectory(std::vector<ArmSample> samples, const std::string& 
   }
 }
 
+void ArmTrajectory::append(ArmSample s, const std::string& what) {
+  const std::string where = fmt::format("{} sample {} (t={})", what, samples_.size(), num(s.t));
+  check_sample(s, where);
+  if (!samples_.empty() && !(s.t > samples_.back().t))
+    throw InputError(fmt::format("{}: times must increase strictly (previous sample has t={})", where,
+                                 num(samples_.back().t)));
+  s.orientation.normalize();
+  samples_.push_back(s);
+}
+
 double ArmTrajectory::start_time() const {
   if (samples_.empty()) throw InputError("trajectory has no samples");
   return samples_.front().t;

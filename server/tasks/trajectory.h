@@ -55,6 +55,10 @@ class ArmTrajectory {
   double start_time() const;
   double end_time() const;
 
+  /// Appends a sample after the last one (live control, e.g. the service's step actions).
+  /// Throws InputError when it is invalid or not strictly later than the last sample.
+  void append(ArmSample s, const std::string& what = "trajectory");
+
   /// The interpolated sample at time t (its .t is t). Throws InputError when empty or t is not finite.
   ArmSample sample(double t) const;
   /// The end-effector pose at time t.

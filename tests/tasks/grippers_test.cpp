@@ -70,6 +70,35 @@ TEST(PseudoGrasp, TakesTheVerticesWithinTheJawRadiusAndTheyFollowTheEndEffectorR
   EXPECT_GT((x[expect[0]] - x[expect[1]] - (xg[expect[0]] - xg[expect[1]])).norm(), 1e-3);
 }
 
+TEST(PseudoGrasp, AppendedCommandsExtendTheMotionOfHeldVertices) {
+  // Live control as the service does it: every step appends the pose reached at its end.
+  const sim::Mesh m = cloth();
+  auto scene = make_scene(m);
+  const Vec3 p0(0.25, 0.0, 0.01);
+  DualArmTrajectory traj;
+  traj.left = ArmTrajectory({S(0, p0, kGripperOpen)});
+  traj.right = parked();
+  GripperController c(traj);
+  const double dt = scene->options().dt;
+  c.append(Arm::kLeft, S(dt, p0, 0.0));  // closes during the first step
+  ASSERT_TRUE(run_until(*scene, c, dt));
+  const std::vector<int> held = c.state(Arm::kLeft).held;
+  ASSERT_FALSE(held.empty());
+  const std::vector<Vec3> xg = scene->positions();
+  Vec3 p = p0;
+  for (int k = 2; k <= 20; ++k) {
+    p += Vec3(0, 0, 0.005);
+    c.append(Arm::kLeft, S(k * dt, p, 0.0));
+    ASSERT_TRUE(run_until(*scene, c, k * dt));
+  }
+  const Vec3 lift = p - p0;
+  const auto x = scene->positions();
+  for (int v : held) EXPECT_LT((x[v] - (xg[v] + lift)).norm(), 1e-6) << "vertex " << v;
+  // Out-of-order and invalid commands are refused with a message.
+  EXPECT_THROW(c.append(Arm::kLeft, S(dt, p, 0.0)), InputError);
+  EXPECT_THROW(c.append(Arm::kLeft, S(30 * dt, Vec3(NAN, 0, 0), 0.0)), InputError);
+}
+
 TEST(PseudoGrasp, ReleaseFreesTheVerticesAndReGraspTakesNewOnes) {
   const sim::Mesh m = cloth();
   auto scene = make_scene(m);
