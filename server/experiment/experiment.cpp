@@ -1,6 +1,12 @@
 #include "experiment/experiment.h"
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -167,6 +173,34 @@ garments::Garment make_experiment_garment(const ExperimentConfig& c) {
   return garments::make_garment(c.garment, c.vertices);
 }
 
+namespace {
+
+/// Runs argv[0] (looked up in PATH) with its stdout sent to our stderr (or to /dev/null when
+/// quiet) and waits. No shell, so paths need no quoting. Returns the exit status (-1: could not run).
+int run_process(const std::vector<std::string>& args, bool quiet) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  if (quiet) {
+    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
+  } else {
+    posix_spawn_file_actions_adddup2(&fa, 2, 1);
+  }
+  pid_t pid = -1;
+  const int rc = posix_spawnp(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) return -1;
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace
+
 bool plot_report(const std::string& dir) {
   std::vector<std::string> pythons;
   if (const char* e = std::getenv("GD_PYTHON"); e && *e) pythons.emplace_back(e);
@@ -181,11 +215,9 @@ bool plot_report(const std::string& dir) {
   }
   for (const std::string& py : pythons) {
     if (py != "python3" && !fs::exists(py)) continue;
-    const std::string probe = fmt::format("'{}' -c 'import matplotlib' >/dev/null 2>&1", py);
-    if (std::system(probe.c_str()) != 0) continue;
-    const std::string cmd = fmt::format("'{}' '{}' '{}' >&2", py, script, dir);
-    if (std::system(cmd.c_str()) == 0) return true;
-    gd::log().warn("plots: '{}' failed", cmd);
+    if (run_process({py, "-c", "import matplotlib"}, true) != 0) continue;
+    if (run_process({py, script, dir}, false) == 0) return true;
+    gd::log().warn("plots: {} {} {} failed", py, script, dir);
     return false;
   }
   gd::log().warn("plots skipped: no Python with matplotlib (set GD_PYTHON or run scripts/build)");
@@ -286,6 +318,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
           to_cloud(x0), metrics::frame_in_camera(*capture, schedule.front().frame), capture->world_to_camera, io, &rep);
       eo.world_to_camera = T;
       s["icp"] = {{"accepted", rep.accepted},  {"converged", rep.converged},     {"fitness", rep.fitness},
+                  {"initial_fitness", rep.initial_fitness},
                   {"rotation_deg", rep.rotation_deg}, {"translation", rep.translation}};
     }
     const metrics::EvalResult ev = metrics::run_evaluation(*capture, eo, [&](double t) {

@@ -11,7 +11,9 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <vector>
 
 #include "sim/demand.h"
 #include "sim/log.h"
@@ -49,6 +51,26 @@ pcl::PointCloud<pcl::PointNormal>::Ptr to_pcl_normals(const Cloud& c) {
   return pc;
 }
 
+/// PCL's fitness score of `src` against `dst` as they are: the mean squared distance from each
+/// source point to its nearest target point, over the pairs closer than max_distance.
+double fitness_as_is(const Cloud& src, const Cloud& dst, double max_distance) {
+  pcl::search::KdTree<pcl::PointXYZ> tree;
+  tree.setInputCloud(to_pcl(dst));
+  std::vector<int> idx(1);
+  std::vector<float> d2(1);
+  double sum = 0;
+  long n = 0;
+  for (const auto& p : src) {
+    if (!p.allFinite()) continue;
+    if (tree.nearestKSearch(pcl::PointXYZ(p.x(), p.y(), p.z()), 1, idx, d2) == 1 &&
+        d2[0] <= max_distance * max_distance) {
+      sum += d2[0];
+      ++n;
+    }
+  }
+  return n ? sum / double(n) : std::numeric_limits<double>::max();
+}
+
 template <class Icp>
 void configure(Icp& icp, const IcpOptions& o) {
   icp.setMaxCorrespondenceDistance(o.max_correspondence_distance);
@@ -64,6 +86,8 @@ Eigen::Matrix4d refine_world_to_camera(const Cloud& sim_world, const Cloud& real
                                        IcpReport* report) {
   if (sim_world.empty() || real_camera.empty())
     throw sim::InputError("ICP needs a non-empty sim cloud and real cloud");
+  if (!(o.min_improvement >= 0 && o.min_improvement < 1))
+    throw sim::InputError(fmt::format("ICP options: min_improvement ({}) must be in [0, 1)", o.min_improvement));
   if (!(o.max_correspondence_distance > 0) || o.max_iterations < 1)
     throw sim::InputError(fmt::format(
         "ICP options: max_correspondence_distance ({}) must be > 0 and max_iterations ({}) >= 1",
@@ -122,21 +146,23 @@ Eigen::Matrix4d refine_world_to_camera(const Cloud& sim_world, const Cloud& real
   IcpReport r;
   r.converged = converged;
   r.fitness = fitness;
+  r.initial_fitness = fitness_as_is(src, dst, o.max_correspondence_distance);
+  const bool better = fitness <= (1.0 - o.min_improvement) * r.initial_fitness;
   const Eigen::AngleAxisd aa(Eigen::Matrix3d(D.topLeftCorner<3, 3>()));
   r.rotation_deg = std::abs(aa.angle()) * 180.0 / std::numbers::pi;
   r.translation = D.topRightCorner<3, 1>().norm();
-  r.accepted = r.converged && r.rotation_deg <= o.max_rotation_deg && r.translation <= o.max_translation;
+  r.accepted = r.converged && better && r.rotation_deg <= o.max_rotation_deg && r.translation <= o.max_translation;
   Eigen::Matrix4d out = initial;
   if (r.accepted) {
     // sim_world = C * real_camera with C the corrected camera-to-world: C = D^-1 C0 when the sim
     // cloud was moved onto the real one, C = D C0 otherwise.
     out = sim_is_source ? Eigen::Matrix4d(initial * D) : Eigen::Matrix4d(initial * D.inverse());
-    gd::log().info("ICP: fitness {:.3e} m², correction {:.3f} deg / {:.4f} m ({} source, {} target points)",
-                   r.fitness, r.rotation_deg, r.translation, src.size(), dst.size());
+    gd::log().info("ICP: fitness {:.3e} m² (as calibrated {:.3e}), correction {:.3f} deg / {:.4f} m ({} source, {} target points)",
+                   r.fitness, r.initial_fitness, r.rotation_deg, r.translation, src.size(), dst.size());
   } else {
-    gd::log().warn("ICP: correction rejected (converged {}, {:.3f} deg / {:.4f} m, fitness {:.3e} m²); "
-                   "keeping the initial world_to_camera",
-                   r.converged, r.rotation_deg, r.translation, r.fitness);
+    gd::log().warn("ICP: correction rejected (converged {}, {:.3f} deg / {:.4f} m, fitness {:.3e} m² vs "
+                   "{:.3e} m² as calibrated); keeping the initial world_to_camera",
+                   r.converged, r.rotation_deg, r.translation, r.fitness, r.initial_fitness);
   }
   if (report) *report = r;
   return out;

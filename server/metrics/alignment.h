@@ -24,12 +24,17 @@ struct IcpOptions {
   /// initial transform is returned and a warning logged) since it usually means a wrong match.
   double max_rotation_deg = 20;
   double max_translation = 0.2;
+  /// A correction is kept only if it lowers the fitness (mean squared distance of matched
+  /// pairs) by at least this fraction of the initial transform's fitness. A flat sheet lets
+  /// ICP slide in its plane at almost no cost; an exact calibration must stay as it is.
+  double min_improvement = 0.05;
 };
 
 struct IcpReport {
   bool converged = false;
   bool accepted = false;       ///< false: the initial transform was returned
   double fitness = 0;          ///< PCL fitness score: mean squared distance of matched pairs, m²
+  double initial_fitness = 0;  ///< the same score for the initial transform
   double rotation_deg = 0;     ///< size of the correction
   double translation = 0;      ///< m
 };

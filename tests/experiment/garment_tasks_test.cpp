@@ -9,6 +9,7 @@
 #include <tuple>
 
 #include "experiment/experiment.h"
+#include "experiment/temp_dir.h"
 #include "garments/generator.h"
 #include "sim/log.h"
 
@@ -36,7 +37,8 @@ TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
   c.task_params.time_scale = 0.3;
   c.settle_after = 0.3;
   c.plots = false;
-  c.out_dir = (std::filesystem::temp_directory_path() / ("gd_garment_task_" + garment + "_" + task)).string();
+  const testing::TempDir tmp("garment_task_" + garment + "_" + task);
+  c.out_dir = tmp.str();
   ASSERT_TRUE(c.scene.self_contact);
   const ExperimentResult r = run_experiment(c);
   const auto& s = r.summary;

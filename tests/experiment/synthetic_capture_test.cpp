@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "experiment/experiment.h"
+#include "experiment/temp_dir.h"
 #include "metrics/capture.h"
 #include "sim/demand.h"
 
@@ -17,11 +18,7 @@ namespace gd::experiment {
 namespace {
 namespace fs = std::filesystem;
 
-std::string temp_dir(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / ("gd_experiment_test_" + name);
-  fs::remove_all(p);
-  return p.string();
-}
+using testing::TempDir;
 
 /// A towel grasp: the reference at ~500 vertices and dt 5 ms, the runs at ~250 vertices and 10 ms.
 ExperimentConfig towel_grasp(int vertices, double dt) {
@@ -39,9 +36,9 @@ ExperimentConfig towel_grasp(int vertices, double dt) {
 
 /// The reference capture of a test (ctest runs each test in its own process, in parallel, so
 /// every test writes its own).
-std::string reference_capture(const std::string& tag) {
+std::string reference_capture(const TempDir& tmp) {
   return [&] {
-    const std::string d = temp_dir("capture_" + tag);
+    const std::string d = tmp / "capture";
     ExperimentConfig ref = towel_grasp(500, 0.005);
     ref.out_dir = d + "_ref";
     SyntheticCaptureOptions o;
@@ -55,7 +52,8 @@ std::string reference_capture(const std::string& tag) {
 double mean_cd(const ExperimentResult& r) { return r.summary["cd_l1_r2s"].get<double>(); }
 
 TEST(SyntheticCapture, WritesRgbenchLayout) {
-  const std::string dir = reference_capture("layout");
+  const TempDir tmp("WritesRgbenchLayout");
+  const std::string dir = reference_capture(tmp);
   EXPECT_TRUE(fs::exists(dir + "/calibration/world_to_camera_transform.json"));
   EXPECT_TRUE(fs::exists(dir + "/joints/left_arm_joint_states_and_end_pose.csv"));
   EXPECT_TRUE(fs::exists(dir + "/joints/right_arm_joint_states_and_end_pose.csv"));
@@ -70,9 +68,10 @@ TEST(SyntheticCapture, WritesRgbenchLayout) {
 }
 
 TEST(SyntheticCapture, RunnerRecoversTheReferenceWithTimeAlignment) {
+  const TempDir tmp("RunnerRecoversTheReferenceWithTimeAlignment");
   ExperimentConfig run = towel_grasp(250, 0.01);
-  run.capture_dir = reference_capture("align");
-  run.out_dir = temp_dir("run");
+  run.capture_dir = reference_capture(tmp);
+  run.out_dir = tmp / "run";
   const ExperimentResult r = run_experiment(run);
   ASSERT_FALSE(r.summary["failed"].get<bool>()) << r.summary["failure"];
 
@@ -97,7 +96,7 @@ TEST(SyntheticCapture, RunnerRecoversTheReferenceWithTimeAlignment) {
   EXPECT_TRUE(fs::exists(run.out_dir + "/frames/sim_0.ply"));
 
   // The same capture claiming a camera delay 0.5 s too long compares the wrong instants.
-  const std::string shifted = temp_dir("shifted");
+  const std::string shifted = tmp / "shifted";
   fs::copy(run.capture_dir, shifted, fs::copy_options::recursive);
   nlohmann::json j;
   std::ifstream(shifted + "/capture.json") >> j;
@@ -105,16 +104,17 @@ TEST(SyntheticCapture, RunnerRecoversTheReferenceWithTimeAlignment) {
   std::ofstream(shifted + "/capture.json") << j.dump();
   ExperimentConfig late = run;
   late.capture_dir = shifted;
-  late.out_dir = temp_dir("late");
+  late.out_dir = tmp / "late";
   const ExperimentResult r2 = run_experiment(late);
   EXPECT_GT(mean_cd(r2), 1.5 * mean_cd(r));
 }
 
 TEST(SyntheticCapture, IcpRepairsAMiscalibratedCamera) {
+  const TempDir tmp("IcpRepairsAMiscalibratedCamera");
   // The clouds were filmed with the true camera; the calibration file of this copy holds one that
   // is 2 degrees and 2 cm off.
-  const std::string dir = temp_dir("miscalibrated");
-  fs::copy(reference_capture("icp"), dir, fs::copy_options::recursive);
+  const std::string dir = tmp / "miscalibrated";
+  fs::copy(reference_capture(tmp), dir, fs::copy_options::recursive);
   const SyntheticCaptureOptions o;
   Eigen::Isometry3d wrong = o.world_to_camera;
   wrong.prerotate(Eigen::AngleAxisd(2.0 * M_PI / 180, Eigen::Vector3d(0.3, 1, 0.2).normalized()));
@@ -123,10 +123,10 @@ TEST(SyntheticCapture, IcpRepairsAMiscalibratedCamera) {
 
   ExperimentConfig run = towel_grasp(250, 0.01);
   run.capture_dir = dir;
-  run.out_dir = temp_dir("noicp");
+  run.out_dir = tmp / "noicp";
   const double cd_wrong = run_experiment(run).summary["cd_l2_s2r"].get<double>();
   run.icp = true;
-  run.out_dir = temp_dir("icp");
+  run.out_dir = tmp / "icp";
   const ExperimentResult fixed = run_experiment(run);
   ASSERT_TRUE(fixed.summary.contains("icp"));
   EXPECT_TRUE(fixed.summary["icp"]["accepted"].get<bool>());
@@ -138,10 +138,11 @@ TEST(SyntheticCapture, IcpRepairsAMiscalibratedCamera) {
 }
 
 TEST(SyntheticCapture, RejectsBadOptions) {
+  const TempDir tmp("RejectsBadOptions");
   SyntheticCaptureOptions o;
   o.fps = 0;
   ExperimentConfig ref = towel_grasp(300, 0.01);
-  EXPECT_THROW(make_synthetic_capture(ref, o, temp_dir("bad")), sim::InputError);
+  EXPECT_THROW(make_synthetic_capture(ref, o, tmp / "bad"), sim::InputError);
 }
 
 }  // namespace

@@ -56,6 +56,7 @@ TEST(Alignment, IcpRecoversAPerturbedCalibration) {
   EXPECT_TRUE(rep.converged);
   EXPECT_TRUE(rep.accepted);
   EXPECT_LT(rep.fitness, 2e-5);
+  EXPECT_LT(rep.fitness, 0.5 * rep.initial_fitness);
   const Eigen::Matrix4d err = got * truth.inverse();
   const double angle = Eigen::AngleAxisd(Eigen::Matrix3d(err.topLeftCorner<3, 3>())).angle();
   EXPECT_LT(std::abs(angle), 0.5 * deg);
@@ -66,6 +67,34 @@ TEST(Alignment, IcpRecoversAPerturbedCalibration) {
     worst = std::max(worst, ((got - truth) * q).head<3>().norm());
   }
   EXPECT_LT(worst, 0.002);
+}
+
+TEST(Alignment, KeepsAnExactCalibrationOfAFlatSheet) {
+  // A flat sheet: ICP can slide in its plane at no cost, so it must not move an exact calibration.
+  Cloud sim;
+  for (int i = 0; i < 40; ++i)
+    for (int j = 0; j < 30; ++j) sim.emplace_back(0.1f + 0.6f * i / 39.0f, -0.25f + 0.5f * j / 29.0f, 0.01f);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> ux(0.1f, 0.7f), uy(-0.25f, 0.25f);
+  std::normal_distribution<float> noise(0.0f, 0.002f);
+  Cloud seen;
+  for (int i = 0; i < 8000; ++i) seen.emplace_back(ux(rng) + noise(rng), uy(rng) + noise(rng), 0.01f + noise(rng));
+  const Eigen::Matrix4d truth = pose({1, 0.3, 0}, 2.2, {0.1, 0.05, 1.2});
+  for (bool p2p : {false, true}) {
+    IcpOptions o;
+    o.point_to_plane = p2p;
+    IcpReport rep;
+    const Eigen::Matrix4d got = refine_world_to_camera(sim, transform_cloud(seen, truth), truth, o, &rep);
+    EXPECT_GT(rep.initial_fitness, 0);
+    if (rep.accepted) {
+      // Accepted only if it really fits better; then it must still be close to the truth.
+      EXPECT_LE(rep.fitness, (1 - o.min_improvement) * rep.initial_fitness);
+      EXPECT_LT(rep.rotation_deg, 0.5) << "point_to_plane " << p2p;
+      EXPECT_LT(rep.translation, 0.005) << "point_to_plane " << p2p;
+    } else {
+      EXPECT_TRUE(got.isApprox(truth)) << "point_to_plane " << p2p;
+    }
+  }
 }
 
 TEST(Alignment, RejectsEmptyClouds) {
