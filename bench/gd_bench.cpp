@@ -15,6 +15,13 @@
 ///
 /// Without --json: a table on stdout. With --json: exactly one JSON array on stdout. Progress
 /// always goes to stderr.
+///
+///   gd-bench service [--json] [--scenes 16] [--vertices 5000] [--garment towel] [--threads N]
+///                    [--rounds 3] [--steps 3] [--substeps 1] [--no-self-contact] [--server-binary P]
+///
+/// The gRPC service against its in-process core: the same batch of scenes stepped through a
+/// gd-server child process on loopback and through gd::service::ScenePool in this process,
+/// interleaved; prints ms per batched step of each and their ratio (service_case.h).
 
 #include <CLI/CLI.hpp>
 #include <chrono>
@@ -27,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "service_case.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
@@ -258,7 +266,41 @@ int main(int argc, char** argv) {
                  "Time budget per case, s, warm-up included: a case stops early, reporting the steps it timed (0: no limit)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  gd::bench::ServiceCaseOptions svc_opt;
+  bool svc_json = false, svc_no_self_contact = false;
+  auto* svc = app.add_subcommand("service", "gRPC service vs. its in-process core: one batched step of many scenes");
+  svc->add_flag("--json", svc_json, "Print one JSON array (one object) on stdout (and nothing else)");
+  svc->add_option("--scenes", svc_opt.scenes, "Scenes in the batch")->check(CLI::PositiveNumber)->capture_default_str();
+  svc->add_option("--vertices", svc_opt.vertices, "Target vertices per scene")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  svc->add_option("--garment", svc_opt.garment, "Garment type")->capture_default_str();
+  svc->add_option("--material", svc_opt.material, "Material name")->capture_default_str();
+  svc->add_option("--threads", svc_opt.threads, "Worker threads of the server and of the in-process pool (0: all cores)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  svc->add_option("--rounds", svc_opt.rounds, "Interleaved rounds")->check(CLI::PositiveNumber)->capture_default_str();
+  svc->add_option("--steps", svc_opt.steps, "Timed batched steps per side and round")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  svc->add_option("--substeps", svc_opt.substeps, "Substeps per batched step")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  svc->add_flag("--no-self-contact", svc_no_self_contact, "Scenes without cloth self-contact");
+  svc->add_option("--server-binary", svc_opt.server_binary, "gd-server to start (default: the one beside gd-bench)");
+
   CLI11_PARSE(app, argc, argv);
+
+  if (*svc) {
+    svc_opt.self_contact = !svc_no_self_contact;
+    const auto r = gd::bench::run_service_case(svc_opt);
+    if (svc_json) {
+      std::printf("%s\n", nlohmann::json::array({gd::bench::to_json(r)}).dump(2).c_str());
+    } else {
+      gd::bench::print_table(r);
+    }
+    return r.error.empty() ? 0 : 1;
+  }
 
   std::vector<CaseResult> results;
   try {

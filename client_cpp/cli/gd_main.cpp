@@ -11,7 +11,14 @@
 ///       a synthetic capture in RGBench's layout filmed from a reference simulation (for
 ///       trying `gd run --capture` without the real dataset).
 ///
-/// Exit codes: 0 success, 1 the simulation failed, 2 bad input (with a message on stderr).
+///
+/// With `--server HOST:PORT` the same `gd run` is submitted to a gd-server as a job (progress
+/// bar from WatchJob, report files fetched into --out), and the remote-only commands work:
+/// info, garments, materials, create, step, report, reports, destroy, upload
+/// (cli/remote_commands.h; client_cpp/README.md).
+///
+/// Exit codes: 0 success, 1 the simulation (job, scene) failed, 2 bad input, 3 server
+/// unreachable or another RPC error (with a message on stderr).
 
 #include <CLI/CLI.hpp>
 
@@ -26,6 +33,8 @@
 #include "garments/generator.h"
 #include "metrics/cloud_io.h"
 #include "metrics/cloud_metrics.h"
+#include "remote_commands.h"
+#include "run_summary.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 
@@ -43,18 +52,7 @@ int cmd_run(const ExperimentConfig& cfg, bool quiet) {
   const auto result = gd::experiment::run_experiment(cfg, progress);
   if (bar) bar->finish();
   const auto& s = result.summary;
-  std::printf("%s / %s / %s (%s): %d vertices, %d steps, %.1f s wall (%.0f ms/step), max intersecting pairs %d, "
-              "untangling %d\n",
-              s["garment"].get<std::string>().c_str(), cfg.material.c_str(), cfg.task.c_str(), cfg.mode.c_str(),
-              s["vertices"].get<int>(), s["steps"].get<int>(), s["wall_seconds"].get<double>(),
-              s["ms_per_step"].get<double>(), s["intersecting_pairs_max"].get<int>(), s["untangle_runs"].get<int>());
-  if (s.contains("cd_l1_r2s"))
-    std::printf("metrics (mean over %zu frames): cd_l1_r2s %.4f  cd_l1_s2r %.4f  cd_l2_s2r %.4f  hd_s2r %.4f  "
-                "hd_r2s %.4f  z_err %.4f  sim_stab %.4f\n",
-                s["frames_in_window"].get<size_t>(), s["cd_l1_r2s"].get<double>(), s["cd_l1_s2r"].get<double>(),
-                s["cd_l2_s2r"].get<double>(), s["hd_s2r"].get<double>(), s["hd_r2s"].get<double>(),
-                s["z_err"].get<double>(), s["sim_stab"].get<double>());
-  std::printf("wrote %s/summary.json\n", cfg.out_dir.c_str());
+  gd::cli::print_run_summary(s, cfg.out_dir);
   if (s["failed"].get<bool>()) {
     std::fprintf(stderr, "gd: the simulation failed: %s\n", s["failure"].get<std::string>().c_str());
     return 1;
@@ -75,14 +73,16 @@ int cmd_metrics(const std::string& sim, const std::string& real, bool json) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"gd: GarmentDynamics command line (local runs and metrics)"};
+  CLI::App app{"gd: GarmentDynamics command line (local runs and metrics; with --server, a gd-server's scenes and jobs)"};
   app.require_subcommand(1);
+  std::string server;
+  app.add_option("--server", server, "HOST:PORT of a gd-server: `run` becomes a job there; needed by the remote commands");
 
   ExperimentConfig cfg;
   bool quiet = false, no_self_contact = false, no_plots = false;
   std::vector<int> shoulders;
   std::string backend = "cpu";
-  auto* run = app.add_subcommand("run", "run one Grasp/Fold/Fling experiment locally");
+  auto* run = app.add_subcommand("run", "run one Grasp/Fold/Fling experiment locally (with --server: as a job there)");
   run->add_option("--garment", cfg.garment,
                   "garment type (" + [] {
                     std::string s;
@@ -112,6 +112,8 @@ int main(int argc, char** argv) {
   run->add_flag("--no-self-contact", no_self_contact, "turn cloth self-contact off (faster, may interpenetrate)");
   run->add_flag("--no-plots", no_plots, "do not draw the PNG plots");
   run->add_flag("--quiet", quiet, "no progress bar");
+  std::string label;
+  run->add_option("--label", label, "with --server: free text kept with the job's report");
 
   std::string sim_path, real_path;
   bool json = false;
@@ -141,9 +143,40 @@ int main(int argc, char** argv) {
   std::string syn_out;
   syn->add_option("--out", syn_out, "capture directory to write")->required();
 
+  gd::cli::RemoteCommands remote(app);
+
   CLI11_PARSE(app, argc, argv);
   try {
     gd::log();  // the logger reads GD_LOG_LEVEL
+    if (!server.empty() && *run) {
+      for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
+                                     "--contact-hessian", "--no-plots"})
+        if (run->count(local_only) > 0)
+          throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
+      gd::cli::RemoteRun r;
+      const bool obj = cfg.garment.size() > 4 && cfg.garment.substr(cfg.garment.size() - 4) == ".obj";
+      (obj ? r.garment_obj : r.job.garment) = cfg.garment;
+      r.job.material = cfg.material;
+      r.job.task = cfg.task;
+      r.job.mode = cfg.mode;
+      r.job.vertices = cfg.vertices;
+      r.job.capture = cfg.capture_dir;
+      r.job.icp = cfg.icp;
+      r.job.label = label;
+      if (run->count("--dt") > 0) r.job.dt = cfg.scene.dt;
+      if (run->count("--time-scale") > 0) r.job.time_scale = cfg.task_params.time_scale;
+      if (run->count("--settle") > 0) r.job.settle = cfg.settle_after;
+      if (no_self_contact) r.job.self_contact = false;
+      r.trajectory_file = cfg.trajectory_file;
+      r.out_dir = cfg.out_dir;
+      r.quiet = quiet;
+      return gd::cli::run_remote(server, r);
+    }
+    if (remote.selected()) {
+      if (server.empty()) throw gd::sim::InputError("this command talks to a server: give --server HOST:PORT");
+      return remote.execute(server);
+    }
+    if (!server.empty()) throw gd::sim::InputError("--server goes with run or a remote command, not this one");
     if (*run) {
       if (no_self_contact) cfg.scene.self_contact = false;
       if (no_plots) cfg.plots = false;
@@ -165,6 +198,8 @@ int main(int argc, char** argv) {
       return 0;
     }
     return cmd_metrics(sim_path, real_path, json);
+  } catch (const gd::ClientError& e) {
+    return gd::cli::report_client_error(e);
   } catch (const gd::sim::InputError& e) {
     std::fprintf(stderr, "gd: error: %s\n", e.what());
     return 2;

@@ -1,0 +1,266 @@
+#include "remote_commands.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "array_files.h"
+#include "experiment/progress.h"
+#include "run_summary.h"
+#include "sim/demand.h"
+
+namespace gd::cli {
+
+namespace {
+
+std::string join(const std::vector<std::string>& items, const char* sep) {
+  std::string s;
+  for (const auto& i : items) s += (s.empty() ? "" : sep) + i;
+  return s;
+}
+
+/// Writes the report's files under `dir` (and summary.json when the server listed no such file);
+/// names with an absolute path or ".." are refused. Returns how many files were written.
+int write_report_files(const Report& report, const std::string& dir) {
+  int written = 0;
+  bool has_summary = false;
+  for (const auto& f : report.files) {
+    const std::filesystem::path rel(f.name);
+    bool safe = !f.name.empty() && rel.is_relative();
+    for (const auto& part : rel) safe = safe && part != "..";
+    if (!safe) throw sim::InputError("the server sent a report file named '" + f.name + "'; refusing to write it");
+    write_file((std::filesystem::path(dir) / rel).string(), f.data);
+    has_summary = has_summary || f.name == "summary.json";
+    ++written;
+  }
+  if (!has_summary && !report.summary_json.empty()) {
+    write_file((std::filesystem::path(dir) / "summary.json").string(), report.summary_json);
+    ++written;
+  }
+  return written;
+}
+
+void print_job(const JobInfo& j) {
+  std::printf("%s  %-11s %5.1f%%  %s / %s / %s%s%s  created %s%s%s\n", j.id.c_str(), job_status_name(j.status),
+              100.0 * j.progress, j.garment.c_str(), j.material.c_str(), j.task.c_str(),
+              j.label.empty() ? "" : "  label: ", j.label.c_str(), j.created_at.c_str(),
+              j.finished_at.empty() ? "" : ("  finished " + j.finished_at).c_str(),
+              j.message.empty() ? "" : ("  (" + j.message + ")").c_str());
+}
+
+const char* health_name(HealthStatus h) {
+  switch (h) {
+    case HealthStatus::kServing: return "SERVING";
+    case HealthStatus::kNotServing: return "NOT_SERVING";
+    case HealthStatus::kServiceUnknown: return "SERVICE_UNKNOWN";
+    default: return "UNKNOWN";
+  }
+}
+
+}  // namespace
+
+int report_client_error(const ClientError& e) {
+  if (e.code() == StatusCode::kUnavailable) {
+    std::fprintf(stderr, "gd: the server is unreachable (%s: %s)\n", e.rpc().c_str(), e.message().c_str());
+    return kExitRpcError;
+  }
+  std::fprintf(stderr, "gd: error: %s\n", e.what());
+  return e.code() == StatusCode::kInvalidArgument || e.code() == StatusCode::kNotFound ? kExitBadInput
+                                                                                       : kExitRpcError;
+}
+
+int run_remote(const std::string& server, const RemoteRun& run) {
+  Client client(server);
+  JobSpec job = run.job;
+  if (!run.garment_obj.empty()) {
+    const auto mesh = client.upload_mesh(std::filesystem::path(run.garment_obj).stem().string(),
+                                         read_file(run.garment_obj));
+    std::fprintf(stderr, "uploaded %s as mesh %s (%d vertices)\n", run.garment_obj.c_str(), mesh.id.c_str(),
+                 mesh.vertices);
+    job.garment.clear();
+    job.mesh_id = mesh.id;
+  }
+  if (!run.trajectory_file.empty()) {
+    job.trajectory = read_file(run.trajectory_file);
+    const auto ext = std::filesystem::path(run.trajectory_file).extension().string();
+    job.trajectory_format = ext == ".json" || ext == ".JSON" ? "json" : "csv";
+  }
+  const std::string id = client.submit_job(job);
+  std::fprintf(stderr, "job %s submitted to %s\n", id.c_str(), server.c_str());
+
+  std::unique_ptr<experiment::ProgressBar> bar;
+  const JobInfo last = client.watch_job(id, [&](const JobInfo& j) {
+    if (run.quiet || j.status != JobStatus::kRunning || j.end_time <= 0) return;
+    if (!bar) bar = std::make_unique<experiment::ProgressBar>(j.end_time, "s");
+    bar->update(j.sim_time, "(server)");
+  });
+  if (bar) bar->finish();
+
+  const Report report = client.get_report(id, /*include_files=*/true);
+  const int n = write_report_files(report, run.out_dir);
+  std::fprintf(stderr, "job %s %s; %d report files written to %s\n", id.c_str(), job_status_name(last.status), n,
+               run.out_dir.c_str());
+  if (!report.summary_json.empty()) {
+    const auto summary = nlohmann::json::parse(report.summary_json, nullptr, /*allow_exceptions=*/false);
+    if (!summary.is_discarded()) print_run_summary(summary, run.out_dir);
+  }
+  if (last.status != JobStatus::kSucceeded) {
+    std::fprintf(stderr, "gd: job %s %s: %s\n", id.c_str(), job_status_name(last.status), last.message.c_str());
+    return kExitFailed;
+  }
+  return kExitOk;
+}
+
+RemoteCommands::RemoteCommands(CLI::App& app) {
+  info_ = app.add_subcommand("info", "server version, backend, limits, load and health (needs --server)");
+  garments_ = app.add_subcommand("garments", "garment types and uploaded meshes of the server (needs --server)");
+  materials_ = app.add_subcommand("materials", "the server's fabric library (needs --server)");
+
+  create_ = app.add_subcommand("create", "create scenes on the server; prints their ids (needs --server)");
+  create_->add_option("--garment", spec_.garment, "garment type (gd --server S garments lists them)");
+  create_->add_option("--mesh", spec_.mesh_id, "an uploaded mesh id instead of a garment type");
+  create_->add_option("--material", spec_.material, "fabric")->capture_default_str();
+  create_->add_option("--vertices", spec_.vertices, "target vertex count")->capture_default_str();
+  create_->add_option("--count", spec_.count, "identical scenes to create")->capture_default_str();
+  create_->add_option("--seed", spec_.seed, "initial randomisation seed (0: none)")->capture_default_str();
+  create_->add_option("--mode", spec_.mode, "pseudo | fixed_point")->capture_default_str();
+  create_->add_option("--dt", dt_, "time step, s (default: the server's)");
+  create_->add_option("--yaw-deg", spec_.yaw_deg, "seeded yaw randomisation, degrees");
+  create_->add_option("--offset", spec_.offset_m, "seeded x/y offset randomisation, m");
+  create_->add_flag("--no-self-contact", no_self_contact_, "turn cloth self-contact off");
+
+  step_ = app.add_subcommand("step", "step scenes in one batched call (needs --server)");
+  step_->add_option("--ids", ids_, "scene ids, comma-separated")->delimiter(',')->required();
+  step_->add_option("--substeps", substeps_, "steps per scene")->capture_default_str();
+  step_->add_option("--out", step_out_, "write the first scene's positions (.npy or .ply)");
+
+  report_ = app.add_subcommand("report", "a job's status and summary; its files with --out (needs --server)");
+  report_->add_option("job", job_id_, "job id")->required();
+  report_->add_option("--out", report_out_, "directory to write the report's files into");
+
+  reports_ = app.add_subcommand("reports", "list stored job reports, newest first (needs --server)");
+  reports_->add_option("--limit", limit_, "at most this many")->capture_default_str();
+  reports_->add_option("--offset", offset_, "skip this many")->capture_default_str();
+
+  destroy_ = app.add_subcommand("destroy", "destroy scenes (needs --server)");
+  destroy_->add_option("--ids", ids_, "scene ids, comma-separated")->delimiter(',')->required();
+
+  upload_ = app.add_subcommand("upload", "upload an OBJ mesh; prints its id (needs --server)");
+  upload_->add_option("file", upload_file_, "Wavefront OBJ file")->required();
+  upload_->add_option("--name", upload_name_, "name kept with the mesh (default: the file's stem)");
+}
+
+bool RemoteCommands::selected() const {
+  for (const CLI::App* c : {info_, garments_, materials_, create_, step_, report_, reports_, destroy_, upload_})
+    if (c->parsed()) return true;
+  return false;
+}
+
+int RemoteCommands::execute(const std::string& server) {
+  Client client(server);
+  if (info_->parsed()) return do_info(client);
+  if (garments_->parsed()) return do_garments(client);
+  if (materials_->parsed()) return do_materials(client);
+  if (create_->parsed()) return do_create(client);
+  if (step_->parsed()) return do_step(client);
+  if (report_->parsed()) return do_report(client);
+  if (reports_->parsed()) return do_reports(client);
+  if (destroy_->parsed()) return do_destroy(client);
+  if (upload_->parsed()) return do_upload(client);
+  throw sim::InputError("no remote command given");
+}
+
+int RemoteCommands::do_info(Client& c) {
+  const ServerInfo s = c.server_info();
+  std::printf("server %s: GarmentDynamics %s, backend %s, %d threads\n", c.target().c_str(), s.version.c_str(),
+              s.backend.c_str(), s.threads);
+  std::printf("scenes %d / %d, max vertices per scene %d, jobs running %d, health %s\n", s.scenes, s.max_scenes,
+              s.max_vertices, s.jobs_running, health_name(c.health()));
+  return kExitOk;
+}
+
+int RemoteCommands::do_garments(Client& c) {
+  const GarmentCatalog g = c.list_garments();
+  for (const auto& t : g.garments) std::printf("%s\n", t.c_str());
+  for (const auto& m : g.meshes)
+    std::printf("%s  %s  (uploaded: %d vertices, %d triangles)\n", m.id.c_str(), m.name.c_str(), m.vertices,
+                m.triangles);
+  return kExitOk;
+}
+
+int RemoteCommands::do_materials(Client& c) {
+  std::printf("%-24s %14s %12s\n", "material", "density kg/m2", "thickness mm");
+  for (const auto& m : c.list_materials())
+    std::printf("%-24s %14.4f %12.3f\n", m.name.c_str(), m.density, 1e3 * m.thickness);
+  return kExitOk;
+}
+
+int RemoteCommands::do_create(Client& c) {
+  if (spec_.garment.empty() == spec_.mesh_id.empty())
+    throw sim::InputError("create: give exactly one of --garment TYPE or --mesh ID");
+  if (create_->count("--dt") > 0) spec_.settings.dt = dt_;
+  if (no_self_contact_) spec_.settings.self_contact = false;
+  const CreatedScenes s = c.create_scenes(spec_);
+  std::fprintf(stderr, "created %zu scene(s): %d vertices, %zu triangles, dt %g s, backend %s\n", s.ids.size(),
+               s.info.vertex_count, s.info.triangles.size() / 3, s.info.dt, s.info.backend.c_str());
+  for (const auto& id : s.ids) std::printf("%s\n", id.c_str());
+  return kExitOk;
+}
+
+int RemoteCommands::do_step(Client& c) {
+  if (substeps_ < 1) throw sim::InputError("step: --substeps must be at least 1");
+  StepOptions opt;
+  opt.substeps = substeps_;
+  // Positions are only needed for --out; the batch comes back lighter without them.
+  opt.omit_positions = step_out_.empty();
+  const auto states = c.step(ids_, {}, opt);
+  bool any_failed = false;
+  for (const auto& s : states) {
+    std::printf("%s  t %.4f s  steps %lld  %.1f ms  newton %d  pcg %d  contacts %d%s%s\n", s.id.c_str(), s.time,
+                static_cast<long long>(s.steps), s.stats.wall_ms, s.stats.newton_iterations,
+                s.stats.pcg_iterations, s.stats.active_contacts, s.failed ? "  FAILED: " : "",
+                s.failed ? s.failure.c_str() : "");
+    any_failed = any_failed || s.failed;
+  }
+  if (!step_out_.empty() && !states.empty()) {
+    write_positions(step_out_, states.front().positions);
+    std::fprintf(stderr, "wrote %s (%zu vertices of %s)\n", step_out_.c_str(), states.front().positions.size() / 3,
+                 states.front().id.c_str());
+  }
+  return any_failed ? kExitFailed : kExitOk;
+}
+
+int RemoteCommands::do_report(Client& c) {
+  const Report r = c.get_report(job_id_, /*include_files=*/!report_out_.empty());
+  print_job(r.job);
+  if (!r.file_names.empty()) std::printf("files: %s\n", join(r.file_names, ", ").c_str());
+  if (!r.summary_json.empty()) std::printf("%s\n", r.summary_json.c_str());
+  if (!report_out_.empty()) {
+    const int n = write_report_files(r, report_out_);
+    std::fprintf(stderr, "wrote %d file(s) to %s\n", n, report_out_.c_str());
+  }
+  return r.job.status == JobStatus::kSucceeded ? kExitOk : kExitFailed;
+}
+
+int RemoteCommands::do_reports(Client& c) {
+  const ReportList list = c.list_reports(limit_, offset_);
+  for (const auto& j : list.jobs) print_job(j);
+  std::printf("(%zu of %d reports)\n", list.jobs.size(), list.total);
+  return kExitOk;
+}
+
+int RemoteCommands::do_destroy(Client& c) {
+  std::printf("destroyed %d scene(s)\n", c.destroy(ids_));
+  return kExitOk;
+}
+
+int RemoteCommands::do_upload(Client& c) {
+  const std::string name = upload_name_.empty() ? std::filesystem::path(upload_file_).stem().string() : upload_name_;
+  const UploadedMesh m = c.upload_mesh(name, read_file(upload_file_));
+  std::fprintf(stderr, "uploaded %s: %d vertices, %d triangles\n", upload_file_.c_str(), m.vertices, m.triangles);
+  std::printf("%s\n", m.id.c_str());
+  return kExitOk;
+}
+
+}  // namespace gd::cli

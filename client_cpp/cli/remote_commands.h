@@ -1,0 +1,80 @@
+#pragma once
+/// \file
+/// The `gd --server HOST:PORT <command>` subcommands: thin wrappers over gd::Client that print
+/// results and map errors to exit codes (0 ok, 1 a job or scene failed, 2 bad input, 3 server
+/// unreachable or another RPC error; see client_cpp/README.md).
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+#include "gd/client.h"
+
+namespace gd::cli {
+
+/// Exit codes of the command line.
+enum ExitCode : int { kExitOk = 0, kExitFailed = 1, kExitBadInput = 2, kExitRpcError = 3 };
+
+/// Prints `error` on stderr and returns its exit code: the server's INVALID_ARGUMENT and
+/// NOT_FOUND are bad input (2), anything else (UNAVAILABLE, DEADLINE_EXCEEDED, ...) is 3.
+int report_client_error(const ClientError& error);
+
+/// What `gd --server S run ...` sends: the job, and the local files that go with it.
+struct RemoteRun {
+  JobSpec job;
+  std::string garment_obj;      ///< a local .obj given as --garment: uploaded first
+  std::string trajectory_file;  ///< a local trajectory file: its text goes in the job
+  std::string out_dir;          ///< where the report's files are written
+  bool quiet = false;
+};
+
+/// Submits the run as a job, draws a progress bar from WatchJob, then fetches the report and
+/// writes its files (summary.json, OBJs, CSVs, plots) into out_dir. Returns the exit code.
+int run_remote(const std::string& server, const RemoteRun& run);
+
+/// The remote-only subcommands (info, garments, materials, create, step, report, reports,
+/// destroy, upload), added to `app` on construction; their options live here.
+class RemoteCommands {
+ public:
+  explicit RemoteCommands(CLI::App& app);
+  /// True when the parsed command line chose one of them.
+  bool selected() const;
+  /// Runs the chosen subcommand against `server`; returns the exit code.
+  int execute(const std::string& server);
+
+ private:
+  CLI::App* info_ = nullptr;
+  CLI::App* garments_ = nullptr;
+  CLI::App* materials_ = nullptr;
+  CLI::App* create_ = nullptr;
+  CLI::App* step_ = nullptr;
+  CLI::App* report_ = nullptr;
+  CLI::App* reports_ = nullptr;
+  CLI::App* destroy_ = nullptr;
+  CLI::App* upload_ = nullptr;
+
+  SceneSpec spec_;
+  bool no_self_contact_ = false;
+  double dt_ = 0;
+  std::vector<std::string> ids_;
+  int substeps_ = 1;
+  std::string step_out_;
+  std::string job_id_;
+  std::string report_out_;
+  int limit_ = 100;
+  int offset_ = 0;
+  std::string upload_file_;
+  std::string upload_name_;
+
+  int do_info(Client& c);
+  int do_garments(Client& c);
+  int do_materials(Client& c);
+  int do_create(Client& c);
+  int do_step(Client& c);
+  int do_report(Client& c);
+  int do_reports(Client& c);
+  int do_destroy(Client& c);
+  int do_upload(Client& c);
+};
+
+}  // namespace gd::cli

@@ -1,0 +1,366 @@
+#pragma once
+/// \file
+/// gd::Client: the C++ client of the GarmentDynamics gRPC service (proto/garmentdynamics/v1).
+///
+/// Plain C++ in and out: arrays are std::vector (positions are N*3 float32, x y z per vertex,
+/// metres, world frame), no gRPC or protobuf type appears here, so including this header costs
+/// nothing and a program using it only links gd::client.
+///
+///     gd::Client client("localhost:50051");
+///     gd::SceneSpec spec;
+///     spec.garment = "towel";
+///     spec.vertices = 500;
+///     spec.count = 16;
+///     auto created = client.create_scenes(spec);             // 16 scenes, ids in created.ids
+///     auto states = client.step(created.ids, {}, {.substeps = 10});   // one batched step
+///     client.destroy(created.ids);
+///
+/// Every call has a deadline (ClientOptions); every failure, local or remote, throws
+/// gd::ClientError with the gRPC status code and the server's message. A Client is safe to use
+/// from several threads at once (each call is independent; scenes live on the server).
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace gd {
+
+/// The gRPC status codes, with the same numbers (grpc::StatusCode), so that code of ours need not
+/// include gRPC to inspect an error.
+enum class StatusCode : int {
+  kOk = 0,
+  kCancelled = 1,
+  kUnknown = 2,
+  kInvalidArgument = 3,
+  kDeadlineExceeded = 4,
+  kNotFound = 5,
+  kAlreadyExists = 6,
+  kPermissionDenied = 7,
+  kResourceExhausted = 8,
+  kFailedPrecondition = 9,
+  kAborted = 10,
+  kOutOfRange = 11,
+  kUnimplemented = 12,
+  kInternal = 13,
+  kUnavailable = 14,
+  kDataLoss = 15,
+  kUnauthenticated = 16,
+};
+
+/// "INVALID_ARGUMENT", "NOT_FOUND", ... (the names gRPC uses); "UNKNOWN_CODE" for others.
+const char* status_code_name(StatusCode code);
+
+/// Thrown by every Client method that fails: an RPC the server refused (its status code and
+/// message), an unreachable server (UNAVAILABLE), a passed deadline (DEADLINE_EXCEEDED), a
+/// request that the client itself can tell is malformed (INVALID_ARGUMENT, before sending), or
+/// a response it cannot decode (INTERNAL).
+class ClientError : public std::runtime_error {
+ public:
+  /// `rpc` is the method name ("StepScenes"); what() reads "StepScenes: NOT_FOUND: <message>".
+  ClientError(StatusCode code, std::string message, std::string rpc);
+  StatusCode code() const { return code_; }
+  /// The server's message (or the client's, for local errors), without the prefix of what().
+  const std::string& message() const { return message_; }
+  const std::string& rpc() const { return rpc_; }
+
+ private:
+  StatusCode code_;
+  std::string message_;
+  std::string rpc_;
+};
+
+/// Connection settings.
+struct ClientOptions {
+  /// Deadline of each unary call (create, step, reports, ...). A batched step of many large
+  /// scenes can take seconds: raise it for big batches.
+  std::chrono::milliseconds deadline{60'000};
+  /// Deadline of the streaming calls (stream, watch_job), which last as long as a rollout.
+  std::chrono::milliseconds stream_deadline{3'600'000};
+  /// Largest message accepted or sent, bytes (positions of many big scenes are large).
+  int max_message_bytes = 256 << 20;
+};
+
+// ------------------------------------------------------------------------------------------------
+// Scenes
+// ------------------------------------------------------------------------------------------------
+
+enum class Arm : int { kUnspecified = 0, kLeft = 1, kRight = 2 };
+
+/// A pose in the world frame: position in metres, orientation a unit quaternion, w first.
+struct Pose {
+  std::array<double, 3> position{0, 0, 0};
+  std::array<double, 4> orientation{1, 0, 0, 0};
+};
+
+/// One arm's command: the end-effector pose and gripper opening reached at the end of the step
+/// (interpolated over its substeps). The gripper grasps when its opening falls below 0.01 m.
+struct ArmCommand {
+  Arm arm = Arm::kLeft;
+  Pose pose;
+  double gripper = 0.035;  ///< opening, m: 0 closed, 0.035 fully open
+};
+
+/// What one scene does during a step. Arms not named hold their last command.
+struct SceneAction {
+  std::string scene_id;
+  std::vector<ArmCommand> arms;
+  /// Kinematic targets (optional): vertex indices and their target positions (3 per index),
+  /// reached over the step and then held until released.
+  std::vector<int32_t> target_indices;
+  std::vector<float> target_positions;
+  bool release_targets = false;  ///< release every kinematic target set earlier
+};
+
+/// Scene options; unset fields take the server's defaults (those of `gd run`).
+struct SceneSettings {
+  std::optional<double> dt;            ///< s per step
+  std::optional<bool> self_contact;
+  std::optional<double> jaw_radius;    ///< m, pseudo grasp
+  std::optional<double> grab_time;     ///< s, fixed-point mode
+};
+
+/// What to create: a generated garment (`garment`) or an uploaded mesh (`mesh_id`), one of them.
+struct SceneSpec {
+  std::string garment;                 ///< a type from list_garments() (towel, tshirt, ...)
+  std::string mesh_id;                 ///< an id from upload_mesh()
+  std::string material = "cotton";
+  int vertices = 2000;                 ///< target vertex count of a generated garment
+  std::string mode = "pseudo";         ///< pseudo | fixed_point
+  uint64_t seed = 0;                   ///< initial pose randomisation (0: none)
+  int count = 1;                       ///< identical scenes to create
+  SceneSettings settings;
+  double yaw_deg = 0;                  ///< randomisation: yaw uniform in [-yaw_deg, yaw_deg]
+  double offset_m = 0;                 ///< randomisation: x, y offset uniform in [-offset_m, offset_m]
+};
+
+/// What the scenes of one create_scenes call share.
+struct SceneInfo {
+  int vertex_count = 0;
+  std::vector<int32_t> triangles;      ///< T*3 vertex indices
+  std::vector<float> rest_positions;   ///< N*3: the garment at seed 0, world frame
+  double dt = 0;
+  std::string backend;                 ///< cpu | cuda
+  std::string mode;
+  int left_shoulder_vertex = -1;       ///< landmarks, -1 when unknown
+  int right_shoulder_vertex = -1;
+};
+
+struct ArmState {
+  Arm arm = Arm::kUnspecified;
+  bool closed = false;
+  int held_vertices = 0;
+};
+
+/// Solver statistics of a scene's last step call.
+struct StepStats {
+  int newton_iterations = 0;
+  int pcg_iterations = 0;
+  int active_contacts = 0;
+  double wall_ms = 0;                  ///< wall time of this scene's substeps on the server
+};
+
+/// The state of one scene.
+struct SceneState {
+  std::string id;
+  bool failed = false;                 ///< non-finite state: reset or destroy the scene
+  std::string failure;                 ///< why it failed
+  double time = 0;                     ///< s of scene time
+  int64_t steps = 0;                   ///< steps since the last reset
+  std::vector<float> positions;        ///< N*3 (empty when omitted)
+  std::vector<float> velocities;       ///< N*3, when asked for
+  std::vector<ArmState> arms;
+  StepStats stats;
+};
+
+struct CreatedScenes {
+  std::vector<std::string> ids;
+  SceneInfo info;
+  std::vector<SceneState> states;      ///< initial states, in ids order
+};
+
+struct StepOptions {
+  int substeps = 1;                    ///< steps per scene
+  bool include_velocities = false;
+  bool omit_positions = false;         ///< states without positions (status and timing only)
+};
+
+struct StreamOptions {
+  int every = 1;                       ///< a frame every k-th step of a scene
+  int steps = 0;                       ///< > 0: the stream steps the scenes itself this many steps
+  int max_frames = 0;                  ///< 0: until the steps are done or the scenes go
+};
+
+// ------------------------------------------------------------------------------------------------
+// Jobs
+// ------------------------------------------------------------------------------------------------
+
+/// A whole rollout run by the server (what `gd run` does locally). Unset optionals take the
+/// server's defaults.
+struct JobSpec {
+  std::string garment;                 ///< a type from list_garments(), or
+  std::string mesh_id;                 ///< an id from upload_mesh()
+  std::string material = "cotton";
+  std::string task = "fold";           ///< grasp | fold | fling
+  std::string mode = "pseudo";         ///< pseudo | fixed_point
+  int vertices = 2000;
+  std::string trajectory;              ///< optional: trajectory CSV or JSON text (docs/tasks.md)
+  std::string trajectory_format;       ///< csv | json (required with trajectory)
+  std::string capture;                 ///< optional: a capture directory under the server's capture root
+  std::optional<double> dt;
+  std::optional<double> time_scale;
+  std::optional<double> settle;
+  std::optional<bool> self_contact;
+  bool icp = false;
+  std::string label;                   ///< free text kept with the report
+};
+
+enum class JobStatus : int {
+  kUnspecified = 0,
+  kQueued = 1,
+  kRunning = 2,
+  kSucceeded = 3,
+  kFailed = 4,
+  kInterrupted = 5,
+};
+
+/// "queued", "running", "succeeded", "failed", "interrupted" ("unspecified" otherwise).
+const char* job_status_name(JobStatus status);
+/// True for succeeded, failed and interrupted.
+bool job_finished(JobStatus status);
+
+struct JobInfo {
+  std::string id;
+  JobStatus status = JobStatus::kUnspecified;
+  double progress = 0;                 ///< 0..1
+  double sim_time = 0;
+  double end_time = 0;
+  std::string message;                 ///< failure reason, if any
+  std::string garment;
+  std::string material;
+  std::string task;
+  std::string label;
+  std::string created_at;              ///< ISO 8601 UTC
+  std::string finished_at;
+};
+
+struct ReportFile {
+  std::string name;                    ///< e.g. "summary.json", "metrics.csv", "final.obj"
+  std::string data;                    ///< the file's bytes
+};
+
+struct Report {
+  JobInfo job;
+  std::string summary_json;            ///< summary.json of the run (docs/metrics.md)
+  std::vector<ReportFile> files;       ///< filled when asked for
+  std::vector<std::string> file_names; ///< always: the names of the stored files
+};
+
+struct ReportList {
+  std::vector<JobInfo> jobs;           ///< newest first
+  int total = 0;
+};
+
+// ------------------------------------------------------------------------------------------------
+// Assets and server
+// ------------------------------------------------------------------------------------------------
+
+struct UploadedMesh {
+  std::string id;
+  std::string name;
+  int vertices = 0;
+  int triangles = 0;
+};
+
+struct GarmentCatalog {
+  std::vector<std::string> garments;   ///< generated types
+  std::vector<UploadedMesh> meshes;
+};
+
+struct MaterialInfo {
+  std::string name;
+  double density = 0;                  ///< kg/m^2
+  double thickness = 0;                ///< m
+};
+
+struct ServerInfo {
+  std::string version;
+  std::string backend;
+  int threads = 0;
+  int max_scenes = 0;
+  int max_vertices = 0;
+  int scenes = 0;                      ///< alive now
+  int jobs_running = 0;
+};
+
+/// grpc.health.v1 serving status.
+enum class HealthStatus : int { kUnknown = 0, kServing = 1, kNotServing = 2, kServiceUnknown = 3 };
+
+// ------------------------------------------------------------------------------------------------
+
+/// A connection to one server. Methods mirror the RPCs of garmentdynamics.v1.GarmentDynamics
+/// and throw ClientError on any failure.
+class Client {
+ public:
+  /// `target` is "host:port" (or any gRPC target, e.g. "unix:/path"); insecure channel. Does
+  /// not connect yet: the first call (or wait_until_ready) does.
+  explicit Client(const std::string& target, ClientOptions options = {});
+  ~Client();
+  Client(Client&&) noexcept;
+  Client& operator=(Client&&) noexcept;
+  Client(const Client&) = delete;
+  Client& operator=(const Client&) = delete;
+
+  const std::string& target() const;
+  const ClientOptions& options() const;
+  /// Changes the deadline of the following unary calls.
+  void set_deadline(std::chrono::milliseconds deadline);
+
+  /// Waits until the channel is connected; false when `timeout` passes first.
+  bool wait_until_ready(std::chrono::milliseconds timeout);
+
+  // --- scenes ---
+  CreatedScenes create_scenes(const SceneSpec& spec);
+  /// Back to the initial state; `seeds` empty (each scene's creation seed), one for all, or one
+  /// per scene.
+  std::vector<SceneState> reset(const std::vector<std::string>& ids, const std::vector<uint64_t>& seeds = {});
+  /// One batched step of `ids` (actions may name a subset); states in ids order.
+  std::vector<SceneState> step(const std::vector<std::string>& ids, const std::vector<SceneAction>& actions = {},
+                               const StepOptions& options = {});
+  std::vector<SceneState> get_state(const std::vector<std::string>& ids, bool include_velocities = false);
+  /// Streams frames (one scene per frame) to `on_frame` until the stream ends; `on_frame`
+  /// returns false to stop early (the call is then cancelled, which is not an error). Returns
+  /// the number of frames received.
+  int64_t stream(const std::vector<std::string>& ids, const StreamOptions& options,
+                 const std::function<bool(const SceneState&)>& on_frame);
+  /// Returns the number of scenes destroyed.
+  int destroy(const std::vector<std::string>& ids);
+
+  // --- jobs ---
+  /// Returns the job id.
+  std::string submit_job(const JobSpec& spec);
+  /// Calls `on_update` for each progress message until the job ends; returns the last JobInfo.
+  JobInfo watch_job(const std::string& job_id, const std::function<void(const JobInfo&)>& on_update = {});
+  Report get_report(const std::string& job_id, bool include_files = false);
+  ReportList list_reports(int limit = 100, int offset = 0);
+
+  // --- assets and server ---
+  GarmentCatalog list_garments();
+  std::vector<MaterialInfo> list_materials();
+  /// Uploads a Wavefront OBJ text (not a path); returns its id and size.
+  UploadedMesh upload_mesh(const std::string& name, const std::string& obj_text);
+  ServerInfo server_info();
+  /// grpc.health.v1.Health/Check of `service` ("" = the whole server).
+  HealthStatus health(const std::string& service = "");
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace gd

@@ -1,0 +1,99 @@
+"""Per-scene actions of StepScenes: plain Python/numpy values -> proto SceneAction.
+
+An action is None (the scene carries on: arms hold their last command) or a dict with any of
+
+    {
+      "left":  {"position": (x, y, z),            # m, world frame (z up, table at z = 0)
+                "orientation": (w, x, y, z),      # optional, unit quaternion, w first; default identity
+                "gripper": 0.035},                # optional opening in m, 0 = closed .. 0.035 = open;
+                                                  # default 0.035 (open); grasps below 0.01
+      "right": {...},                             # same as "left"
+      "targets": (indices, positions),            # optional: int (K,) vertex indices and (K, 3) positions
+                                                  # reached kinematically over the step, then held
+      "release_targets": False,                   # optional: release every kinematic target set earlier
+    }
+
+An arm may also be given as an (8,) array: position (3), quaternion wxyz (4), gripper (1).
+"targets" may also be a dict {"indices": ..., "positions": ...}. A ready-made
+`garmentdynamics.v1.garmentdynamics_pb2.SceneAction` is passed through (its scene_id is set).
+"""
+
+import numpy as np
+
+from ._proto import pb
+from .arrays import to_array
+
+GRIPPER_OPEN = 0.035
+_ARMS = {"left": pb.ARM_LEFT, "right": pb.ARM_RIGHT}
+_ALLOWED = {"left", "right", "targets", "release_targets"}
+
+
+def _vec(v, n, what):
+    arr = np.asarray(v, dtype=np.float64).reshape(-1)
+    if arr.shape != (n,):
+        raise ValueError(f"{what} must have {n} numbers, got shape {np.shape(v)}")
+    return arr
+
+
+def arm_command(arm: str, cmd) -> "pb.ArmCommand":
+    """One arm's command from a dict or an (8,) array (see the module docstring)."""
+    if isinstance(cmd, dict):
+        unknown = set(cmd) - {"position", "orientation", "gripper"}
+        if unknown:
+            raise ValueError(f"unknown keys {sorted(unknown)} in the {arm} arm's command; "
+                             "use position, orientation, gripper")
+        if "position" not in cmd:
+            raise ValueError(f"the {arm} arm's command needs a position")
+        pos = _vec(cmd["position"], 3, f"{arm}.position")
+        quat = _vec(cmd.get("orientation", (1.0, 0.0, 0.0, 0.0)), 4, f"{arm}.orientation")
+        gripper = float(cmd.get("gripper", GRIPPER_OPEN))
+    else:
+        v = _vec(cmd, 8, f"the {arm} arm's command (position 3, quaternion wxyz 4, gripper 1)")
+        pos, quat, gripper = v[:3], v[3:7], float(v[7])
+    pose = pb.Pose(position=pb.Vec3(x=pos[0], y=pos[1], z=pos[2]),
+                   orientation=pb.Quat(w=quat[0], x=quat[1], y=quat[2], z=quat[3]))
+    return pb.ArmCommand(arm=_ARMS[arm], pose=pose, gripper=gripper)
+
+
+def scene_action(scene_id: str, action) -> "pb.SceneAction":
+    """The proto action of one scene (see the module docstring for the accepted forms)."""
+    if isinstance(action, pb.SceneAction):
+        out = pb.SceneAction()
+        out.CopyFrom(action)
+        out.scene_id = scene_id
+        return out
+    if not isinstance(action, dict):
+        raise TypeError(f"an action must be None, a dict or a SceneAction, got {type(action).__name__}")
+    unknown = set(action) - _ALLOWED
+    if unknown:
+        raise ValueError(f"unknown action keys {sorted(unknown)}; use {sorted(_ALLOWED)}")
+    out = pb.SceneAction(scene_id=scene_id, release_targets=bool(action.get("release_targets", False)))
+    for arm in ("left", "right"):
+        if action.get(arm) is not None:
+            out.arms.append(arm_command(arm, action[arm]))
+    targets = action.get("targets")
+    if targets is not None:
+        if isinstance(targets, dict):
+            idx, pos = targets["indices"], targets["positions"]
+        else:
+            idx, pos = targets
+        idx = np.asarray(idx).reshape(-1)
+        pos = np.asarray(pos, dtype=np.float64).reshape(-1, 3)
+        if len(idx) != len(pos):
+            raise ValueError(f"targets: {len(idx)} indices but {len(pos)} positions")
+        out.targets.indices.CopyFrom(to_array(idx, "int32"))
+        out.targets.positions.CopyFrom(to_array(pos, "float32"))
+    return out
+
+
+def arm_array_to_action(a) -> dict:
+    """A (2, 8) array [left, right] x (position 3, quaternion wxyz 4, gripper 1) -> action dict.
+    A quaternion of (near) zero length becomes the identity; others are normalised."""
+    a = np.asarray(a, dtype=np.float64).reshape(2, 8)
+    out = {}
+    for i, arm in enumerate(("left", "right")):
+        q = a[i, 3:7]
+        n = np.linalg.norm(q)
+        q = q / n if np.isfinite(n) and n > 1e-9 else np.array([1.0, 0.0, 0.0, 0.0])
+        out[arm] = {"position": a[i, :3], "orientation": q, "gripper": float(a[i, 7])}
+    return out

@@ -1,0 +1,461 @@
+"""The GarmentDynamics client: numpy in and out over gRPC.
+
+    from garmentdynamics import Client
+
+    with Client.spawn() as c:                     # or Client("host:50051") for a running server
+        ids = c.create_scenes(garment="towel", material="cotton", vertices=150, count=16, seed=1)
+        x = c.step(ids, substeps=10)              # (16, N, 3) float32, world frame, metres
+        job = c.submit_job(garment="towel", task="grasp", vertices=150)
+        report = c.wait_report(job)               # dict: job, summary (parsed summary.json), files
+
+Every call has a deadline (`timeout`, seconds; streams use `stream_timeout`). Errors of the server
+surface unchanged as grpc.RpcError: `err.code()` is the server's status code (NOT_FOUND,
+INVALID_ARGUMENT, RESOURCE_EXHAUSTED, FAILED_PRECONDITION, ...) and `err.details()` its message.
+Bad arguments detected before a call is made (wrong shapes, unknown keys) raise ValueError or
+TypeError.
+"""
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, Iterator, List, Optional, Sequence, Union
+
+import grpc
+import numpy as np
+
+from . import health
+from ._proto import pb, pb_grpc
+from .actions import scene_action
+from .arrays import from_array
+from .local_server import LocalServer
+from .progress import ProgressBar
+
+_MAX_MESSAGE = 512 * 1024 * 1024
+
+_JOB_STATUS = {pb.JOB_STATUS_UNSPECIFIED: "UNSPECIFIED", pb.JOB_QUEUED: "QUEUED", pb.JOB_RUNNING: "RUNNING",
+               pb.JOB_SUCCEEDED: "SUCCEEDED", pb.JOB_FAILED: "FAILED", pb.JOB_INTERRUPTED: "INTERRUPTED"}
+FINAL_JOB_STATUSES = ("SUCCEEDED", "FAILED", "INTERRUPTED")
+_SCENE_STATUS = {pb.SCENE_STATUS_UNSPECIFIED: "UNSPECIFIED", pb.SCENE_READY: "READY", pb.SCENE_FAILED: "FAILED"}
+_ARM_NAME = {pb.ARM_UNSPECIFIED: "unspecified", pb.ARM_LEFT: "left", pb.ARM_RIGHT: "right"}
+
+
+@dataclass
+class SceneState:
+    """One scene's state as the server reported it."""
+    scene_id: str
+    status: str                     # "READY" | "FAILED"
+    failure: str                    # why it failed ("" when READY)
+    time: float                     # s of scene time
+    steps: int                      # steps since the last reset
+    positions: Optional[np.ndarray]  # (N, 3) float32, None when omitted
+    velocities: Optional[np.ndarray]  # (N, 3) float32, None unless asked for
+    arms: Dict[str, dict] = field(default_factory=dict)   # "left"/"right" -> {closed, held_vertices}
+    stats: dict = field(default_factory=dict)             # newton/pcg iterations, contacts, wall_ms
+
+    @property
+    def failed(self) -> bool:
+        return self.status == "FAILED"
+
+    @classmethod
+    def from_proto(cls, s: "pb.SceneState") -> "SceneState":
+        return cls(
+            scene_id=s.scene_id, status=_SCENE_STATUS.get(s.status, str(s.status)), failure=s.failure,
+            time=s.time, steps=s.steps,
+            positions=from_array(s.positions) if s.HasField("positions") and s.positions.data else None,
+            velocities=from_array(s.velocities) if s.HasField("velocities") and s.velocities.data else None,
+            arms={_ARM_NAME.get(a.arm, str(a.arm)): {"closed": a.closed, "held_vertices": a.held_vertices}
+                  for a in s.arms},
+            stats={"newton_iterations": s.stats.newton_iterations, "pcg_iterations": s.stats.pcg_iterations,
+                   "active_contacts": s.stats.active_contacts, "wall_ms": s.stats.wall_ms})
+
+
+def job_to_dict(j: "pb.JobInfo") -> dict:
+    """A JobInfo as a plain dict (status as a name: QUEUED, RUNNING, SUCCEEDED, FAILED, INTERRUPTED)."""
+    return {"job_id": j.job_id, "status": _JOB_STATUS.get(j.status, str(j.status)), "progress": j.progress,
+            "sim_time": j.sim_time, "end_time": j.end_time, "message": j.message, "garment": j.garment,
+            "material": j.material, "task": j.task, "label": j.label, "created_at": j.created_at,
+            "finished_at": j.finished_at}
+
+
+def _scene_info_to_dict(info: "pb.SceneInfo") -> dict:
+    return {"vertex_count": info.vertex_count, "triangles": from_array(info.triangles),
+            "rest_positions": from_array(info.rest_positions), "dt": info.dt, "backend": info.backend,
+            "mode": info.mode, "left_shoulder_vertex": info.left_shoulder_vertex,
+            "right_shoulder_vertex": info.right_shoulder_vertex}
+
+
+def _ids(ids: Union[str, Sequence[str]]) -> List[str]:
+    if isinstance(ids, str):
+        return [ids]
+    return [str(i) for i in ids]
+
+
+def _stack(states: List[SceneState], what: str = "positions") -> np.ndarray:
+    arrays = [getattr(s, what) for s in states]
+    if any(a is None for a in arrays):
+        raise ValueError(f"the server returned states without {what}")
+    if not arrays:
+        return np.zeros((0, 0, 3), dtype=np.float32)
+    if len({a.shape for a in arrays}) != 1:
+        raise ValueError(f"the scenes have different vertex counts ({sorted({a.shape[0] for a in arrays})}); "
+                         "use step_states() to get them one by one")
+    return np.stack(arrays)
+
+
+class Client:
+    """A connection to one gd-server. A context manager: closing it closes the channel and stops
+    a server it spawned.
+
+    Args:
+        target: "host:port" of the server.
+        timeout: deadline of every unary call, s.
+        stream_timeout: deadline of the streaming calls (stream, watch_job), s; None = no deadline.
+        options: extra gRPC channel options [(key, value), ...].
+    """
+
+    def __init__(self, target: str = "127.0.0.1:50051", timeout: float = 60.0,
+                 stream_timeout: Optional[float] = 24 * 3600.0, options: Sequence = (),
+                 _server: Optional[LocalServer] = None):
+        self.target = target
+        self.timeout = timeout
+        self.stream_timeout = stream_timeout
+        self.server = _server
+        opts = [("grpc.max_receive_message_length", _MAX_MESSAGE), ("grpc.max_send_message_length", _MAX_MESSAGE),
+                ("grpc.keepalive_time_ms", 60000), ("grpc.keepalive_timeout_ms", 20000)]
+        self._channel = grpc.insecure_channel(target, options=opts + list(options))
+        self._stub = pb_grpc.GarmentDynamicsStub(self._channel)
+        self._scene_info: Dict[str, dict] = {}
+        self._closed = False
+
+    # ---------------------------------------------------------------------------------------
+    # lifecycle
+    # ---------------------------------------------------------------------------------------
+    @classmethod
+    def spawn(cls, data_dir: Optional[str] = None, threads: Optional[int] = None,
+              server_bin: Optional[str] = None, extra_args: Sequence[str] = (),
+              start_timeout: float = 60.0, **client_kwargs) -> "Client":
+        """Starts a local gd-server on a free loopback port and returns a Client connected to
+        it; close() (or leaving the `with` block) stops the server.
+
+        Args:
+            data_dir: the server's data directory (reports database, uploaded meshes); default a
+                temporary directory removed when the server stops.
+            threads: worker threads of the server (default: the server's choice).
+            server_bin: the gd-server executable; default $GD_SERVER_BIN, `gd-server` on PATH,
+                or build/bin/gd-server of the checkout this package was built from.
+            extra_args: more command-line arguments for gd-server.
+            client_kwargs: passed to Client (timeout, stream_timeout, options).
+        """
+        server = LocalServer(data_dir=data_dir, threads=threads, server_bin=server_bin,
+                             extra_args=extra_args, start_timeout=start_timeout).start()
+        try:
+            return cls(server.target, _server=server, **client_kwargs)
+        except BaseException:
+            server.stop()
+            raise
+
+    def close(self) -> None:
+        """Closes the channel and stops a spawned server. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._channel.close()
+        if self.server is not None:
+            self.server.stop()
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self):  # best effort; close() is the contract
+        try:
+            self.close()
+        except Exception:
+            pass
+
+    def health(self) -> bool:
+        """True when the server's health service reports SERVING."""
+        return health.check(self._channel, timeout=self.timeout) == health.SERVING
+
+    # ---------------------------------------------------------------------------------------
+    # scenes
+    # ---------------------------------------------------------------------------------------
+    def create_scenes(self, garment: Optional[str] = None, material: str = "cotton", vertices: int = 2000,
+                      count: int = 1, seed: int = 0, mesh_id: Optional[str] = None, mode: str = "pseudo",
+                      dt: Optional[float] = None, self_contact: Optional[bool] = None,
+                      jaw_radius: Optional[float] = None, grab_time: Optional[float] = None,
+                      yaw_deg: float = 0.0, offset_m: float = 0.0) -> List[str]:
+        """Creates `count` identical scenes and returns their ids.
+
+        Args:
+            garment: a generated garment type (list_garments()["garments"]: towel, tshirt, ...);
+                or give `mesh_id` of an uploaded mesh instead.
+            material: a fabric name (list_materials()).
+            vertices: target vertex count of a generated garment.
+            count: number of scenes.
+            seed: initial randomisation of the pose on the table (0 = none; see yaw_deg, offset_m).
+            mode: "pseudo" (our grasp: vertices within the jaw radius follow a closed gripper) or
+                "fixed_point" (RGBench's semantics).
+            dt, self_contact, jaw_radius, grab_time: scene settings (None = server default).
+            yaw_deg, offset_m: randomisation ranges: yaw uniform in [-yaw_deg, yaw_deg] about z,
+                offset uniform in [-offset_m, offset_m] along x and y (seeds other than 0).
+
+        What the scenes share (triangles, rest positions, dt, ...) is available from
+        scene_info(id) afterwards.
+        """
+        if (garment is None) == (mesh_id is None):
+            raise ValueError("give exactly one of garment= and mesh_id=")
+        settings = pb.SceneSettings()
+        if dt is not None:
+            settings.dt = float(dt)
+        if self_contact is not None:
+            settings.self_contact = bool(self_contact)
+        if jaw_radius is not None:
+            settings.jaw_radius = float(jaw_radius)
+        if grab_time is not None:
+            settings.grab_time = float(grab_time)
+        req = pb.CreateScenesRequest(material=material, vertices=int(vertices), mode=mode, seed=int(seed),
+                                     count=int(count), settings=settings,
+                                     randomization=pb.Randomization(yaw_deg=yaw_deg, offset_m=offset_m))
+        if garment is not None:
+            req.garment = garment
+        else:
+            req.mesh_id = mesh_id
+        resp = self._stub.CreateScenes(req, timeout=self.timeout)
+        info = _scene_info_to_dict(resp.info)
+        for sid in resp.scene_ids:
+            self._scene_info[sid] = info
+        return list(resp.scene_ids)
+
+    def scene_info(self, scene_id: str) -> dict:
+        """What the scenes of one create_scenes call share: vertex_count, triangles (T, 3) int32,
+        rest_positions (N, 3) float32 (world frame, seed 0), dt, backend, mode, and the shoulder
+        landmark vertices (-1 when unknown). Only for scenes created by this client."""
+        try:
+            return self._scene_info[scene_id]
+        except KeyError:
+            raise KeyError(f"scene {scene_id!r} was not created by this client") from None
+
+    def reset_states(self, ids, seeds: Union[None, int, Sequence[int]] = None) -> List[SceneState]:
+        """Restores scenes to their initial state; seeds: None (each scene's creation seed), one
+        seed for all, or one per scene."""
+        ids = _ids(ids)
+        if seeds is None:
+            seeds = []
+        elif np.isscalar(seeds):
+            seeds = [int(seeds)]
+        else:
+            seeds = [int(s) for s in seeds]
+        resp = self._stub.ResetScenes(pb.ResetScenesRequest(scene_ids=ids, seeds=seeds), timeout=self.timeout)
+        return [SceneState.from_proto(s) for s in resp.states]
+
+    def reset(self, ids, seeds: Union[None, int, Sequence[int]] = None) -> np.ndarray:
+        """reset_states() returning the positions, (len(ids), N, 3) float32."""
+        return _stack(self.reset_states(ids, seeds))
+
+    def step_states(self, ids, actions: Optional[Sequence] = None, substeps: int = 1,
+                    include_velocities: bool = False, omit_positions: bool = False) -> List[SceneState]:
+        """Advances the scenes `substeps` steps each in one call; returns their states in `ids`
+        order. A scene whose state turns non-finite comes back with status "FAILED" and the
+        others carry on. See step() for the actions."""
+        ids = _ids(ids)
+        req = pb.StepScenesRequest(scene_ids=ids, substeps=int(substeps), include_velocities=include_velocities,
+                                   omit_positions=omit_positions)
+        if actions is not None:
+            if isinstance(actions, dict) or isinstance(actions, pb.SceneAction):
+                raise TypeError("actions must be a list with one entry (or None) per scene id")
+            if len(actions) != len(ids):
+                raise ValueError(f"{len(actions)} actions for {len(ids)} scene ids (give one per id, or None)")
+            for sid, a in zip(ids, actions):
+                if a is not None:
+                    req.actions.append(scene_action(sid, a))
+        resp = self._stub.StepScenes(req, timeout=self.timeout)
+        return [SceneState.from_proto(s) for s in resp.states]
+
+    def step(self, ids, actions: Optional[Sequence] = None, substeps: int = 1) -> np.ndarray:
+        """Advances the scenes `substeps` steps each, in one call, and returns their vertex
+        positions, (len(ids), N, 3) float32, world frame.
+
+        actions: None (every arm holds its last command), or a list with one entry per id, each
+        None or a dict (poses are reached at the end of the call, interpolated over the substeps):
+
+            {"left":  {"position": (x, y, z), "orientation": (w, x, y, z), "gripper": 0.0},
+             "right": {...},
+             "targets": (indices (K,), positions (K, 3)),   # kinematic vertex targets
+             "release_targets": False}
+
+        Every key is optional; an arm may also be an (8,) array (position, quaternion wxyz,
+        gripper). gripper is the opening in m (0 closed .. 0.035 open, default open); the
+        gripper grasps when it falls below 0.01. See garmentdynamics.actions.
+        """
+        return _stack(self.step_states(ids, actions, substeps))
+
+    def get_state(self, ids, include_velocities: bool = False) -> List[SceneState]:
+        """The current states of the scenes, in `ids` order."""
+        resp = self._stub.GetState(pb.GetStateRequest(scene_ids=_ids(ids), include_velocities=include_velocities),
+                                   timeout=self.timeout)
+        return [SceneState.from_proto(s) for s in resp.states]
+
+    def positions(self, ids) -> np.ndarray:
+        """The current positions, (len(ids), N, 3) float32."""
+        return _stack(self.get_state(ids))
+
+    def stream(self, ids, every: int = 1, steps: int = 0, max_frames: int = 0,
+               timeout: Optional[float] = None) -> Iterator[SceneState]:
+        """Yields a SceneState of each scene every `every`-th step it makes: steps made by other
+        step() calls, or, with steps > 0, by the stream itself. Ends when the steps are done,
+        after max_frames frames (0 = no limit), when the scenes are destroyed, or when the
+        generator is closed (the call is then cancelled)."""
+        call = self._stub.StreamFrames(
+            pb.StreamFramesRequest(scene_ids=_ids(ids), every=int(every), steps=int(steps),
+                                   max_frames=int(max_frames)),
+            timeout=self.stream_timeout if timeout is None else timeout)
+        try:
+            for msg in call:
+                yield SceneState.from_proto(msg.state)
+        finally:
+            call.cancel()
+
+    def destroy(self, ids) -> int:
+        """Destroys scenes; returns how many were destroyed."""
+        ids = _ids(ids)
+        resp = self._stub.DestroyScenes(pb.DestroyScenesRequest(scene_ids=ids), timeout=self.timeout)
+        for sid in ids:
+            self._scene_info.pop(sid, None)
+        return resp.destroyed
+
+    # ---------------------------------------------------------------------------------------
+    # jobs
+    # ---------------------------------------------------------------------------------------
+    def submit_job(self, garment: Optional[str] = None, material: str = "cotton", task: str = "grasp",
+                   mode: str = "pseudo", vertices: int = 2000, mesh_id: Optional[str] = None,
+                   trajectory: Union[None, str, bytes, Path] = None, trajectory_format: Optional[str] = None,
+                   capture: str = "", dt: Optional[float] = None, time_scale: Optional[float] = None,
+                   settle: Optional[float] = None, self_contact: Optional[bool] = None, icp: bool = False,
+                   label: str = "") -> str:
+        """Submits a whole rollout (garment + task) to run on the server; returns the job id.
+
+        trajectory: a path to our trajectory CSV/JSON file (docs/tasks.md), or its text/bytes;
+        trajectory_format "csv" | "json" (guessed from a path's suffix). capture: an RGBench
+        capture directory under the server's capture root. The other arguments mirror `gd run`.
+        """
+        if (garment is None) == (mesh_id is None):
+            raise ValueError("give exactly one of garment= and mesh_id=")
+        req = pb.SubmitJobRequest(material=material, task=task, mode=mode, vertices=int(vertices),
+                                  capture=capture, icp=icp, label=label)
+        if garment is not None:
+            req.garment = garment
+        else:
+            req.mesh_id = mesh_id
+        if trajectory is not None:
+            if isinstance(trajectory, Path) or (isinstance(trajectory, str) and "\n" not in trajectory
+                                                and Path(trajectory).is_file()):
+                path = Path(trajectory)
+                trajectory_format = trajectory_format or path.suffix.lstrip(".").lower()
+                trajectory = path.read_bytes()
+            req.trajectory = trajectory.encode() if isinstance(trajectory, str) else bytes(trajectory)
+            if not trajectory_format:
+                raise ValueError("trajectory_format ('csv' or 'json') is required with trajectory text")
+            req.trajectory_format = trajectory_format
+        for name, value in (("dt", dt), ("time_scale", time_scale), ("settle", settle)):
+            if value is not None:
+                setattr(req, name, float(value))
+        if self_contact is not None:
+            req.self_contact = bool(self_contact)
+        return self._stub.SubmitJob(req, timeout=self.timeout).job_id
+
+    def watch_job(self, job: str, timeout: Optional[float] = None) -> Iterator[dict]:
+        """Yields the job's progress (job_to_dict) until it ends; the last one has a final status
+        (SUCCEEDED, FAILED or INTERRUPTED)."""
+        call = self._stub.WatchJob(pb.WatchJobRequest(job_id=job),
+                                   timeout=self.stream_timeout if timeout is None else timeout)
+        try:
+            for msg in call:
+                yield job_to_dict(msg.job)
+        finally:
+            call.cancel()
+
+    def get_report(self, job: str, include_files: bool = False) -> dict:
+        """The job's report: {"job": job dict, "summary": summary.json parsed (None if empty),
+        "file_names": [...], "files": {name: bytes} (with include_files)}. FAILED_PRECONDITION
+        while the job has not finished."""
+        resp = self._stub.GetReport(pb.GetReportRequest(job_id=job, include_files=include_files),
+                                    timeout=self.timeout)
+        return {"job": job_to_dict(resp.job),
+                "summary": json.loads(resp.summary_json) if resp.summary_json else None,
+                "file_names": list(resp.file_names),
+                "files": {f.name: f.data for f in resp.files}}
+
+    def wait_report(self, job: str, progress: bool = True, include_files: bool = False,
+                    timeout: Optional[float] = None, settle_timeout: float = 10.0) -> dict:
+        """Waits for the job to end (a progress bar on stderr with progress=True: tqdm if
+        installed, else a text bar) and returns get_report(job)."""
+        bar = ProgressBar(desc=f"job {job}", enabled=progress)
+        try:
+            for info in self.watch_job(job, timeout=timeout):
+                bar.update(info["progress"], f"{info['status'].lower()} t={info['sim_time']:.2f}/{info['end_time']:.2f} s")
+                if info["status"] in FINAL_JOB_STATUSES:
+                    break
+        finally:
+            bar.close()
+        # A stream that ended without a final status (server shutting down) makes GetReport answer
+        # FAILED_PRECONDITION, which surfaces as grpc.RpcError. A report read right after the final
+        # progress message may still show the job unfinished while the server stores it; read
+        # again for a short while until the stored report is final.
+        deadline = time.monotonic() + settle_timeout
+        report = self.get_report(job, include_files=include_files)
+        while report["job"]["status"] not in FINAL_JOB_STATUSES and time.monotonic() < deadline:
+            time.sleep(0.05)
+            report = self.get_report(job, include_files=include_files)
+        return report
+
+    def list_reports(self, limit: int = 100, offset: int = 0) -> List[dict]:
+        """Jobs with stored reports, newest first (job_to_dict each)."""
+        resp = self._stub.ListReports(pb.ListReportsRequest(limit=int(limit), offset=int(offset)),
+                                      timeout=self.timeout)
+        return [job_to_dict(j) for j in resp.jobs]
+
+    def count_reports(self) -> int:
+        """How many reports the server stores."""
+        return self._stub.ListReports(pb.ListReportsRequest(limit=1), timeout=self.timeout).total
+
+    # ---------------------------------------------------------------------------------------
+    # assets and server
+    # ---------------------------------------------------------------------------------------
+    def upload_mesh(self, path_or_bytes: Union[str, Path, bytes], name: Optional[str] = None) -> str:
+        """Uploads a Wavefront OBJ (a path, or its bytes) for create_scenes(mesh_id=) and
+        submit_job(mesh_id=); returns the mesh id."""
+        if isinstance(path_or_bytes, (bytes, bytearray)):
+            data = bytes(path_or_bytes)
+            name = name or "mesh"
+        else:
+            path = Path(path_or_bytes)
+            data = path.read_bytes()
+            name = name or path.stem
+        return self._stub.UploadMesh(pb.UploadMeshRequest(name=name, obj=data), timeout=self.timeout).mesh_id
+
+    def list_garments(self) -> dict:
+        """{"garments": [generated types], "meshes": [{mesh_id, name, vertices, triangles}]}."""
+        resp = self._stub.ListGarments(pb.ListGarmentsRequest(), timeout=self.timeout)
+        return {"garments": list(resp.garments),
+                "meshes": [{"mesh_id": m.mesh_id, "name": m.name, "vertices": m.vertices,
+                            "triangles": m.triangles} for m in resp.meshes]}
+
+    def list_materials(self) -> List[dict]:
+        """[{name, density (kg/m^2), thickness (m)}]."""
+        resp = self._stub.ListMaterials(pb.ListMaterialsRequest(), timeout=self.timeout)
+        return [{"name": m.name, "density": m.density, "thickness": m.thickness} for m in resp.materials]
+
+    def server_info(self) -> dict:
+        """{version, backend, threads, max_scenes, max_vertices, scenes, jobs_running}."""
+        r = self._stub.GetServerInfo(pb.GetServerInfoRequest(), timeout=self.timeout)
+        return {"version": r.version, "backend": r.backend, "threads": r.threads, "max_scenes": r.max_scenes,
+                "max_vertices": r.max_vertices, "scenes": r.scenes, "jobs_running": r.jobs_running}
+
+    @property
+    def stub(self) -> "pb_grpc.GarmentDynamicsStub":
+        """The raw gRPC stub, for requests this class does not wrap."""
+        return self._stub

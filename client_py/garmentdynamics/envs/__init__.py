@@ -1,0 +1,26 @@
+"""Gymnasium environments over gd-server scenes (needs `pip install garmentdynamics[gym]`).
+
+- GarmentEnv: one scene as a gymnasium.Env (passes gymnasium.utils.env_checker.check_env).
+- GarmentVectorEnv: N scenes as a gymnasium.vector.VectorEnv, stepped in one batched call,
+  autoreset NEXT_STEP.
+
+Both are registered with Gymnasium as "garmentdynamics/Garment-v0" (gymnasium.make) and
+"garmentdynamics/Garment-v0" with gymnasium.make_vec(..., vectorization_mode="vector_entry_point").
+"""
+
+try:
+    import gymnasium  # noqa: F401
+except ImportError as exc:  # pragma: no cover
+    raise ImportError("garmentdynamics.envs needs gymnasium: pip install 'garmentdynamics[gym]'") from exc
+
+from gymnasium.envs.registration import register, registry
+
+from .garment_env import GarmentEnv
+from .rewards import FAILURE_REWARD, TASKS, Reward
+from .vector_env import GarmentVectorEnv
+
+if "garmentdynamics/Garment-v0" not in registry:
+    register(id="garmentdynamics/Garment-v0", entry_point="garmentdynamics.envs:GarmentEnv",
+             vector_entry_point="garmentdynamics.envs:GarmentVectorEnv")
+
+__all__ = ["GarmentEnv", "GarmentVectorEnv", "Reward", "TASKS", "FAILURE_REWARD"]

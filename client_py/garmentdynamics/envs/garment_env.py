@@ -1,0 +1,73 @@
+"""GarmentEnv: one scene of a gd-server as a gymnasium.Env."""
+
+from typing import Optional
+
+import gymnasium as gym
+import numpy as np
+
+from ..client import Client
+from .scenes import SceneBatch
+from .spaces import action_space, observation_space
+
+
+class GarmentEnv(gym.Env):
+    """One garment on the table, driven by two arms.
+
+    Observation: the vertex positions, Box (N, 3) float32, world frame (m, z up, table at z = 0).
+    Action: Box (2, 8) float32, rows [left, right]: end-effector position (3), orientation
+    quaternion w, x, y, z (4; normalised here), gripper opening (1) in [0, 0.035] m; in "pseudo"
+    mode a gripper closing below 0.01 m takes the vertices within its jaw radius and they follow
+    it until it opens. Each step() is `substeps` simulation steps of the scene's dt; the arm
+    poses are reached at its end.
+    Reward: `task` ("lift" or "fold"), see garmentdynamics.envs.rewards.
+    terminated: the scene failed (its state turned non-finite; reward -10).
+    truncated: after max_episode_steps steps.
+    reset(seed=s): the scene is restored, its pose on the table randomised by seed s (yaw within
+    +-yaw_deg, x/y offset within +-offset_m; s = 0: the unrandomised pose); without a seed a
+    fresh one is drawn from the env's np_random.
+
+    client: an existing Client (left open by close()); else `target` ("host:port") is connected,
+    else a local gd-server is spawned with `spawn_kwargs` (Client.spawn) and stopped on close().
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, client: Optional[Client] = None, *, target: Optional[str] = None,
+                 spawn_kwargs: Optional[dict] = None, garment: str = "towel", material: str = "cotton",
+                 vertices: int = 150, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
+                 mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
+                 yaw_deg: float = 10.0, offset_m: float = 0.02):
+        self._scenes = SceneBatch(1, client=client, target=target, spawn_kwargs=spawn_kwargs, garment=garment,
+                                  material=material, vertices=vertices, task=task,
+                                  max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
+                                  self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m)
+        self.observation_space = observation_space(self._scenes.vertex_count)
+        self.action_space = action_space()
+        self.task = task
+
+    @property
+    def client(self) -> Client:
+        return self._scenes.client
+
+    @property
+    def scene_id(self) -> str:
+        return self._scenes.ids[0]
+
+    @property
+    def scene_info(self) -> dict:
+        """Triangles, rest positions, dt, ... of the scene (Client.scene_info)."""
+        return self._scenes.info
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
+        super().reset(seed=seed)
+        scene_seed = seed if seed is not None else int(self.np_random.integers(1, 2**62))
+        x = self._scenes.reset([0], [scene_seed])[0]
+        return x, {"seed": scene_seed, "time": 0.0}
+
+    def step(self, action):
+        x, r, term, trunc, infos = self._scenes.step([0], np.asarray(action)[None])
+        return x[0], float(r[0]), bool(term[0]), bool(trunc[0]), infos[0]
+
+    def close(self):
+        self._scenes.close()
+        super().close()

@@ -1,0 +1,112 @@
+"""GarmentVectorEnv: N scenes of one gd-server as a gymnasium.vector.VectorEnv, stepped in one
+batched StepScenes call."""
+
+from typing import Optional, Sequence, Union
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ..client import Client
+from .scenes import SceneBatch
+from .spaces import action_space, observation_space
+
+
+class GarmentVectorEnv(VectorEnv):
+    """`num_envs` copies of GarmentEnv's task (same spaces, rewards and episode ends; see
+    GarmentEnv) on one server. step() sends all the scenes' actions in one StepScenes call.
+
+    Autoreset: NEXT_STEP (metadata["autoreset_mode"]). A sub-environment whose episode ended
+    (terminated or truncated) is reset by the following step() call instead of being stepped:
+    that call returns its reset observation, reward 0 and terminated = truncated = False, and
+    ignores its action. Such resets draw fresh seeds from the env's np_random.
+
+    reset(seed=s) resets every scene, scene i with seed s + i (a list gives one seed per scene;
+    None draws them from np_random). options={"reset_mask": bool array} resets only those scenes.
+
+    infos: "time", "steps", "failed" arrays (with the "_key" masks of gymnasium's convention).
+    """
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 8, client: Optional[Client] = None, *, target: Optional[str] = None,
+                 spawn_kwargs: Optional[dict] = None, garment: str = "towel", material: str = "cotton",
+                 vertices: int = 150, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
+                 mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
+                 yaw_deg: float = 10.0, offset_m: float = 0.02):
+        if num_envs < 1:
+            raise ValueError("num_envs must be at least 1")
+        self._scenes = SceneBatch(num_envs, client=client, target=target, spawn_kwargs=spawn_kwargs,
+                                  garment=garment, material=material, vertices=vertices, task=task,
+                                  max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
+                                  self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m)
+        self.num_envs = num_envs
+        self.single_observation_space = observation_space(self._scenes.vertex_count)
+        self.single_action_space = action_space()
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.task = task
+        self._obs = np.zeros((num_envs, self._scenes.vertex_count, 3), dtype=np.float32)
+        self._autoreset = np.zeros(num_envs, dtype=bool)
+
+    @property
+    def client(self) -> Client:
+        return self._scenes.client
+
+    @property
+    def scene_ids(self):
+        return list(self._scenes.ids)
+
+    def _fresh_seeds(self, k: int) -> np.ndarray:
+        return self.np_random.integers(1, 2**62, size=k)
+
+    def reset(self, *, seed: Union[None, int, Sequence[int]] = None, options: Optional[dict] = None):
+        if isinstance(seed, (list, tuple, np.ndarray)):
+            if len(seed) != self.num_envs:
+                raise ValueError(f"{len(seed)} seeds for {self.num_envs} environments")
+            seeds = np.asarray(seed, dtype=np.int64)
+            super().reset(seed=int(seeds[0]))
+        else:
+            super().reset(seed=seed)
+            seeds = (np.arange(self.num_envs) + seed) if seed is not None else self._fresh_seeds(self.num_envs)
+        mask = np.ones(self.num_envs, dtype=bool)
+        if options and "reset_mask" in options:
+            mask = np.asarray(options["reset_mask"], dtype=bool).reshape(self.num_envs)
+        idx = np.flatnonzero(mask)
+        if len(idx):
+            self._obs[idx] = self._scenes.reset(idx, seeds[idx])
+        self._autoreset[idx] = False
+        infos = {"seed": np.asarray(seeds, dtype=np.int64), "_seed": mask.copy()}
+        return self._obs.copy(), infos
+
+    def step(self, actions):
+        actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, 2, 8)
+        n = self.num_envs
+        rewards = np.zeros(n, dtype=np.float64)
+        terminated = np.zeros(n, dtype=bool)
+        truncated = np.zeros(n, dtype=bool)
+        time = np.zeros(n, dtype=np.float64)
+        steps = np.zeros(n, dtype=np.int64)
+        failed = np.zeros(n, dtype=bool)
+
+        to_reset = np.flatnonzero(self._autoreset)
+        to_step = np.flatnonzero(~self._autoreset)
+        if len(to_reset):
+            self._obs[to_reset] = self._scenes.reset(to_reset, self._fresh_seeds(len(to_reset)))
+        if len(to_step):
+            x, r, term, trunc, infos = self._scenes.step(to_step, actions[to_step])
+            self._obs[to_step] = x
+            rewards[to_step] = r
+            terminated[to_step] = term
+            truncated[to_step] = trunc
+            time[to_step] = [i["time"] for i in infos]
+            steps[to_step] = [i["steps"] for i in infos]
+            failed[to_step] = [i["failed"] for i in infos]
+        self._autoreset = terminated | truncated
+        stepped = ~np.isin(np.arange(n), to_reset)
+        infos = {"time": time, "_time": stepped, "steps": steps, "_steps": stepped.copy(),
+                 "failed": failed, "_failed": stepped.copy()}
+        return self._obs.copy(), rewards, terminated, truncated, infos
+
+    def close_extras(self, **kwargs):
+        self._scenes.close()

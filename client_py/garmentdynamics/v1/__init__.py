@@ -1,0 +1,1 @@
+"""Generated gRPC stubs of garmentdynamics.v1 (written here by setup.py at build time)."""

@@ -1,0 +1,309 @@
+"""GarmentDynamicsEnv: RGBench's simulator interface (rgbench.envs.base.BaseEnvWrapper) on a
+gd-server scene, so that RGBench's harness (scripts/run_benchmark.py) runs on GarmentDynamics.
+
+RGBench builds it as `GarmentDynamicsEnv(cfg=cfg.active_run)` (rgbench/envs/__init__.py, for an
+env.name containing "garment_dynamics" or "mujoco_style3d") and then uses, per real frame:
+get_master_start_time() once, step_to_time(t_real + camera_delay [+ 10 s for fling]),
+get_sim_vertices() (N, 3) world frame, get_current_sim_time().
+
+What it reads from cfg (an omegaconf DictConfig or a plain dict), as RGBench's fixed-point envs do:
+
+    sim_model.type            "fixed_point" (RGBench's pseudo mode) | "robot" (our pseudo grasp)
+    action.type               grasp | fold | fling
+    action.fling_prepare_time, action.fling_wait_time   (defaults 2.0 and 3.0, as RGBench's code)
+    evaluate.start_calculate_time   grasp/fold grab time (else env.grasp.grasp_time)
+    env.grab_points           {mode: auto | manual, indices: [l, r]} (default auto)
+    cloth.model_path          the garment OBJ (uploaded to the server); cloth.init_pose
+                              [x, y, z, qw, qx, qy, qz] (default [0.1, 0, 0.01, 1, 0, 0, 0])
+    cloth_params.shoulder_index     fling pins [left, right]
+    data.robot_joints.{left,right}_arm_csv_path, data.sim_start_time
+
+and its own optional block env.garment_dynamics:
+
+    target        "host:port" of a running gd-server (default: spawn one locally)
+    server_bin, data_dir, threads   for the spawned server
+    garment, vertices               a generated garment when cloth.model_path is absent (default tshirt, 2000)
+    material      fabric name (default cotton)
+    dt            s per step (default env.timestep, else the server's 0.01)
+    self_contact  default: the server's (on)
+
+Semantics (rgbench-format.md section 3):
+- fixed_point grasp/fold, auto pins: the scene runs in the server's fixed-point mode with
+  grab_time = start_calculate_time; every step sends both arms' interpolated end-effector poses
+  and the server pins, at grab_time, the vertex nearest each arm and moves it with the arm.
+- fixed_point grasp/fold with manual pins, and fling: the pinned vertices are driven as kinematic
+  targets (fling: linear approach from their initial position to the first trajectory position
+  during fling_prepare_time, hold for fling_wait_time, then follow the trajectory).
+- robot: our pseudo grasp; the arms follow the CSV poses and their gripper column (closing below
+  0.01 m grasps the vertices within the jaw radius).
+Times: sim time 0 is master_start_time (the earliest first sample of the two arms); trajectory
+time = sim time (minus prepare + wait for fling). step_to_time steps while sim time < target, so
+it overshoots by less than one dt, like RGBench's environments.
+"""
+
+import logging
+import math
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+
+from garmentdynamics import Client
+
+from .trajectory import load_pose_csv
+
+try:  # subclass RGBench's interface when RGBench is installed; duck-typed otherwise
+    from rgbench.envs.base import BaseEnvWrapper as _Base  # type: ignore
+except Exception:  # noqa: BLE001 - RGBench (and its omegaconf) is optional
+    _Base = object
+
+log = logging.getLogger("rgbench_garmentdynamics")
+
+DEFAULT_INIT_POSE = (0.1, 0.0, 0.01, 1.0, 0.0, 0.0, 0.0)
+_MISSING = object()
+
+
+def cfg_get(cfg: Any, dotted: str, default: Any = None) -> Any:
+    """cfg["a"]["b"]... for dotted "a.b", on dicts or omegaconf DictConfigs; default when absent."""
+    node = cfg
+    for key in dotted.split("."):
+        if node is None:
+            return default
+        try:
+            node = node[key] if key in node else _MISSING
+        except TypeError:
+            node = getattr(node, key, _MISSING)
+        if node is _MISSING:
+            return default
+    return default if node is None else node
+
+
+def _quat_matrix(w, x, y, z) -> np.ndarray:
+    q = np.array([w, x, y, z], dtype=np.float64)
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _posed_obj(path: Path, init_pose) -> bytes:
+    """The OBJ's bytes, its `v` lines moved so that the server's fixed placement (a translation by
+    DEFAULT_INIT_POSE's position) puts the garment at init_pose (position + quaternion wxyz)."""
+    data = path.read_bytes()
+    pose = [float(v) for v in init_pose]
+    if len(pose) != 7:
+        raise ValueError(f"cloth.init_pose must be [x, y, z, qw, qx, qy, qz], got {init_pose}")
+    if np.allclose(pose, DEFAULT_INIT_POSE):
+        return data
+    rot = _quat_matrix(*pose[3:])
+    shift = np.array(pose[:3]) - np.array(DEFAULT_INIT_POSE[:3])
+    out = []
+    for line in data.decode("utf-8", errors="replace").splitlines():
+        parts = line.split()
+        if len(parts) >= 4 and parts[0] == "v":
+            p = rot @ np.array([float(c) for c in parts[1:4]]) + shift
+            line = "v {:.9g} {:.9g} {:.9g}".format(*p) + ("" if len(parts) == 4 else " " + " ".join(parts[4:]))
+        out.append(line)
+    return ("\n".join(out) + "\n").encode()
+
+
+class GarmentDynamicsEnv(_Base):
+    """RGBench's BaseEnvWrapper on a gd-server scene (see the module docstring).
+
+    Args:
+        cfg: RGBench's run config (cfg.active_run), a DictConfig or a dict.
+        client: an existing garmentdynamics.Client to use (left open by close()); default: connect
+            to env.garment_dynamics.target, or spawn a local gd-server (stopped by close()).
+    """
+
+    def __init__(self, cfg: Any, client: Optional[Client] = None, **kwargs):
+        self.cfg = cfg
+        gd = cfg_get(cfg, "env.garment_dynamics", {}) or {}
+        self.sim_type = str(cfg_get(cfg, "sim_model.type", "fixed_point"))
+        if self.sim_type not in ("fixed_point", "robot"):
+            raise ValueError(f"sim_model.type must be fixed_point or robot, got {self.sim_type!r}")
+        self.action_type = str(cfg_get(cfg, "action.type", "grasp"))
+        if self.action_type not in ("grasp", "fold", "fling"):
+            raise ValueError(f"action.type must be grasp, fold or fling, got {self.action_type!r}")
+        if self.action_type == "fling" and self.sim_type != "fixed_point":
+            raise ValueError("fling is only supported with sim_model.type fixed_point (as in RGBench)")
+
+        # --- arm trajectories (world frame) --------------------------------------------------
+        start_offset = float(cfg_get(cfg, "data.sim_start_time", 0.0))
+        self.tracks = {}
+        for arm in ("left", "right"):
+            p = cfg_get(cfg, f"data.robot_joints.{arm}_arm_csv_path")
+            if p:
+                self.tracks[arm] = load_pose_csv(p, arm, start_offset)
+        if not self.tracks:
+            raise ValueError("no arm trajectory: set data.robot_joints.left_arm_csv_path and/or right_arm_csv_path")
+        self.master_start_time = min(t.start for t in self.tracks.values())
+
+        # --- timing of the pseudo mode ---------------------------------------------------------
+        self.prepare_time = 0.0
+        self.wait_time = 0.0
+        self.grab_time = math.inf
+        if self.action_type == "fling":
+            self.prepare_time = float(cfg_get(cfg, "action.fling_prepare_time", 2.0))
+            self.wait_time = float(cfg_get(cfg, "action.fling_wait_time", 3.0))
+            self.grab_time = 0.0
+        else:
+            gt = cfg_get(cfg, "evaluate.start_calculate_time")
+            gt = gt if gt is not None else cfg_get(cfg, "env.grasp.grasp_time")
+            if gt is not None:
+                self.grab_time = float(gt)
+            elif self.sim_type == "fixed_point":
+                log.warning("no grab time (evaluate.start_calculate_time): nothing will be grabbed")
+
+        # --- the server and the scene ------------------------------------------------------------
+        self._own_client = client is None
+        if client is None:
+            if gd.get("target"):
+                client = Client(str(gd["target"]))
+            else:
+                client = Client.spawn(data_dir=gd.get("data_dir"), threads=gd.get("threads"),
+                                      server_bin=gd.get("server_bin"))
+        self.client = client
+        self.scene_id = None
+        try:
+            self._create_scene(gd)
+        except BaseException:
+            self.close()
+            raise
+        self._vertices: Optional[np.ndarray] = None
+        self._failed = False
+
+    def _create_scene(self, gd) -> None:
+        self.pin_mode = "server"  # the server's fixed-point pins (grasp/fold, auto)
+        self.pins = []
+        if self.sim_type == "robot":
+            self.pin_mode = "none"
+        elif self.action_type == "fling":
+            self.pin_mode = "targets"
+            self.pins = [int(i) for i in (cfg_get(self.cfg, "cloth_params.shoulder_index") or [])]
+            if len(self.pins) != 2:
+                raise ValueError("fling needs cloth_params.shoulder_index = [left, right]")
+        elif str(cfg_get(self.cfg, "env.grab_points.mode", "auto")) == "manual":
+            self.pin_mode = "targets"
+            self.pins = [int(i) for i in (cfg_get(self.cfg, "env.grab_points.indices") or [])]
+            if len(self.pins) != 2:
+                raise ValueError("grab_points.mode manual needs grab_points.indices = [left, right]")
+        # fixed_point scenes of the server pin at grab_time; target-driven ones need no server pins
+        mode = "fixed_point" if self.pin_mode == "server" else "pseudo"
+        grab_time = self.grab_time if self.pin_mode == "server" and math.isfinite(self.grab_time) else None
+        if self.pin_mode == "server" and grab_time is None:
+            grab_time = 1e9  # never
+        dt = gd.get("dt", cfg_get(self.cfg, "env.timestep"))
+        common = dict(material=str(gd.get("material", "cotton")), mode=mode,
+                      dt=float(dt) if dt is not None else None,
+                      self_contact=gd.get("self_contact"), grab_time=grab_time)
+        model_path = cfg_get(self.cfg, "cloth.model_path")
+        if model_path:
+            init_pose = cfg_get(self.cfg, "cloth.init_pose", DEFAULT_INIT_POSE)
+            obj = _posed_obj(Path(str(model_path)), list(init_pose))
+            mesh_id = self.client.upload_mesh(obj, name=Path(str(model_path)).stem)
+            ids = self.client.create_scenes(mesh_id=mesh_id, **common)
+        else:
+            ids = self.client.create_scenes(garment=str(gd.get("garment", "tshirt")),
+                                            vertices=int(gd.get("vertices", 2000)), **common)
+        self.scene_id = ids[0]
+        info = self.client.scene_info(self.scene_id)
+        self.dt = float(info["dt"])
+        self.initial_vertices = info["rest_positions"].astype(np.float64)
+        n = len(self.initial_vertices)
+        for i in self.pins:
+            if not 0 <= i < n:
+                raise ValueError(f"pin vertex {i} is out of range: the garment has {n} vertices")
+        self.sim_time = 0.0
+
+    # ------------------------------------------------------------------------------------------
+    # RGBench's interface
+    # ------------------------------------------------------------------------------------------
+    def get_master_start_time(self) -> float:
+        """Absolute Unix time of sim time 0: the earliest first sample of the arm CSVs."""
+        return float(self.master_start_time)
+
+    def get_current_sim_time(self) -> float:
+        """Sim time, s since master_start_time (including the fling preparation)."""
+        return float(self.sim_time)
+
+    def get_sim_vertices(self) -> np.ndarray:
+        """All cloth vertices (N, 3) float64, world frame (m), in the mesh's vertex order."""
+        if self._vertices is None:
+            self._vertices = self.client.get_state([self.scene_id])[0].positions.astype(np.float64)
+        return self._vertices.copy()
+
+    def step(self) -> dict:
+        """One simulation step of dt. Returns {"sim_time", "failed", "failure"}."""
+        if self._failed:
+            return {"sim_time": self.sim_time, "failed": True, "failure": self._failure}
+        t_end = self.sim_time + self.dt
+        state = self.client.step_states([self.scene_id], [self._action(t_end)], substeps=1,
+                                        omit_positions=True)[0]
+        self.sim_time = state.time
+        self._vertices = None
+        if state.failed:
+            self._failed, self._failure = True, state.failure
+            log.warning("the simulation failed at t = %.3f s: %s", state.time, state.failure)
+        return {"sim_time": self.sim_time, "failed": state.failed, "failure": state.failure}
+
+    def step_to_time(self, target_time: float) -> None:
+        """Steps while sim time < target_time (so it ends less than one dt past it). Stops early,
+        with a warning, if the scene failed."""
+        while self.sim_time < target_time - 1e-9 and not self._failed:
+            self.step()
+
+    def close(self) -> None:
+        client, self.client = getattr(self, "client", None), None
+        if client is None:
+            return
+        try:
+            if self.scene_id is not None:
+                client.destroy([self.scene_id])
+        except Exception:  # noqa: BLE001 - the server may be gone
+            pass
+        finally:
+            if self._own_client:
+                client.close()
+
+    # ------------------------------------------------------------------------------------------
+    # per-step commands
+    # ------------------------------------------------------------------------------------------
+    def _traj_time(self, t: float) -> float:
+        """Absolute CSV time at sim time t."""
+        return self.master_start_time + t - self.prepare_time - self.wait_time
+
+    def _action(self, t_end: float) -> dict:
+        action = {}
+        if self.pin_mode in ("server", "none"):
+            for arm, track in self.tracks.items():
+                pos, quat, grip = track.at(self._traj_time(t_end))
+                action[arm] = {"position": pos, "orientation": quat,
+                               "gripper": grip if self.pin_mode == "none" else 0.035}
+            return action
+        # kinematic pins: [left, right] vertices
+        idx, pos = [], []
+        for k, arm in enumerate(("left", "right")):
+            if arm not in self.tracks:
+                continue
+            first = self.tracks[arm].positions[0]
+            if self.action_type == "fling" and t_end < self.prepare_time:
+                a = t_end / self.prepare_time
+                p = (1 - a) * self.initial_vertices[self.pins[k]] + a * first
+            elif self.action_type == "fling" and t_end < self.prepare_time + self.wait_time:
+                p = first
+            elif self.action_type != "fling" and t_end < self.grab_time:
+                continue  # not grabbed yet: free
+            else:
+                p = self.tracks[arm].at(self._traj_time(t_end))[0]
+            idx.append(self.pins[k])
+            pos.append(p)
+        if idx:
+            action["targets"] = (np.array(idx), np.array(pos))
+        return action
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

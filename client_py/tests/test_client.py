@@ -1,0 +1,178 @@
+"""The Client against a real gd-server over loopback gRPC."""
+
+import math
+
+import grpc
+import numpy as np
+import pytest
+from conftest import TOWEL_VERTICES, corner_vertices
+
+from garmentdynamics import Client
+
+
+def lift_actions(corner_pos, closed, z):
+    """Both arms at the two corners (x, y from corner_pos), at height z, gripper closed or open."""
+    return {arm: {"position": (p[0], p[1], z), "orientation": (0, 1, 0, 0), "gripper": 0.0 if closed else 0.035}
+            for arm, p in zip(("left", "right"), corner_pos)}
+
+
+def test_catalogues_and_server_info(client):
+    garments = client.list_garments()
+    assert "towel" in garments["garments"] and "tshirt" in garments["garments"]
+    names = [m["name"] for m in client.list_materials()]
+    assert "cotton" in names and "silk" in names
+    info = client.server_info()
+    assert info["backend"] in ("cpu", "cuda")
+    assert info["max_scenes"] > 0 and info["version"]
+    assert client.health()
+
+
+def test_create_16_scenes_and_step_them_in_one_call(client):
+    ids = client.create_scenes(garment="towel", material="cotton", vertices=TOWEL_VERTICES, count=16, seed=1,
+                               yaw_deg=10, offset_m=0.02)
+    try:
+        assert len(ids) == 16 and len(set(ids)) == 16
+        info = client.scene_info(ids[0])
+        n = info["vertex_count"]
+        assert 150 <= n <= 300
+        assert info["triangles"].dtype == np.int32 and info["triangles"].shape[1] == 3
+        assert info["triangles"].max() == n - 1
+        x = client.step(ids, substeps=3)
+        assert x.shape == (16, n, 3) and x.dtype == np.float32
+        assert np.isfinite(x).all()
+        states = client.get_state(ids)
+        assert [s.scene_id for s in states] == ids
+        assert all(s.steps == 3 and math.isclose(s.time, 3 * info["dt"], rel_tol=1e-9) for s in states)
+        assert all(s.status == "READY" for s in states)
+        # the towel lies on the table: every vertex within a few mm of z = 0 and above it
+        assert x[..., 2].min() > -1e-3 and x[..., 2].max() < 0.02
+    finally:
+        assert client.destroy(ids) == 16
+
+
+def test_step_applies_each_scenes_own_action(client):
+    ids = client.create_scenes(garment="towel", vertices=TOWEL_VERTICES, count=2)
+    try:
+        rest = client.scene_info(ids[0])["rest_positions"]
+        corners = [rest[i] for i in corner_vertices(rest)]
+        # scene 0: arms go to the corners, close, then lift; scene 1: no action at all
+        client.step(ids, [lift_actions(corners, False, 0.0), None])
+        client.step(ids, [lift_actions(corners, True, 0.0), None])
+        for k in range(1, 11):
+            x = client.step(ids, [lift_actions(corners, True, 0.02 * k), None], substeps=2)
+        state = client.get_state(ids)
+        assert state[0].arms["left"]["closed"] and state[0].arms["left"]["held_vertices"] > 0
+        assert state[1].arms["left"]["held_vertices"] == 0
+        # the held corners of scene 0 are at the grippers (0.2 m up); scene 1 still lies flat
+        assert x[0, :, 2].max() == pytest.approx(0.2, abs=0.02)
+        assert x[1, :, 2].max() < 0.02
+    finally:
+        client.destroy(ids)
+
+
+def test_kinematic_targets_move_vertices(client, towel):
+    rest = client.scene_info(towel)["rest_positions"]
+    i, j = corner_vertices(rest)
+    goal = np.array([[rest[i, 0], rest[i, 1], 0.1], [rest[j, 0], rest[j, 1], 0.1]])
+    x = client.step([towel], [{"targets": ([i, j], goal)}], substeps=5)[0]
+    np.testing.assert_allclose(x[[i, j]], goal, atol=1e-4)
+
+
+def test_reset_with_seeds_is_deterministic(client):
+    ids = client.create_scenes(garment="towel", vertices=TOWEL_VERTICES, count=3, yaw_deg=20, offset_m=0.05)
+    try:
+        x = client.reset(ids, seeds=[7, 7, 8])
+        np.testing.assert_array_equal(x[0], x[1])
+        assert np.abs(x[0] - x[2]).max() > 1e-3
+        client.step(ids, substeps=2)
+        x2 = client.reset(ids, seeds=[7, 7, 8])
+        np.testing.assert_array_equal(x, x2)
+        assert all(s.steps == 0 and s.time == 0 for s in client.get_state(ids))
+    finally:
+        client.destroy(ids)
+
+
+def test_stream_frames_made_by_the_stream(client):
+    ids = client.create_scenes(garment="towel", vertices=TOWEL_VERTICES, count=2)
+    try:
+        frames = list(client.stream(ids, every=2, steps=6))
+        assert len(frames) == 6  # 3 frames per scene: steps 2, 4, 6
+        for sid in ids:
+            steps = [f.steps for f in frames if f.scene_id == sid]
+            assert steps == [2, 4, 6]
+        assert all(f.positions.shape == (client.scene_info(ids[0])["vertex_count"], 3) for f in frames)
+    finally:
+        client.destroy(ids)
+
+
+def test_job_with_its_report(client):
+    job = client.submit_job(garment="towel", material="cotton", task="grasp", vertices=200, dt=0.02,
+                            time_scale=4.0, settle=0.1, self_contact=False, label="pytest")
+    report = client.wait_report(job, progress=False, include_files=True)
+    assert report["job"]["job_id"] == job
+    assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+    assert report["job"]["label"] == "pytest" and report["job"]["task"] == "grasp"
+    assert report["summary"]["vertices"] > 0
+    assert "summary.json" in report["file_names"]
+    assert set(report["files"]) == set(report["file_names"])
+    jobs = {j["job_id"]: j for j in client.list_reports()}
+    assert jobs[job]["status"] == "SUCCEEDED"
+    assert client.count_reports() >= 1
+
+
+def test_upload_mesh_and_create_scene_from_it(client, towel, tmp_path):
+    info = client.scene_info(towel)
+    rest = info["rest_positions"] - np.array([0.1, 0.0, 0.01], dtype=np.float32)
+    lines = [f"v {p[0]:.6f} {p[1]:.6f} {p[2]:.6f}" for p in rest]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in info["triangles"]]
+    path = tmp_path / "square.obj"
+    path.write_text("\n".join(lines) + "\n")
+    mesh_id = client.upload_mesh(path)
+    assert any(m["mesh_id"] == mesh_id and m["vertices"] == len(rest) for m in client.list_garments()["meshes"])
+    ids = client.create_scenes(mesh_id=mesh_id, count=1)
+    try:
+        assert client.scene_info(ids[0])["vertex_count"] == len(rest)
+    finally:
+        client.destroy(ids)
+
+
+def expect_code(code, fn, *args, **kwargs):
+    with pytest.raises(grpc.RpcError) as err:
+        fn(*args, **kwargs)
+    assert err.value.code() == code, err.value.details()
+    assert err.value.details()  # a message saying what to fix
+    return err.value
+
+
+def test_errors_surface_as_rpc_errors_with_the_servers_code(client, towel):
+    expect_code(grpc.StatusCode.NOT_FOUND, client.step, ["no-such-scene"])
+    expect_code(grpc.StatusCode.NOT_FOUND, client.get_state, [towel, "no-such-scene"])
+    nan_action = {"left": {"position": (float("nan"), 0.0, 0.1)}}
+    expect_code(grpc.StatusCode.INVALID_ARGUMENT, client.step, [towel], [nan_action])
+    expect_code(grpc.StatusCode.INVALID_ARGUMENT, client.create_scenes, garment="no-such-garment", vertices=200)
+    expect_code(grpc.StatusCode.INVALID_ARGUMENT, client.create_scenes, garment="towel", material="no-such-fabric",
+                vertices=200)
+    expect_code(grpc.StatusCode.INVALID_ARGUMENT, client.submit_job, garment="towel", task="no-such-task",
+                vertices=200)
+    expect_code(grpc.StatusCode.NOT_FOUND, client.get_report, "no-such-job")
+    expect_code(grpc.StatusCode.INVALID_ARGUMENT, client.upload_mesh, b"this is not an OBJ", name="bad")
+    # the scene is unharmed by the refused calls
+    assert client.get_state([towel])[0].status == "READY"
+
+
+def test_client_side_argument_errors(client, towel):
+    with pytest.raises(ValueError):
+        client.step([towel], [None, None])  # two actions for one scene
+    with pytest.raises(ValueError):
+        client.step([towel], [{"left": {"position": (0, 0)}}])
+    with pytest.raises(ValueError):
+        client.create_scenes(vertices=200)  # neither garment nor mesh
+
+
+def test_spawned_server_stops_on_close(server_bin):
+    with Client.spawn(server_bin=server_bin, threads=1) as c:
+        proc = c.server.proc
+        assert c.server_info()["scenes"] == 0
+    assert proc.poll() is not None
+    with Client(c.target, timeout=1.0) as late, pytest.raises(grpc.RpcError):
+        late.server_info()

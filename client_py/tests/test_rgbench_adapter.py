@@ -1,0 +1,140 @@
+"""rgbench_garmentdynamics.GarmentDynamicsEnv against a real gd-server, driven the way RGBench's
+scripts/run_benchmark.py drives a simulator: constructed from the run config, then
+get_master_start_time, step_to_time, get_sim_vertices, get_current_sim_time."""
+
+import csv
+
+import numpy as np
+import pytest
+
+from rgbench_garmentdynamics import GarmentDynamicsEnv, load_pose_csv
+from rgbench_garmentdynamics.trajectory import BASE_OFFSETS
+
+T0 = 1753696464.5  # absolute Unix time of the first sample, as in RGBench's captures
+HEADER = ["time", "pos_1", "pos_2", "pos_3", "pos_4", "pos_5", "pos_6", "pos_gripper",
+          "pos_x", "pos_y", "pos_z", "orn_w", "orn_x", "orn_y", "orn_z"]
+
+
+def world_ee(arm, t):
+    """The synthetic end-effector path (world frame): above the towel's near corner, down, then up."""
+    y = 0.24 if arm == "left" else -0.24
+    z = 0.0 if t < 0.4 else min(0.3, 0.5 * (t - 0.4))
+    return np.array([0.11, y, z])
+
+
+def write_csvs(tmp_path, start_delay=0.0):
+    paths = {}
+    for arm in ("left", "right"):
+        path = tmp_path / f"{arm}_arm_joint_states_and_end_pose.csv"
+        with path.open("w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(HEADER)
+            for k in range(31):  # 3 s at 10 Hz
+                t = 0.1 * k
+                p = world_ee(arm, t) - BASE_OFFSETS[arm]  # the CSV is in the arm's base frame
+                w.writerow([f"{T0 + start_delay + t:.6f}"] + [0.0] * 6 + [0.035] + list(p) + [0.0, 1.0, 0.0, 0.0])
+        paths[arm] = str(path)
+    return paths
+
+
+def make_cfg(paths, action="grasp", sim_type="fixed_point", **extra):
+    cfg = {
+        "env": {"name": "garment_dynamics",
+                "garment_dynamics": {"garment": "towel", "vertices": 200, "dt": 0.02, "self_contact": False}},
+        "sim_model": {"type": sim_type},
+        "action": {"type": action},
+        "evaluate": {"start_calculate_time": 0.3, "end_calculate_time": 2.0},
+        "cloth": {},
+        "cloth_params": {},
+        "data": {"robot_joints": {"left_arm_csv_path": paths["left"], "right_arm_csv_path": paths["right"]},
+                 "sim_start_time": 0.0},
+    }
+    for k, v in extra.items():
+        cfg[k].update(v)
+    return cfg
+
+
+def test_pose_csv_is_read_in_the_world_frame(tmp_path):
+    paths = write_csvs(tmp_path)
+    track = load_pose_csv(paths["left"], "left")
+    assert track.start == pytest.approx(T0)
+    np.testing.assert_allclose(track.at(T0 + 1.0)[0], world_ee("left", 1.0), atol=1e-9)
+    np.testing.assert_allclose(track.at(T0 + 1.05)[0], 0.5 * (world_ee("left", 1.0) + world_ee("left", 1.1)))
+    np.testing.assert_allclose(track.at(T0 - 5)[0], world_ee("left", 0.0))  # clamped
+
+
+def test_fixed_point_grasp_steps_to_time_and_returns_vertices(client, tmp_path):
+    paths = write_csvs(tmp_path)
+    env = GarmentDynamicsEnv(cfg=make_cfg(paths), client=client)
+    try:
+        assert env.get_master_start_time() == pytest.approx(T0)
+        assert env.get_current_sim_time() == 0.0
+        x0 = env.get_sim_vertices()
+        assert x0.ndim == 2 and x0.shape[1] == 3 and len(x0) > 100
+        for target in (0.25, 0.5, 1.03):  # RGBench's frames only go forward in time
+            env.step_to_time(target)
+            t = env.get_current_sim_time()
+            assert target <= t < target + env.dt + 1e-9
+        x = env.get_sim_vertices()
+        assert x.shape == x0.shape and np.isfinite(x).all()
+        # at grab_time 0.3 s each arm pinned its nearest vertex, which now follows the arm
+        t = env.get_current_sim_time()
+        for arm in ("left", "right"):
+            ee = world_ee(arm, t)
+            assert np.linalg.norm(x - ee, axis=1).min() < 0.01
+        assert x[:, 2].max() == pytest.approx(world_ee("left", t)[2], abs=0.01)
+    finally:
+        env.close()
+
+
+def test_fling_drives_the_shoulder_vertices(client, tmp_path):
+    paths = write_csvs(tmp_path, start_delay=0.2)
+    # the towel's near corners play the shoulders
+    probe = GarmentDynamicsEnv(cfg=make_cfg(paths), client=client)
+    rest = probe.initial_vertices
+    probe.close()
+    near = np.flatnonzero(rest[:, 0] < rest[:, 0].min() + 0.02)
+    shoulders = [int(near[np.argmax(rest[near, 1])]), int(near[np.argmin(rest[near, 1])])]
+    cfg = make_cfg(paths, action="fling")
+    cfg["action"].update({"fling_prepare_time": 0.4, "fling_wait_time": 0.2})
+    cfg["cloth_params"]["shoulder_index"] = shoulders
+    env = GarmentDynamicsEnv(cfg=cfg, client=client)
+    try:
+        env.step_to_time(0.2)  # halfway through the approach
+        x = env.get_sim_vertices()
+        first = world_ee("left", 0.0)
+        np.testing.assert_allclose(x[shoulders[0]], 0.5 * (rest[shoulders[0]] + first), atol=2e-3)
+        env.step_to_time(0.6 + 1.0)  # trajectory time 1.0 s
+        x = env.get_sim_vertices()
+        t_traj = env.get_current_sim_time() - 0.6
+        np.testing.assert_allclose(x[shoulders[0]], world_ee("left", t_traj), atol=2e-3)
+        np.testing.assert_allclose(x[shoulders[1]], world_ee("right", t_traj), atol=2e-3)
+    finally:
+        env.close()
+
+
+def test_bad_config_is_refused_with_a_message(tmp_path):
+    paths = write_csvs(tmp_path)
+    with pytest.raises(ValueError, match="sim_model.type"):
+        GarmentDynamicsEnv(cfg=make_cfg(paths, sim_type="magic"))
+    with pytest.raises(ValueError, match="fling"):
+        GarmentDynamicsEnv(cfg=make_cfg(paths, action="fling", sim_type="robot"))
+
+
+def test_cloth_obj_is_uploaded_and_placed_at_init_pose(client, tmp_path, towel):
+    info = client.scene_info(towel)
+    obj_v = info["rest_positions"].astype(np.float64) - [0.1, 0.0, 0.01]  # back into the garment frame
+    lines = [f"v {p[0]:.6f} {p[1]:.6f} {p[2]:.6f}" for p in obj_v]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in info["triangles"]]
+    obj = tmp_path / "towel.obj"
+    obj.write_text("\n".join(lines) + "\n")
+    paths = write_csvs(tmp_path)
+    # RGBench's init_pose: position + quaternion wxyz; here 5 cm further forward, a half turn about z
+    cfg = make_cfg(paths, cloth={"model_path": str(obj), "init_pose": [0.15, 0.0, 0.01, 0.0, 0.0, 0.0, 1.0]})
+    env = GarmentDynamicsEnv(cfg=cfg, client=client)
+    try:
+        x = env.get_sim_vertices()
+        expected = obj_v * [-1, -1, 1] + [0.15, 0.0, 0.01]
+        np.testing.assert_allclose(x, expected, atol=1e-5)
+    finally:
+        env.close()

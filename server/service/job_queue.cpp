@@ -1,0 +1,414 @@
+#include "service/job_queue.h"
+
+#include <fcntl.h>
+#include <spdlog/fmt/fmt.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "experiment/experiment.h"
+#include "garments/generator.h"
+#include "sim/demand.h"
+#include "sim/log.h"
+#include "sim/material.h"
+#include "tasks/grippers.h"
+#include "tasks/trajectory.h"
+
+namespace gd::service {
+namespace fs = std::filesystem;
+using sim::InputError;
+
+namespace {
+
+constexpr const char* kInterruptedMessage = "server stopped while the job ran";
+
+/// Thrown from the progress callback to stop a running experiment when the server drains.
+struct JobCancelled {};
+
+void fsync_path(const fs::path& p) {
+  const int fd = ::open(p.c_str(), O_RDONLY);
+  if (fd >= 0) {
+    ::fsync(fd);
+    ::close(fd);
+  }
+}
+
+/// The regular files under dir, relative, sorted.
+std::vector<std::string> list_files(const fs::path& dir) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec))
+    if (it->is_regular_file()) out.push_back(fs::relative(it->path(), dir).string());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+Status check_number(const std::optional<double>& v, const char* name, bool allow_zero) {
+  if (v && (!std::isfinite(*v) || *v < 0 || (!allow_zero && *v == 0)))
+    return Status::InvalidArgument(fmt::format("{} must be a finite number {} (got {})", name, allow_zero ? ">= 0" : "> 0", *v));
+  return Status::Ok();
+}
+
+}  // namespace
+
+JobQueue::JobQueue(JobQueueOptions options, ReportStore& store, MeshLibrary& meshes)
+    : options_(std::move(options)), store_(store), meshes_(meshes) {
+  if (options_.capture_root.empty()) options_.capture_root = options_.data_dir + "/captures";
+  fs::create_directories(fs::path(options_.data_dir) / "jobs");
+  const int n = store_.interrupt_unfinished(kInterruptedMessage);
+  if (n > 0) gd::log().warn("{} job(s) left unfinished by a previous server are now interrupted", n);
+  for (int i = 0; i < std::max(1, options_.workers); ++i) workers_.emplace_back([this] { worker(); });
+}
+
+JobQueue::~JobQueue() { drain(0); }
+
+int JobQueue::active() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return running_ + static_cast<int>(queue_.size());
+}
+
+Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
+  // --- validation (synchronous: the client hears about bad input now) ---
+  auto cfg = std::make_shared<experiment::ExperimentConfig>();
+  if (spec.garment.empty() == spec.mesh_id.empty())
+    return Status::InvalidArgument("give exactly one of garment (a type from ListGarments) or mesh_id (from UploadMesh)");
+  if (!spec.garment.empty()) {
+    const auto types = garments::garment_types();
+    if (std::find(types.begin(), types.end(), spec.garment) == types.end())
+      return Status::InvalidArgument(fmt::format("unknown garment '{}'; use one of: {}", spec.garment, fmt::join(types, ", ")));
+    cfg->garment = spec.garment;
+  } else {
+    MeshRecord m;
+    GD_RETURN_IF_ERROR(meshes_.get(spec.mesh_id, &m));
+    cfg->garment = m.path;
+  }
+  cfg->material = spec.material.empty() ? "cotton" : spec.material;
+  if (!sim::MaterialLibrary::load_default().has(cfg->material))
+    return Status::InvalidArgument(fmt::format("unknown material '{}'; ListMaterials lists them", cfg->material));
+  if (spec.task.empty()) return Status::InvalidArgument("no task given; use grasp, fold or fling");
+  cfg->task = spec.task;
+  cfg->mode = spec.mode.empty() ? "pseudo" : spec.mode;
+  const int vertices = spec.vertices == 0 ? 2000 : spec.vertices;
+  if (vertices < 0) return Status::InvalidArgument(fmt::format("vertices must be > 0 (got {})", spec.vertices));
+  if (vertices > options_.max_vertices)
+    return Status::ResourceExhausted(fmt::format("vertices {} is over this server's limit of {} (--max-vertices)",
+                                                 vertices, options_.max_vertices));
+  cfg->vertices = vertices;
+  GD_RETURN_IF_ERROR(check_number(spec.dt, "dt", false));
+  GD_RETURN_IF_ERROR(check_number(spec.time_scale, "time_scale", false));
+  GD_RETURN_IF_ERROR(check_number(spec.settle, "settle", true));
+  if (spec.dt) cfg->scene.dt = *spec.dt;
+  if (spec.time_scale) cfg->task_params.time_scale = *spec.time_scale;
+  if (spec.settle) cfg->settle_after = *spec.settle;
+  if (spec.self_contact) cfg->scene.self_contact = *spec.self_contact;
+  cfg->scene.backend = options_.backend;
+  cfg->icp = spec.icp;
+  cfg->plots = options_.plots;
+  if (spec.label.size() > 1024) return Status::InvalidArgument("label is longer than 1024 characters");
+
+  std::optional<tasks::DualArmTrajectory> traj;
+  if (!spec.trajectory.empty()) {
+    try {
+      if (spec.trajectory_format == "csv") {
+        traj = tasks::parse_trajectory_csv(spec.trajectory, "trajectory");
+      } else if (spec.trajectory_format == "json") {
+        traj = tasks::trajectory_from_json(nlohmann::json::parse(spec.trajectory), "trajectory");
+      } else {
+        return Status::InvalidArgument(
+            fmt::format("trajectory_format must be csv or json with a trajectory (got '{}')", spec.trajectory_format));
+      }
+    } catch (const nlohmann::json::exception& e) {
+      return Status::InvalidArgument(fmt::format("trajectory is not valid JSON: {}", e.what()));
+    } catch (const InputError& e) {
+      return Status::InvalidArgument(e.what());
+    }
+  }
+  if (!spec.capture.empty()) {
+    std::error_code ec;
+    const fs::path root = fs::weakly_canonical(options_.capture_root, ec);
+    const fs::path dir = fs::weakly_canonical(root / spec.capture, ec);
+    const auto rel = dir.lexically_relative(root);
+    if (ec || rel.empty() || *rel.begin() == ".." || fs::path(spec.capture).is_absolute())
+      return Status::InvalidArgument(fmt::format("capture '{}' is outside the server's capture root; give a directory "
+                                                 "relative to the capture root", spec.capture));
+    if (!fs::is_directory(dir))
+      return Status::InvalidArgument(fmt::format("capture '{}' is not a directory under the server's capture root",
+                                                 spec.capture));
+    cfg->capture_dir = dir.string();
+  }
+
+  const std::string id = new_id("j-");
+  cfg->out_dir = (fs::path(options_.data_dir) / "jobs" / id).string();
+  if (traj) cfg->trajectory_file = cfg->out_dir + "/input_trajectory." + spec.trajectory_format;
+  try {
+    cfg->validate();
+  } catch (const InputError& e) {
+    return Status::InvalidArgument(e.what());
+  }
+
+  JobRecord rec;
+  rec.job_id = id;
+  rec.status = JobState::kQueued;
+  rec.garment = spec.garment.empty() ? spec.mesh_id : spec.garment;
+  rec.material = cfg->material;
+  rec.task = cfg->task;
+  rec.label = spec.label;
+  rec.created_at = now_iso8601();
+  rec.request_json = nlohmann::json{{"garment", rec.garment},     {"material", cfg->material}, {"task", cfg->task},
+                                    {"mode", cfg->mode},          {"vertices", cfg->vertices}, {"dt", cfg->scene.dt},
+                                    {"time_scale", cfg->task_params.time_scale},
+                                    {"settle", cfg->settle_after}, {"self_contact", cfg->scene.self_contact},
+                                    {"capture", spec.capture},    {"icp", cfg->icp},
+                                    {"trajectory", traj ? spec.trajectory_format : std::string()}}
+                         .dump();
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (draining_) return Status::Unavailable("the server is shutting down; submit the job to another server");
+    if (static_cast<int>(queue_.size()) >= options_.max_queued)
+      return Status::ResourceExhausted(fmt::format("{} jobs are queued already (the limit); wait for some to finish",
+                                                   queue_.size()));
+  }
+  if (traj) {
+    fs::create_directories(cfg->out_dir);
+    std::ofstream f(cfg->trajectory_file, std::ios::binary);
+    f << spec.trajectory;
+    if (!f) return Status::Internal(fmt::format("cannot write '{}'", cfg->trajectory_file));
+  }
+  GD_RETURN_IF_ERROR(store_.insert_job(rec));
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    live_[id] = Live{rec, 1};
+    configs_[id] = cfg;
+    queue_.push_back(id);
+  }
+  cv_.notify_all();
+  gd::log().info("job {} queued: {} {} {} ({} vertices, {})", id, rec.garment, cfg->material, cfg->task, cfg->vertices,
+                 cfg->mode);
+  *job_id = id;
+  return Status::Ok();
+}
+
+void JobQueue::update(const std::string& id, const std::function<void(JobRecord&)>& fn) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    Live& l = live_[id];
+    fn(l.record);
+    ++l.version;
+  }
+  cv_.notify_all();
+}
+
+void JobQueue::worker() {
+  for (;;) {
+    std::string id;
+    {
+      std::unique_lock<std::mutex> lock(mu_);
+      cv_.wait(lock, [this] { return draining_ || !queue_.empty(); });
+      if (draining_) return;
+      id = queue_.front();
+      queue_.pop_front();
+      ++running_;
+    }
+    run_job(id);
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      --running_;
+    }
+    cv_.notify_all();
+  }
+}
+
+void JobQueue::run_job(const std::string& id) {
+  std::shared_ptr<experiment::ExperimentConfig> cfg;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    cfg = configs_[id];
+    configs_.erase(id);
+  }
+  update(id, [](JobRecord& r) { r.status = JobState::kRunning; });
+  if (Status st = store_.set_status(id, JobState::kRunning); !st.ok()) gd::log().error("job {}: {}", id, st.message());
+  gd::log().info("job {} running", id);
+
+  // The final record is stored first and shown to watchers after, so whoever sees a finished
+  // job can read its report.
+  JobRecord final_rec;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    final_rec = live_[id].record;
+  }
+  auto finish = [&](JobState st, std::string message) {
+    final_rec.status = st;
+    final_rec.message = std::move(message);
+    final_rec.finished_at = now_iso8601();
+  };
+  std::string summary;
+  std::vector<std::string> files;
+  auto last = std::chrono::steady_clock::now();
+  try {
+    const experiment::ExperimentResult res =
+        experiment::run_experiment(*cfg, [&](double t, double end, const sim::StepStats&) {
+          if (cancel_.load()) throw JobCancelled{};
+          const auto now = std::chrono::steady_clock::now();
+          if (now - last < std::chrono::milliseconds(100) && t < end) return;
+          last = now;
+          update(id, [&](JobRecord& r) {
+            r.sim_time = t;
+            r.end_time = end;
+            r.progress = end > 0 ? std::min(1.0, t / end) : 1.0;
+          });
+        });
+    summary = res.summary.dump(2);
+    const bool failed = res.summary.value("failed", false);
+    files = list_files(cfg->out_dir);
+    for (const std::string& f : files) fsync_path(fs::path(cfg->out_dir) / f);
+    fsync_path(cfg->out_dir);
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      final_rec = live_[id].record;
+    }
+    finish(failed ? JobState::kFailed : JobState::kSucceeded,
+           failed ? "the simulation failed: " + res.summary.value("failure", std::string()) : "");
+    final_rec.progress = 1;
+    final_rec.sim_time = res.summary.value("sim_seconds", final_rec.sim_time);
+    if (final_rec.end_time < final_rec.sim_time) final_rec.end_time = final_rec.sim_time;
+  } catch (const JobCancelled&) {
+    std::lock_guard<std::mutex> lock(mu_);
+    final_rec = live_[id].record;
+    final_rec.status = JobState::kInterrupted;
+    final_rec.message = kInterruptedMessage;
+    final_rec.finished_at = now_iso8601();
+  } catch (const InputError& e) {
+    finish(JobState::kFailed, e.what());
+  } catch (const std::exception& e) {
+    finish(JobState::kFailed, fmt::format("internal error: {}", e.what()));
+  }
+  if (Status st = store_.complete(final_rec, summary, files); !st.ok())
+    gd::log().error("job {}: storing the report failed: {}", id, st.message());
+  update(id, [&](JobRecord& r) { r = final_rec; });
+  gd::log().info("job {} {}{}", id, job_state_name(final_rec.status),
+                 final_rec.message.empty() ? "" : ": " + final_rec.message);
+}
+
+Status JobQueue::info(const std::string& job_id, JobRecord* out) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = live_.find(job_id);
+    if (it != live_.end()) {
+      *out = it->second.record;
+      return Status::Ok();
+    }
+  }
+  StoredReport r;
+  GD_RETURN_IF_ERROR(store_.get(job_id, &r));
+  *out = r.job;
+  return Status::Ok();
+}
+
+Status JobQueue::wait(const std::string& job_id, uint64_t* version, JobRecord* out, int timeout_ms) {
+  std::unique_lock<std::mutex> lock(mu_);
+  auto it = live_.find(job_id);
+  if (it == live_.end()) {
+    lock.unlock();
+    GD_RETURN_IF_ERROR(info(job_id, out));
+    *version = 1;
+    return Status::Ok();
+  }
+  cv_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] { return it->second.version != *version; });
+  *out = it->second.record;
+  *version = it->second.version;
+  return Status::Ok();
+}
+
+Status JobQueue::report(const std::string& job_id, bool include_files, size_t max_file_bytes, JobReport* out) {
+  JobRecord live;
+  GD_RETURN_IF_ERROR(info(job_id, &live));
+  if (!job_finished(live.status))
+    return Status::FailedPrecondition(fmt::format("job '{}' is {} ({:.0f}% done); wait for it to finish (WatchJob)",
+                                                  job_id, job_state_name(live.status), 100 * live.progress));
+  StoredReport r;
+  GD_RETURN_IF_ERROR(store_.get(job_id, &r));
+  out->job = r.job;
+  out->summary_json = r.summary_json;
+  out->file_names = r.files;
+  out->files.clear();
+  if (!include_files) return Status::Ok();
+  const fs::path dir = fs::path(options_.data_dir) / "jobs" / job_id;
+  size_t total = 0;
+  for (const std::string& name : r.files) {
+    if (name.rfind("frames/", 0) == 0) continue;
+    std::error_code ec;
+    const auto size = fs::file_size(dir / name, ec);
+    if (ec) continue;  // removed by hand since
+    if (total + size > max_file_bytes) {
+      gd::log().warn("job {}: file {} left out of the report ({} bytes over the {} byte cap)", job_id, name,
+                     total + size, max_file_bytes);
+      continue;
+    }
+    std::ifstream f(dir / name, std::ios::binary);
+    std::ostringstream ss;
+    ss << f.rdbuf();
+    total += size;
+    out->files.emplace_back(name, ss.str());
+  }
+  return Status::Ok();
+}
+
+Status JobQueue::list(int limit, int offset, std::vector<JobRecord>* out, int* total) {
+  if (limit < 0 || offset < 0) return Status::InvalidArgument("limit and offset must be >= 0");
+  if (limit == 0) limit = 100;
+  if (limit > 10000) return Status::InvalidArgument("limit must be at most 10000");
+  GD_RETURN_IF_ERROR(store_.list(limit, offset, out, total));
+  std::lock_guard<std::mutex> lock(mu_);
+  for (JobRecord& r : *out) {  // live progress of this process's jobs
+    auto it = live_.find(r.job_id);
+    if (it != live_.end()) {
+      r.progress = it->second.record.progress;
+      r.sim_time = it->second.record.sim_time;
+      r.end_time = it->second.record.end_time;
+      r.status = it->second.record.status;
+      r.message = it->second.record.message;
+      r.finished_at = it->second.record.finished_at;
+    }
+  }
+  return Status::Ok();
+}
+
+void JobQueue::drain(double grace_seconds) {
+  std::vector<std::string> dropped;
+  {
+    std::unique_lock<std::mutex> lock(mu_);
+    if (!draining_) {
+      draining_ = true;
+      dropped.assign(queue_.begin(), queue_.end());
+      queue_.clear();
+      gd::log().info("jobs: draining ({} running, {} queued dropped)", running_, dropped.size());
+    }
+  }
+  cv_.notify_all();
+  for (const std::string& id : dropped) {
+    update(id, [&](JobRecord& r) {
+      r.status = JobState::kInterrupted;
+      r.message = "server stopped before the job ran";
+      r.finished_at = now_iso8601();
+    });
+    store_.set_status(id, JobState::kInterrupted, "server stopped before the job ran");
+  }
+  {
+    std::unique_lock<std::mutex> lock(mu_);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(std::max(0.0, grace_seconds));
+    if (!cv_.wait_until(lock, deadline, [this] { return running_ == 0; })) {
+      gd::log().warn("jobs: {} still running after the {} s grace period; interrupting them", running_, grace_seconds);
+      cancel_ = true;
+    }
+  }
+  for (std::thread& t : workers_)
+    if (t.joinable()) t.join();
+}
+
+}  // namespace gd::service

@@ -1,0 +1,127 @@
+#pragma once
+/// \file
+/// JobQueue: whole rollouts (experiment::run_experiment) run by background workers, with
+/// progress kept in memory and the finished report stored in the ReportStore. No gRPC here.
+///
+/// Lifecycle: submit() validates everything it can (garment, material, task, mode, numbers,
+/// trajectory text, capture directory inside the capture root) and returns the id at once with
+/// the job QUEUED (row written to SQLite). A worker sets it RUNNING, runs the experiment with its
+/// files under DATA_DIR/jobs/<job_id>/, and on completion writes the summary, the file names and
+/// the final status (SUCCEEDED, or FAILED when the simulation failed or the input was refused) in
+/// one transaction. At construction, rows a previous process left QUEUED/RUNNING become
+/// INTERRUPTED. drain() stops taking jobs, lets running ones finish within a grace period, and
+/// then interrupts them (INTERRUPTED, "server stopped while the job ran").
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "service/mesh_library.h"
+#include "service/report_store.h"
+#include "service/status.h"
+#include "sim/solver/options.h"
+
+namespace gd::experiment {
+struct ExperimentConfig;
+}
+
+namespace gd::service {
+
+/// A job request in plain types (the proto's SubmitJobRequest).
+struct JobSpec {
+  std::string garment;              ///< a garment type, or
+  std::string mesh_id;              ///< an uploaded mesh
+  std::string material;             ///< default cotton
+  std::string task;                 ///< grasp | fold | fling
+  std::string mode;                 ///< pseudo (default) | fixed_point
+  int vertices = 0;                 ///< 0: 2000
+  std::string trajectory;           ///< optional CSV or JSON text
+  std::string trajectory_format;    ///< csv | json (required with trajectory)
+  std::string capture;              ///< optional, relative to the capture root
+  std::optional<double> dt, time_scale, settle;
+  std::optional<bool> self_contact;
+  bool icp = false;
+  std::string label;
+};
+
+struct JobQueueOptions {
+  std::string data_dir;             ///< jobs go to data_dir/jobs/<id>/
+  std::string capture_root;         ///< captures are resolved under it (empty: data_dir/captures)
+  int workers = 1;
+  int max_vertices = 50000;
+  int max_queued = 1000;            ///< queued jobs at once
+  bool plots = false;               ///< draw the PNG plots of capture runs (needs Python + matplotlib)
+  sim::BackendKind backend = sim::BackendKind::kCpu;
+};
+
+/// A finished job's report with (optionally) its files' bytes.
+struct JobReport {
+  JobRecord job;
+  std::string summary_json;
+  std::vector<std::string> file_names;
+  std::vector<std::pair<std::string, std::string>> files;  ///< name, bytes
+};
+
+class JobQueue {
+ public:
+  /// Marks leftover unfinished jobs interrupted and starts the workers.
+  JobQueue(JobQueueOptions options, ReportStore& store, MeshLibrary& meshes);
+  /// drain(0).
+  ~JobQueue();
+  JobQueue(const JobQueue&) = delete;
+  JobQueue& operator=(const JobQueue&) = delete;
+
+  const JobQueueOptions& options() const { return options_; }
+
+  /// Validates and queues a job. UNAVAILABLE while draining.
+  Status submit(const JobSpec& spec, std::string* job_id);
+  /// The job's record (live progress for this process's jobs). NOT_FOUND for unknown ids.
+  Status info(const std::string& job_id, JobRecord* out);
+  /// Waits up to timeout_ms for the job's record to change from `*version`, then returns the
+  /// record and its version (version 0 on the first call returns at once).
+  Status wait(const std::string& job_id, uint64_t* version, JobRecord* out, int timeout_ms);
+  /// The report of a finished job; FAILED_PRECONDITION while it is queued or running. With
+  /// include_files the files' bytes too (skipping frames/, at most max_file_bytes in total).
+  Status report(const std::string& job_id, bool include_files, size_t max_file_bytes, JobReport* out);
+  /// Jobs newest first (limit 0: 100).
+  Status list(int limit, int offset, std::vector<JobRecord>* out, int* total);
+  /// Jobs queued or running now.
+  int active() const;
+
+  /// Stops taking jobs, waits up to grace_seconds for the running ones, then interrupts them and
+  /// the queued ones. Idempotent.
+  void drain(double grace_seconds);
+
+ private:
+  struct Live {
+    JobRecord record;
+    uint64_t version = 1;
+  };
+  void worker();
+  void run_job(const std::string& id);
+  void update(const std::string& id, const std::function<void(JobRecord&)>& fn);
+
+  JobQueueOptions options_;
+  ReportStore& store_;
+  MeshLibrary& meshes_;
+  mutable std::mutex mu_;
+  std::condition_variable cv_;       ///< queue and record changes
+  std::deque<std::string> queue_;
+  std::map<std::string, Live> live_;
+  std::map<std::string, std::shared_ptr<experiment::ExperimentConfig>> configs_;  ///< of queued jobs
+  int running_ = 0;
+  bool draining_ = false;
+  std::atomic<bool> cancel_{false};
+  std::vector<std::thread> workers_;
+};
+
+}  // namespace gd::service

@@ -1,0 +1,114 @@
+// gd-server: parses flags, builds the server (server.h), waits for SIGTERM/SIGINT, drains, exits 0.
+#include <CLI/CLI.hpp>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <pthread.h>
+#include <spdlog/pattern_formatter.h>
+#include <thread>
+
+#include "service/server.h"
+#include "sim/log.h"
+
+namespace {
+
+/// %* in a pattern: the message as a JSON string body (quotes, backslashes, control characters escaped).
+class JsonMessageFlag : public spdlog::custom_flag_formatter {
+ public:
+  void format(const spdlog::details::log_msg& msg, const std::tm&, spdlog::memory_buf_t& dest) override {
+    for (char c : msg.payload) {
+      switch (c) {
+        case '"': dest.append(std::string_view("\\\"")); break;
+        case '\\': dest.append(std::string_view("\\\\")); break;
+        case '\n': dest.append(std::string_view("\\n")); break;
+        case '\r': dest.append(std::string_view("\\r")); break;
+        case '\t': dest.append(std::string_view("\\t")); break;
+        default:
+          if (static_cast<unsigned char>(c) < 0x20) {
+            char buf[8];
+            std::snprintf(buf, sizeof buf, "\\u%04x", c);
+            dest.append(std::string_view(buf));
+          } else {
+            dest.push_back(c);
+          }
+      }
+    }
+  }
+  std::unique_ptr<custom_flag_formatter> clone() const override { return std::make_unique<JsonMessageFlag>(); }
+};
+
+void use_json_log() {
+  auto f = std::make_unique<spdlog::pattern_formatter>(spdlog::pattern_time_type::utc, std::string("\n"));
+  f->add_flag<JsonMessageFlag>('*').set_pattern(
+      R"({"time":"%Y-%m-%dT%H:%M:%S.%eZ","level":"%l","logger":"%n","thread":%t,"msg":"%*"})");
+  gd::log().set_formatter(std::move(f));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  gd::service::ServerOptions o;
+  std::string backend = "cpu", log_format = "text", log_level = "info", port_file;
+  CLI::App app{"gd-server: the GarmentDynamics gRPC service (docs/service.md)"};
+  app.add_option("--host", o.host, "address to listen on")->capture_default_str();
+  app.add_option("--port", o.port, "TCP port (0: pick a free one, printed and written to --port-file)")
+      ->required()->check(CLI::Range(0, 65535));
+  app.add_option("--port-file", port_file, "write the bound port to this file once listening");
+  app.add_option("--data-dir", o.data_dir, "directory of the SQLite store, jobs and meshes")->required();
+  app.add_option("--capture-root", o.capture_root, "jobs' captures are resolved under it (default DATA_DIR/captures)");
+  app.add_option("--backend", backend, "cpu | cuda | auto")->check(CLI::IsMember({"cpu", "cuda", "auto"}))->capture_default_str();
+  app.add_option("--threads", o.threads, "scene worker threads (0: hardware concurrency)")->check(CLI::NonNegativeNumber);
+  app.add_option("--max-scenes", o.max_scenes, "scenes alive at once")->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--max-vertices", o.max_vertices, "vertices per scene")->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--max-substeps", o.max_substeps, "substeps per StepScenes call")->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--max-message-mb", o.max_message_mb, "largest message received or sent, MiB")->check(CLI::Range(1, 2000))->capture_default_str();
+  app.add_option("--job-workers", o.job_workers, "jobs run at once")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_flag("--plots", o.plots, "draw the PNG plots of capture jobs (needs Python with matplotlib)");
+  app.add_option("--grace-seconds", o.grace_seconds, "on SIGTERM: how long running jobs may still take")->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--log-format", log_format, "text | json (one JSON object per line)")->check(CLI::IsMember({"text", "json"}))->capture_default_str();
+  app.add_option("--log-level", log_level, "trace | debug | info | warn | error")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  o.backend = backend == "cuda" ? gd::sim::BackendKind::kCuda : backend == "auto" ? gd::sim::BackendKind::kAuto
+                                                                                  : gd::sim::BackendKind::kCpu;
+  if (log_format == "json") use_json_log();
+  gd::log().set_level(spdlog::level::from_str(log_level));
+  gd::log().flush_on(spdlog::level::info);
+
+  // SIGTERM/SIGINT are taken by a watcher thread (sigwait), never by an asynchronous handler:
+  // blocked here, before any thread starts, so every thread inherits the mask.
+  sigset_t sigs;
+  sigemptyset(&sigs);
+  sigaddset(&sigs, SIGTERM);
+  sigaddset(&sigs, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
+
+  gd::service::Status st;
+  auto server = gd::service::Server::start(o, &st);
+  if (!server) {
+    gd::log().error("gd-server: {}", st.message());
+    return 2;
+  }
+  if (!port_file.empty()) {
+    const std::string tmp = port_file + ".tmp";
+    {
+      std::ofstream f(tmp);
+      f << server->port() << "\n";
+    }
+    std::rename(tmp.c_str(), port_file.c_str());
+  }
+  std::printf("listening on %s\n", server->address().c_str());
+  std::fflush(stdout);
+
+  std::thread watcher([&] {
+    int sig = 0;
+    sigwait(&sigs, &sig);
+    gd::log().info("signal {}: draining", sig);
+    server->drain();
+  });
+  server->wait();
+  watcher.join();
+  server.reset();
+  gd::log().info("gd-server exits");
+  return 0;
+}

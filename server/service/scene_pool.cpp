@@ -1,0 +1,610 @@
+#include "service/scene_pool.h"
+
+#include <omp.h>
+#include <spdlog/fmt/fmt.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "experiment/experiment.h"
+#include "garments/generator.h"
+#include "sim/demand.h"
+#include "sim/log.h"
+#include "sim/material.h"
+#include "sim/scene.h"
+#include "tasks/grippers.h"
+#include "tasks/trajectory.h"
+
+namespace gd::service {
+
+using sim::InputError;
+
+// --- FrameSubscription ------------------------------------------------------------------------
+
+bool FrameSubscription::pop(SceneSnapshot* out, int timeout_ms) {
+  std::unique_lock<std::mutex> lock(mu_);
+  cv_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [this] { return !frames_.empty() || open_scenes_ == 0; });
+  if (frames_.empty()) return false;
+  *out = std::move(frames_.front());
+  frames_.pop_front();
+  return true;
+}
+
+bool FrameSubscription::finished() {
+  std::lock_guard<std::mutex> lock(mu_);
+  return open_scenes_ == 0 && frames_.empty();
+}
+
+void FrameSubscription::push(SceneSnapshot s) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    frames_.push_back(std::move(s));
+  }
+  cv_.notify_all();
+}
+
+void FrameSubscription::scene_closed() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (open_scenes_ > 0) --open_scenes_;
+  }
+  cv_.notify_all();
+}
+
+// --- scenes -------------------------------------------------------------------------------------
+
+Eigen::Isometry3d home_pose(tasks::Arm arm) {
+  return tasks::make_pose(tasks::base_offset(arm) + Vec3(0, 0, 0.3), tasks::top_down_orientation());
+}
+
+namespace {
+
+/// What the scenes of one create() share: the placed garment, material and options.
+struct Template {
+  sim::Mesh mesh;                  ///< placed at default_garment_pose(), seed 0
+  sim::Material material;
+  sim::SceneOptions options;
+  tasks::GripperOptions grippers;
+  std::string mode;
+  double yaw_deg = 0, offset_m = 0;
+  SceneInfo info;
+};
+
+/// Uniform in [-1, 1] from the generator's next 53 bits (the same on every standard library).
+double symmetric_unit(std::mt19937_64& rng) { return 2.0 * double(rng() >> 11) * 0x1.0p-53 - 1.0; }
+
+/// The placed mesh rigidly moved by a seed's yaw (about z through the centroid) and x/y offset.
+sim::Mesh randomized_mesh(const Template& t, uint64_t seed) {
+  sim::Mesh m = t.mesh;
+  if (seed == 0 || (t.yaw_deg == 0 && t.offset_m == 0)) return m;
+  std::mt19937_64 rng(seed);
+  const double yaw = symmetric_unit(rng) * t.yaw_deg * M_PI / 180.0;
+  const double dx = symmetric_unit(rng) * t.offset_m, dy = symmetric_unit(rng) * t.offset_m;
+  Vec3 c = Vec3::Zero();
+  for (const Vec3& p : m.x) c += p;
+  c /= double(m.x.size());
+  c.z() = 0;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(yaw, Vec3::UnitZ()).toRotationMatrix();
+  for (Vec3& p : m.x) p = c + R * (p - c) + Vec3(dx, dy, 0);
+  return m;
+}
+
+std::unique_ptr<tasks::GripperController> make_controller(const tasks::GripperOptions& go) {
+  tasks::DualArmTrajectory traj;
+  for (tasks::Arm a : {tasks::Arm::kLeft, tasks::Arm::kRight}) {
+    const Eigen::Isometry3d h = home_pose(a);
+    tasks::ArmSample s;
+    s.t = 0;
+    s.position = h.translation();
+    s.orientation = Eigen::Quaterniond(h.linear());
+    s.gripper = tasks::kGripperOpen;
+    traj.arm(a) = tasks::ArmTrajectory({s}, fmt::format("{} arm home pose", tasks::arm_name(a)));
+  }
+  return std::make_unique<tasks::GripperController>(std::move(traj), go);
+}
+
+const sim::MaterialLibrary& materials() {
+  static const sim::MaterialLibrary lib = sim::MaterialLibrary::load_default();
+  return lib;
+}
+
+bool finite(const Vec3& v) { return v.allFinite(); }
+
+}  // namespace
+
+struct ScenePool::Entry {
+  std::mutex mu;
+  std::string id;
+  std::shared_ptr<const Template> tmpl;
+  uint64_t seed = 0;
+  std::unique_ptr<sim::Scene> scene;
+  std::unique_ptr<tasks::GripperController> controller;
+  int64_t steps = 0;
+  std::vector<int> target_groups;
+  std::string error;        ///< an unexpected error while stepping (the scene counts as failed)
+  bool destroyed = false;
+  int newton = 0, pcg = 0, contacts = 0;
+  double wall_ms = 0;
+  std::vector<std::weak_ptr<FrameSubscription>> subscribers;
+
+  /// (Re)builds the scene and controller at the seed's initial pose. Throws InputError.
+  void build(uint64_t s) {
+    seed = s;
+    scene = sim::Scene::create(randomized_mesh(*tmpl, s), tmpl->material, tmpl->options);
+    controller = make_controller(tmpl->grippers);
+    steps = 0;
+    target_groups.clear();
+    error.clear();
+    newton = pcg = contacts = 0;
+    wall_ms = 0;
+  }
+  bool failed() const { return scene->failed() || !error.empty(); }
+
+  SceneSnapshot snapshot(bool positions, bool velocities) const {
+    SceneSnapshot s;
+    s.scene_id = id;
+    s.failed = failed();
+    s.failure = !error.empty() ? error : scene->failure();
+    s.time = scene->time();
+    s.steps = steps;
+    if (positions) s.positions = scene->positions();
+    if (velocities) s.velocities = scene->velocities();
+    for (int a = 0; a < 2; ++a) {
+      const tasks::ArmState& st = controller->state(static_cast<tasks::Arm>(a));
+      s.arms[a].closed = st.closed;
+      s.arms[a].held_vertices = static_cast<int>(st.held.size());
+    }
+    s.newton_iterations = newton;
+    s.pcg_iterations = pcg;
+    s.active_contacts = contacts;
+    s.wall_ms = wall_ms;
+    return s;
+  }
+
+  /// Queues a frame for the subscribers whose period divides the step count.
+  void publish() {
+    if (subscribers.empty()) return;
+    std::optional<SceneSnapshot> snap;
+    for (auto it = subscribers.begin(); it != subscribers.end();) {
+      std::shared_ptr<FrameSubscription> sub = it->lock();
+      if (!sub) {
+        it = subscribers.erase(it);
+        continue;
+      }
+      if (steps % sub->every() == 0) {
+        if (!snap) snap = snapshot(true, false);
+        sub->push(*snap);
+      }
+      ++it;
+    }
+  }
+
+  void close_subscribers() {
+    for (auto& w : subscribers)
+      if (auto sub = w.lock()) sub->scene_closed();
+    subscribers.clear();
+  }
+};
+
+ScenePool::ScenePool(PoolOptions options)
+    : options_([&] {
+        if (options.threads <= 0) options.threads = std::max(1u, std::thread::hardware_concurrency());
+        if (options.max_scenes < 0 || options.max_vertices < 0 || options.max_substeps < 0)
+          throw InputError("scene pool limits must be >= 0");
+        return options;
+      }()),
+      pool_(options_.threads) {}
+
+ScenePool::~ScenePool() {
+  std::lock_guard<std::mutex> lock(mu_);
+  for (auto& [id, e] : scenes_) {
+    std::lock_guard<std::mutex> l(e->mu);
+    e->close_subscribers();
+  }
+}
+
+int ScenePool::size() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return static_cast<int>(scenes_.size());
+}
+
+Status ScenePool::lookup(const std::vector<std::string>& ids, std::vector<std::shared_ptr<Entry>>* out) const {
+  if (ids.empty()) return Status::InvalidArgument("no scene ids given; pass the ids that CreateScenes returned");
+  std::set<std::string> seen;
+  out->clear();
+  std::lock_guard<std::mutex> lock(mu_);
+  for (const std::string& id : ids) {
+    if (!seen.insert(id).second)
+      return Status::InvalidArgument(fmt::format("scene '{}' is named twice; name each scene once per call", id));
+    auto it = scenes_.find(id);
+    if (it == scenes_.end())
+      return Status::NotFound(fmt::format("no scene '{}' on this server (destroyed, never created, or created "
+                                          "before a restart); create scenes with CreateScenes", id));
+    out->push_back(it->second);
+  }
+  return Status::Ok();
+}
+
+namespace {
+
+/// Locks the entries in id order (a global order, so concurrent calls cannot deadlock).
+std::vector<std::unique_lock<std::mutex>> lock_all(const std::vector<std::shared_ptr<ScenePool::Entry>>& entries) {
+  std::vector<ScenePool::Entry*> order;
+  for (const auto& e : entries) order.push_back(e.get());
+  std::sort(order.begin(), order.end(), [](auto* a, auto* b) { return a->id < b->id; });
+  std::vector<std::unique_lock<std::mutex>> locks;
+  for (ScenePool::Entry* e : order) locks.emplace_back(e->mu);
+  return locks;
+}
+
+Status check_alive(const std::vector<std::shared_ptr<ScenePool::Entry>>& entries) {
+  for (const auto& e : entries)
+    if (e->destroyed) return Status::NotFound(fmt::format("scene '{}' was destroyed", e->id));
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
+  // Cheap checks first: nothing is built for a bad request.
+  const int count = spec.count == 0 ? 1 : spec.count;
+  if (count < 0) return Status::InvalidArgument(fmt::format("count must be >= 1 (got {})", spec.count));
+  const int vertices = spec.vertices == 0 ? 2000 : spec.vertices;
+  if (vertices < 0) return Status::InvalidArgument(fmt::format("vertices must be > 0 (got {})", spec.vertices));
+  if (vertices > options_.max_vertices)
+    return Status::ResourceExhausted(fmt::format("vertices {} is over this server's limit of {} per scene "
+                                                 "(ask for fewer, or start the server with a larger --max-vertices)",
+                                                 vertices, options_.max_vertices));
+  const std::string mode = spec.mode.empty() ? "pseudo" : spec.mode;
+  if (mode != "pseudo" && mode != "fixed_point")
+    return Status::InvalidArgument(fmt::format("unknown mode '{}'; use pseudo or fixed_point", mode));
+  if (spec.mesh_path.empty()) {
+    if (spec.garment.empty())
+      return Status::InvalidArgument("no garment given: set garment (a type from ListGarments) or mesh_id (from UploadMesh)");
+    const auto types = garments::garment_types();
+    if (std::find(types.begin(), types.end(), spec.garment) == types.end())
+      return Status::InvalidArgument(fmt::format("unknown garment '{}'; use one of: {}", spec.garment,
+                                                 fmt::join(types, ", ")));
+  }
+  const std::string material = spec.material.empty() ? "cotton" : spec.material;
+  auto bad_number = [](const std::optional<double>& v) { return v && !std::isfinite(*v); };
+  if (bad_number(spec.dt) || (spec.dt && *spec.dt <= 0))
+    return Status::InvalidArgument(fmt::format("settings.dt must be a finite number > 0 s (got {})", *spec.dt));
+  if (spec.dt && *spec.dt > 0.1)
+    return Status::InvalidArgument(fmt::format("settings.dt {} s is too large; use at most 0.1 s", *spec.dt));
+  if (bad_number(spec.jaw_radius) || (spec.jaw_radius && *spec.jaw_radius < 0))
+    return Status::InvalidArgument("settings.jaw_radius must be a finite number >= 0 m");
+  if (bad_number(spec.grab_time) || (spec.grab_time && *spec.grab_time < 0))
+    return Status::InvalidArgument("settings.grab_time must be a finite number >= 0 s");
+  if (!std::isfinite(spec.yaw_deg) || spec.yaw_deg < 0 || spec.yaw_deg > 180)
+    return Status::InvalidArgument(fmt::format("randomization.yaw_deg must be in [0, 180] (got {})", spec.yaw_deg));
+  if (!std::isfinite(spec.offset_m) || spec.offset_m < 0 || spec.offset_m > 1)
+    return Status::InvalidArgument(fmt::format("randomization.offset_m must be in [0, 1] m (got {})", spec.offset_m));
+
+  // Reserve the slots, so concurrent creates cannot overshoot the limit together.
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    const int have = static_cast<int>(scenes_.size()) + reserved_;
+    if (count > options_.max_scenes - have)
+      return Status::ResourceExhausted(fmt::format(
+          "{} more scenes would exceed this server's limit of {} (alive or being created: {}); destroy scenes or "
+          "start the server with a larger --max-scenes",
+          count, options_.max_scenes, have));
+    reserved_ += count;
+  }
+  struct Release {
+    ScenePool* p;
+    int n;
+    ~Release() {
+      std::lock_guard<std::mutex> lock(p->mu_);
+      p->reserved_ -= n;
+    }
+  } release{this, count};
+
+  try {
+    auto t = std::make_shared<Template>();
+    experiment::ExperimentConfig cfg;
+    cfg.garment = spec.mesh_path.empty() ? spec.garment : spec.mesh_path;
+    cfg.vertices = vertices;
+    const garments::Garment garment = experiment::make_experiment_garment(cfg);
+    if (static_cast<int>(garment.mesh.x.size()) > options_.max_vertices)
+      return Status::ResourceExhausted(fmt::format("the garment has {} vertices, over this server's limit of {} per "
+                                                   "scene (start the server with a larger --max-vertices)",
+                                                   garment.mesh.x.size(), options_.max_vertices));
+    t->mesh = garment.mesh;
+    const Eigen::Isometry3d place = tasks::default_garment_pose();
+    for (Vec3& p : t->mesh.x) p = place * p;
+    t->material = materials().get(material);
+    t->options = experiment::ExperimentConfig::default_scene_options();
+    if (spec.dt) t->options.dt = *spec.dt;
+    else t->options.dt = 0.01;
+    if (spec.self_contact) t->options.self_contact = *spec.self_contact;
+    t->options.backend = options_.backend;
+    t->options.validate();
+    t->grippers.mode = mode == "fixed_point" ? tasks::GraspMode::kFixedPoint : tasks::GraspMode::kPseudoGrasp;
+    t->grippers.action = tasks::TaskKind::kGrasp;
+    if (spec.jaw_radius) t->grippers.jaw_radius = *spec.jaw_radius;
+    if (spec.grab_time) t->grippers.grab_time = *spec.grab_time;
+    t->grippers.validate();
+    t->mode = mode;
+    t->yaw_deg = spec.yaw_deg;
+    t->offset_m = spec.offset_m;
+    t->info.vertex_count = static_cast<int>(t->mesh.x.size());
+    t->info.triangles = t->mesh.tris;
+    t->info.rest_positions = t->mesh.x;
+    t->info.dt = t->options.dt;
+    t->info.mode = mode;
+    t->info.left_shoulder_vertex = garment.landmarks.left_shoulder_vertex;
+    t->info.right_shoulder_vertex = garment.landmarks.right_shoulder_vertex;
+
+    std::vector<std::shared_ptr<Entry>> made(count);
+    std::vector<std::string> errors(count);
+    pool_.run(count, [&](int i) {
+      try {
+        omp_set_num_threads(std::max(1, threads() / count));
+        auto e = std::make_shared<Entry>();
+        e->tmpl = t;
+        e->build(spec.seed);
+        made[i] = std::move(e);
+      } catch (const std::exception& ex) {
+        errors[i] = ex.what();
+      }
+    });
+    for (const std::string& err : errors)
+      if (!err.empty()) return Status::InvalidArgument(err);
+    t->info.backend = made[0]->scene->backend();
+
+    out->ids.clear();
+    out->states.clear();
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      for (auto& e : made) {
+        e->id = fmt::format("s-{}", next_id_++);
+        scenes_[e->id] = e;
+        out->ids.push_back(e->id);
+      }
+    }
+    for (auto& e : made) {
+      std::lock_guard<std::mutex> l(e->mu);
+      out->states.push_back(e->snapshot(true, false));
+    }
+    out->info = t->info;
+    return Status::Ok();
+  } catch (const InputError& e) {
+    return Status::InvalidArgument(e.what());
+  } catch (const std::exception& e) {
+    return Status::Internal(fmt::format("creating scenes failed: {}", e.what()));
+  }
+}
+
+Status ScenePool::reset(const std::vector<std::string>& ids, const std::vector<uint64_t>& seeds,
+                        std::vector<SceneSnapshot>* out) {
+  if (!seeds.empty() && seeds.size() != 1 && seeds.size() != ids.size())
+    return Status::InvalidArgument(fmt::format("give no seed, one seed, or one per scene ({}); got {}", ids.size(),
+                                               seeds.size()));
+  std::vector<std::shared_ptr<Entry>> entries;
+  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  auto locks = lock_all(entries);
+  GD_RETURN_IF_ERROR(check_alive(entries));
+  std::vector<std::string> errors(entries.size());
+  pool_.run(static_cast<int>(entries.size()), [&](int i) {
+    Entry& e = *entries[i];
+    const uint64_t seed = seeds.empty() ? e.seed : seeds.size() == 1 ? seeds[0] : seeds[i];
+    try {
+      e.build(seed);
+    } catch (const std::exception& ex) {
+      errors[i] = ex.what();
+    }
+  });
+  out->clear();
+  for (size_t i = 0; i < entries.size(); ++i) {
+    if (!errors[i].empty()) return Status::Internal(fmt::format("reset of '{}' failed: {}", entries[i]->id, errors[i]));
+    out->push_back(entries[i]->snapshot(true, false));
+  }
+  return Status::Ok();
+}
+
+namespace {
+
+/// Checks one action against its scene's vertex count; normalises nothing.
+Status check_action(const SceneAction& a, int vertex_count) {
+  bool named[2] = {false, false};
+  for (const ArmCommand& c : a.arms) {
+    const int i = static_cast<int>(c.arm);
+    if (i < 0 || i > 1)
+      return Status::InvalidArgument(fmt::format("scene '{}': arm must be ARM_LEFT or ARM_RIGHT", a.scene_id));
+    if (named[i])
+      return Status::InvalidArgument(
+          fmt::format("scene '{}': the {} arm is commanded twice; one command per arm", a.scene_id, tasks::arm_name(c.arm)));
+    named[i] = true;
+    if (!finite(c.position))
+      return Status::InvalidArgument(fmt::format("scene '{}': the {} arm's position is not finite", a.scene_id,
+                                                 tasks::arm_name(c.arm)));
+    const Eigen::Vector4d q = c.orientation.coeffs();
+    if (!q.allFinite() || q.norm() < 1e-6)
+      return Status::InvalidArgument(fmt::format(
+          "scene '{}': the {} arm's orientation must be a finite non-zero quaternion (unset: identity)", a.scene_id,
+          tasks::arm_name(c.arm)));
+    if (!std::isfinite(c.gripper) || c.gripper < 0 || c.gripper > 1)
+      return Status::InvalidArgument(fmt::format("scene '{}': the {} arm's gripper opening must be in [0, 1] m "
+                                                 "(0 = closed, 0.035 = open); got {}",
+                                                 a.scene_id, tasks::arm_name(c.arm), c.gripper));
+  }
+  if (a.target_indices.size() != a.target_positions.size())
+    return Status::InvalidArgument(fmt::format("scene '{}': {} target indices but {} target positions", a.scene_id,
+                                               a.target_indices.size(), a.target_positions.size()));
+  std::set<int> seen;
+  for (size_t k = 0; k < a.target_indices.size(); ++k) {
+    const int v = a.target_indices[k];
+    if (v < 0 || v >= vertex_count)
+      return Status::InvalidArgument(
+          fmt::format("scene '{}': target vertex {} is out of range [0, {})", a.scene_id, v, vertex_count));
+    if (!seen.insert(v).second)
+      return Status::InvalidArgument(fmt::format("scene '{}': target vertex {} is named twice", a.scene_id, v));
+    if (!finite(a.target_positions[k]))
+      return Status::InvalidArgument(
+          fmt::format("scene '{}': the target position of vertex {} is not finite", a.scene_id, v));
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) {
+  if (req.substeps < 0) return Status::InvalidArgument(fmt::format("substeps must be >= 1 (got {})", req.substeps));
+  const int substeps = req.substeps == 0 ? 1 : req.substeps;
+  if (substeps > options_.max_substeps)
+    return Status::ResourceExhausted(fmt::format("substeps {} is over this server's limit of {} per call; "
+                                                 "step in several calls",
+                                                 substeps, options_.max_substeps));
+  std::vector<std::string> ids = req.scene_ids;
+  if (ids.empty())
+    for (const SceneAction& a : req.actions) ids.push_back(a.scene_id);
+  std::vector<std::shared_ptr<Entry>> entries;
+  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  std::map<std::string, size_t> index;
+  for (size_t i = 0; i < ids.size(); ++i) index[ids[i]] = i;
+  std::vector<const SceneAction*> actions(ids.size(), nullptr);
+  for (const SceneAction& a : req.actions) {
+    auto it = index.find(a.scene_id);
+    if (it == index.end())
+      return Status::InvalidArgument(
+          fmt::format("an action names scene '{}', which is not among the scene_ids of this call", a.scene_id));
+    if (actions[it->second])
+      return Status::InvalidArgument(fmt::format("scene '{}' has two actions; give one per scene", a.scene_id));
+    actions[it->second] = &a;
+    GD_RETURN_IF_ERROR(check_action(a, entries[it->second]->tmpl->info.vertex_count));
+  }
+
+  auto locks = lock_all(entries);
+  GD_RETURN_IF_ERROR(check_alive(entries));
+  for (const auto& e : entries)
+    if (e->failed())
+      return Status::FailedPrecondition(fmt::format("scene '{}' has failed ({}); reset it (ResetScenes) or destroy it",
+                                                    e->id, e->scene->failure().empty() ? e->error : e->scene->failure()));
+
+  // Kinematic targets first (the only action the scene itself may still refuse); undone on error.
+  std::vector<std::pair<Entry*, int>> added;
+  for (size_t i = 0; i < entries.size(); ++i) {
+    const SceneAction* a = actions[i];
+    if (!a) continue;
+    Entry& e = *entries[i];
+    try {
+      if (a->release_targets) {
+        for (int g : e.target_groups) e.scene->release(g);
+        e.target_groups.clear();
+      }
+      if (!a->target_indices.empty()) {
+        const int g = e.scene->set_targets(a->target_indices, a->target_positions);
+        e.target_groups.push_back(g);
+        added.emplace_back(&e, g);
+      }
+    } catch (const InputError& ex) {
+      for (auto& [en, g] : added) {
+        en->scene->release(g);
+        en->target_groups.erase(std::find(en->target_groups.begin(), en->target_groups.end(), g));
+      }
+      return Status::InvalidArgument(fmt::format("scene '{}': {}", e.id, ex.what()));
+    }
+  }
+  // Arm commands: a sample at the end time of this call's steps (validated above).
+  for (size_t i = 0; i < entries.size(); ++i) {
+    const SceneAction* a = actions[i];
+    if (!a) continue;
+    Entry& e = *entries[i];
+    const double t_end = e.scene->time() + substeps * e.scene->options().dt;
+    for (const ArmCommand& c : a->arms) {
+      tasks::ArmSample s;
+      s.t = t_end;
+      s.position = c.position;
+      s.orientation = c.orientation.normalized();
+      s.gripper = c.gripper;
+      try {
+        e.controller->append(c.arm, s);
+      } catch (const InputError& ex) {
+        return Status::InvalidArgument(fmt::format("scene '{}': {}", e.id, ex.what()));
+      }
+    }
+  }
+
+  const int n = static_cast<int>(entries.size());
+  const int solver_threads = n >= threads() ? 1 : std::max(1, threads() / n);
+  pool_.run(n, [&](int i) {
+    Entry& e = *entries[i];
+    omp_set_num_threads(solver_threads);
+    const auto t0 = std::chrono::steady_clock::now();
+    e.newton = e.pcg = e.contacts = 0;
+    try {
+      for (int k = 0; k < substeps; ++k) {
+        const double t_next = e.scene->time() + e.scene->options().dt;
+        if (!tasks::run_until(*e.scene, *e.controller, t_next)) break;
+        ++e.steps;
+        const sim::StepStats& st = e.scene->last_stats();
+        e.newton += st.newton_iters;
+        e.pcg += st.pcg_iters;
+        e.contacts = st.contacts;
+        e.publish();
+      }
+    } catch (const std::exception& ex) {
+      e.error = fmt::format("step failed: {}", ex.what());
+    }
+    e.wall_ms = 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (e.failed()) {
+      gd::log().warn("scene {} failed at step {}: {}", e.id, e.steps, e.error.empty() ? e.scene->failure() : e.error);
+      e.publish();
+    }
+  });
+  out->clear();
+  for (const auto& e : entries) out->push_back(e->snapshot(req.include_positions, req.include_velocities));
+  return Status::Ok();
+}
+
+Status ScenePool::state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out) {
+  std::vector<std::shared_ptr<Entry>> entries;
+  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  out->clear();
+  for (const auto& e : entries) {
+    std::lock_guard<std::mutex> lock(e->mu);
+    if (e->destroyed) return Status::NotFound(fmt::format("scene '{}' was destroyed", e->id));
+    out->push_back(e->snapshot(true, include_velocities));
+  }
+  return Status::Ok();
+}
+
+Status ScenePool::destroy(const std::vector<std::string>& ids, int* destroyed) {
+  std::vector<std::shared_ptr<Entry>> entries;
+  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (const auto& e : entries) scenes_.erase(e->id);
+  }
+  for (const auto& e : entries) {
+    std::lock_guard<std::mutex> lock(e->mu);
+    e->destroyed = true;
+    e->close_subscribers();
+    e->scene.reset();
+    e->controller.reset();
+  }
+  *destroyed = static_cast<int>(entries.size());
+  return Status::Ok();
+}
+
+Status ScenePool::subscribe(const std::vector<std::string>& ids, int every, std::shared_ptr<FrameSubscription>* out) {
+  if (every < 0) return Status::InvalidArgument(fmt::format("every must be >= 1 (got {})", every));
+  std::vector<std::shared_ptr<Entry>> entries;
+  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  auto sub = std::make_shared<FrameSubscription>(every == 0 ? 1 : every, entries.size());
+  for (const auto& e : entries) {
+    std::lock_guard<std::mutex> lock(e->mu);
+    if (e->destroyed) sub->scene_closed();
+    else e->subscribers.push_back(sub);
+  }
+  *out = std::move(sub);
+  return Status::Ok();
+}
+
+}  // namespace gd::service

@@ -1,0 +1,215 @@
+#pragma once
+/// \file
+/// ScenePool: the service's stateful scenes, in plain C++ (no gRPC), usable on its own, e.g. by
+/// a benchmark that steps the same scenes in-process:
+///
+///   gd::service::PoolOptions o;  o.threads = 2;
+///   gd::service::ScenePool pool(o);
+///   gd::service::SceneSpec spec;  spec.garment = "towel";  spec.vertices = 150;  spec.count = 16;
+///   gd::service::CreatedScenes created;
+///   if (auto st = pool.create(spec, &created); !st.ok()) ...;
+///   gd::service::StepRequest req;  req.scene_ids = created.ids;  req.substeps = 10;
+///   std::vector<gd::service::SceneSnapshot> states;
+///   pool.step(req, &states);            // the 16 scenes are stepped in parallel on the pool
+///
+/// A scene is a garment (generated, or an OBJ file) placed on the table at
+/// tasks::default_garment_pose(), rigidly randomised per seed (yaw about z, x/y offset), a
+/// material, SceneOptions = ExperimentConfig::default_scene_options() with the spec's dt and
+/// self-contact, and a tasks::GripperController (pseudo grasp or RGBench's fixed point) whose
+/// trajectory starts with both arms parked at home_pose() with the gripper open at t = 0. A step's
+/// arm command appends a sample at the step's end time; arms not named hold their last command.
+///
+/// Every method validates its input and returns a Status (never throws): unknown ids ->
+/// kNotFound, bad values/NaN -> kInvalidArgument, over a limit -> kResourceExhausted, stepping a
+/// failed scene -> kFailedPrecondition. A scene whose state turns non-finite during a step is
+/// marked failed in its snapshot and the other scenes of the call carry on.
+///
+/// Thread safety: all methods may be called concurrently. Calls on the same scene are serialised
+/// by a per-scene mutex; calls on different scenes run independently. The scenes of one step()
+/// call are distributed over the pool's workers; each scene's solver uses one OpenMP thread when
+/// the call has at least as many scenes as workers, else workers / scenes threads.
+
+#include <Eigen/Geometry>
+#include <array>
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "service/status.h"
+#include "service/thread_pool.h"
+#include "sim/solver/options.h"
+#include "sim/types.h"
+#include "tasks/frames.h"
+
+namespace gd::service {
+
+using sim::Vec3;
+
+/// Limits and resources of a pool.
+struct PoolOptions {
+  int threads = 0;             ///< worker threads (0: hardware concurrency)
+  int max_scenes = 256;        ///< scenes alive at once (flag --max-scenes)
+  int max_vertices = 50000;    ///< vertices per scene (flag --max-vertices)
+  int max_substeps = 1000;     ///< substeps per step call
+  sim::BackendKind backend = sim::BackendKind::kCpu;
+};
+
+/// What CreateScenes asks for. Unset optionals take the defaults noted.
+struct SceneSpec {
+  std::string garment;           ///< a garment type (garments::garment_types()), or
+  std::string mesh_path;         ///< an OBJ file (an uploaded mesh); takes precedence when set
+  std::string material = "cotton";
+  int vertices = 2000;           ///< target vertex count of a generated garment
+  std::string mode = "pseudo";   ///< pseudo | fixed_point
+  uint64_t seed = 0;             ///< randomisation seed of the initial pose (0: none)
+  int count = 1;                 ///< scenes to create
+  std::optional<double> dt;      ///< s (default 0.01)
+  std::optional<bool> self_contact;  ///< default true
+  std::optional<double> jaw_radius;  ///< m (default 0.02)
+  std::optional<double> grab_time;   ///< s, fixed point (default 0)
+  double yaw_deg = 0;            ///< randomisation: yaw uniform in [-yaw_deg, yaw_deg]
+  double offset_m = 0;           ///< randomisation: x/y offsets uniform in [-offset_m, offset_m]
+};
+
+/// One arm's command for the end of a step.
+struct ArmCommand {
+  tasks::Arm arm = tasks::Arm::kLeft;
+  Vec3 position = Vec3::Zero();
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< need not be normalised
+  double gripper = 0.035;        ///< opening, m
+};
+
+/// What to do to one scene in a step.
+struct SceneAction {
+  std::string scene_id;
+  std::vector<ArmCommand> arms;
+  std::vector<int> target_indices;   ///< kinematic targets (may be empty)
+  std::vector<Vec3> target_positions;
+  bool release_targets = false;      ///< release every kinematic target set earlier (before new ones)
+};
+
+struct StepRequest {
+  std::vector<std::string> scene_ids;  ///< empty: the scenes named by the actions
+  std::vector<SceneAction> actions;
+  int substeps = 1;
+  bool include_positions = true;
+  bool include_velocities = false;
+};
+
+/// One arm's state in a snapshot.
+struct ArmSnapshot {
+  bool closed = false;
+  int held_vertices = 0;
+};
+
+/// The state of one scene.
+struct SceneSnapshot {
+  std::string scene_id;
+  bool failed = false;
+  std::string failure;
+  double time = 0;
+  int64_t steps = 0;                   ///< since the last reset
+  std::vector<Vec3> positions;         ///< when asked for
+  std::vector<Vec3> velocities;        ///< when asked for
+  std::array<ArmSnapshot, 2> arms;     ///< [left, right]
+  int newton_iterations = 0;           ///< of the last step call (summed over its substeps)
+  int pcg_iterations = 0;
+  int active_contacts = 0;
+  double wall_ms = 0;
+};
+
+/// What the scenes of one create() share.
+struct SceneInfo {
+  int vertex_count = 0;
+  std::vector<Eigen::Vector3i> triangles;
+  std::vector<Vec3> rest_positions;    ///< the placed garment at seed 0, world frame
+  double dt = 0;
+  std::string backend;                 ///< "cpu" | "cuda"
+  std::string mode;
+  int left_shoulder_vertex = -1;
+  int right_shoulder_vertex = -1;
+};
+
+struct CreatedScenes {
+  std::vector<std::string> ids;
+  SceneInfo info;
+  std::vector<SceneSnapshot> states;   ///< initial states, with positions
+};
+
+/// Receives the frames of subscribed scenes (StreamFrames without its own steps): a frame is
+/// queued whenever a scene's step count reaches a multiple of `every`. Closed when all its
+/// scenes are destroyed or the pool goes away.
+class FrameSubscription {
+ public:
+  explicit FrameSubscription(int every, size_t scenes) : every_(every), open_scenes_(scenes) {}
+  /// Waits up to `timeout_ms` for a frame. Returns true and fills `out` when one came.
+  bool pop(SceneSnapshot* out, int timeout_ms);
+  /// True when every subscribed scene is gone and no frame is left.
+  bool finished();
+
+  // Called by the pool.
+  int every() const { return every_; }
+  void push(SceneSnapshot s);
+  void scene_closed();
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<SceneSnapshot> frames_;
+  int every_;
+  size_t open_scenes_;
+};
+
+/// The default home pose of an arm: 0.3 m above its base, gripper pointing down.
+Eigen::Isometry3d home_pose(tasks::Arm arm);
+
+class ScenePool {
+ public:
+  /// Starts the worker threads. Throws sim::InputError for nonsensical options (negative limits).
+  explicit ScenePool(PoolOptions options);
+  ~ScenePool();
+  ScenePool(const ScenePool&) = delete;
+  ScenePool& operator=(const ScenePool&) = delete;
+
+  const PoolOptions& options() const { return options_; }
+  int threads() const { return pool_.size(); }
+  /// Scenes alive now.
+  int size() const;
+
+  /// Builds spec.count identical scenes (randomised by spec.seed).
+  Status create(const SceneSpec& spec, CreatedScenes* out);
+  /// Rebuilds scenes in their initial state, randomised by `seeds`: empty = each scene's creation
+  /// seed, one = for all, else one per scene. Positions are bit-identical for the same seed.
+  Status reset(const std::vector<std::string>& ids, const std::vector<uint64_t>& seeds,
+               std::vector<SceneSnapshot>* out);
+  /// Applies the actions and advances the scenes req.substeps steps each, in parallel. Input is
+  /// checked before any scene changes.
+  Status step(const StepRequest& req, std::vector<SceneSnapshot>* out);
+  /// Current states.
+  Status state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out);
+  /// Destroys scenes (all ids must exist). `destroyed` receives how many.
+  Status destroy(const std::vector<std::string>& ids, int* destroyed);
+  /// Subscribes to the frames of scenes (see FrameSubscription). Unsubscribe by dropping the pointer.
+  Status subscribe(const std::vector<std::string>& ids, int every, std::shared_ptr<FrameSubscription>* out);
+
+  struct Entry;  ///< one scene (private to the implementation)
+
+ private:
+  Status lookup(const std::vector<std::string>& ids, std::vector<std::shared_ptr<Entry>>* out) const;
+
+  PoolOptions options_;
+  ThreadPool pool_;
+  mutable std::mutex mu_;
+  std::map<std::string, std::shared_ptr<Entry>> scenes_;
+  int reserved_ = 0;      ///< slots held by creates in progress
+  uint64_t next_id_ = 1;
+};
+
+}  // namespace gd::service

@@ -1,0 +1,139 @@
+#include "service/server.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/fmt/fmt.h>
+
+#include <chrono>
+#include <filesystem>
+#include <mutex>
+
+#include "service/job_queue.h"
+#include "service/mesh_library.h"
+#include "service/report_store.h"
+#include "service/scene_pool.h"
+#include "service/service.h"
+#include "sim/log.h"
+
+#ifndef GD_VERSION
+#define GD_VERSION "0.0.0"
+#endif
+
+namespace gd::service {
+namespace fs = std::filesystem;
+
+namespace {
+constexpr const char* kServiceName = "garmentdynamics.v1.GarmentDynamics";
+}
+
+struct Server::Impl {
+  ServerOptions options;
+  std::unique_ptr<ReportStore> store;
+  std::unique_ptr<MeshLibrary> meshes;
+  std::unique_ptr<ScenePool> scenes;
+  std::unique_ptr<JobQueue> jobs;
+  std::unique_ptr<GarmentDynamicsService> service;
+  std::unique_ptr<grpc::Server> server;
+  int port = 0;
+  std::once_flag drained;
+};
+
+Server::Server() : impl_(std::make_unique<Impl>()) {}
+
+Server::~Server() {
+  drain();
+  if (impl_->server) impl_->server->Wait();
+}
+
+std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
+  auto fail = [&](Status st) {
+    *status = std::move(st);
+    return std::unique_ptr<Server>();
+  };
+  if (o.data_dir.empty()) return fail(Status::InvalidArgument("no data directory given (--data-dir DIR)"));
+  if (o.port < 0 || o.port > 65535) return fail(Status::InvalidArgument(fmt::format("bad port {}", o.port)));
+  if (o.max_message_mb < 1 || o.max_message_mb > 2000)
+    return fail(Status::InvalidArgument("--max-message-mb must be in [1, 2000]"));
+  if (o.job_workers < 1) return fail(Status::InvalidArgument("--job-workers must be >= 1"));
+  std::unique_ptr<Server> s(new Server());
+  Impl& im = *s->impl_;
+  im.options = o;
+  const size_t max_bytes = size_t(o.max_message_mb) << 20;
+  try {
+    fs::create_directories(o.data_dir);
+    im.store = std::make_unique<ReportStore>((fs::path(o.data_dir) / "gd.sqlite").string());
+    im.meshes = std::make_unique<MeshLibrary>((fs::path(o.data_dir) / "meshes").string(), *im.store, o.max_vertices,
+                                              max_bytes);
+    PoolOptions po;
+    po.threads = o.threads;
+    po.max_scenes = o.max_scenes;
+    po.max_vertices = o.max_vertices;
+    po.max_substeps = o.max_substeps;
+    po.backend = o.backend;
+    im.scenes = std::make_unique<ScenePool>(po);
+    JobQueueOptions jo;
+    jo.data_dir = o.data_dir;
+    jo.capture_root = o.capture_root.empty() ? (fs::path(o.data_dir) / "captures").string() : o.capture_root;
+    fs::create_directories(jo.capture_root);
+    jo.workers = o.job_workers;
+    jo.max_vertices = o.max_vertices;
+    jo.plots = o.plots;
+    jo.backend = o.backend;
+    im.jobs = std::make_unique<JobQueue>(jo, *im.store, *im.meshes);
+  } catch (const std::exception& e) {
+    return fail(Status::InvalidArgument(e.what()));
+  }
+  HandlerOptions ho;
+  ho.version = GD_VERSION;
+  ho.max_report_file_bytes = std::min<size_t>(32u << 20, max_bytes - std::min<size_t>(max_bytes / 2, 1u << 20));
+  im.service = std::make_unique<GarmentDynamicsService>(*im.scenes, *im.jobs, *im.meshes, ho);
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder b;
+  const std::string addr = fmt::format("{}:{}", o.host, o.port);
+  b.AddListeningPort(addr, grpc::InsecureServerCredentials(), &im.port);
+  b.RegisterService(im.service.get());
+  b.SetMaxReceiveMessageSize(static_cast<int>(max_bytes));
+  b.SetMaxSendMessageSize(static_cast<int>(max_bytes));
+  b.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 60 * 1000);
+  b.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 20 * 1000);
+  b.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  b.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 10 * 1000);
+  b.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+  im.server = b.BuildAndStart();
+  if (!im.server || im.port == 0) return fail(Status::Unavailable(fmt::format("cannot listen on {} (in use?)", addr)));
+  if (auto* h = im.server->GetHealthCheckService()) {
+    h->SetServingStatus(true);
+    h->SetServingStatus(kServiceName, true);
+  }
+  gd::log().info("gd-server {} on {}:{} ({} scene threads, backend {}, data in {})", GD_VERSION, o.host, im.port,
+                 im.scenes->threads(), o.backend == sim::BackendKind::kCpu ? "cpu" : o.backend == sim::BackendKind::kCuda ? "cuda" : "auto",
+                 o.data_dir);
+  return s;
+}
+
+int Server::port() const { return impl_->port; }
+
+std::string Server::address() const { return fmt::format("{}:{}", impl_->options.host, impl_->port); }
+
+void Server::wait() { impl_->server->Wait(); }
+
+void Server::drain() {
+  std::call_once(impl_->drained, [this] {
+    Impl& im = *impl_;
+    if (!im.server) return;
+    gd::log().info("draining: health NOT_SERVING, no new jobs, {} s grace for running jobs", im.options.grace_seconds);
+    if (auto* h = im.server->GetHealthCheckService()) {
+      h->SetServingStatus(false);
+      h->SetServingStatus(kServiceName, false);
+    }
+    im.jobs->drain(im.options.grace_seconds);
+    im.service->begin_drain();
+    im.server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
+    gd::log().info("drained; shut down");
+  });
+}
+
+}  // namespace gd::service

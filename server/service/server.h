@@ -1,0 +1,55 @@
+#pragma once
+/// \file
+/// The gd-server process minus flag parsing: opens the data directory (SQLite store, meshes,
+/// jobs), builds the cores and the gRPC server (message size limits, keepalive, grpc.health.v1,
+/// server reflection), and drains on request: health NOT_SERVING, no new jobs, running jobs
+/// get a grace period and are then interrupted, streams end, in-flight calls finish, then the
+/// server shuts down. No gRPC types in this header.
+
+#include <memory>
+#include <string>
+
+#include "service/status.h"
+#include "sim/solver/options.h"
+
+namespace gd::service {
+
+struct ServerOptions {
+  std::string host = "127.0.0.1";
+  int port = 50051;                  ///< 0: pick a free port (see Server::port())
+  std::string data_dir;              ///< required: gd.sqlite, jobs/, meshes/, captures/
+  std::string capture_root;          ///< empty: data_dir/captures
+  sim::BackendKind backend = sim::BackendKind::kCpu;
+  int threads = 0;                   ///< scene worker threads (0: hardware concurrency)
+  int max_scenes = 256;
+  int max_vertices = 50000;
+  int max_substeps = 1000;
+  int max_message_mb = 64;           ///< receive and send limit per message
+  int job_workers = 1;
+  bool plots = false;
+  double grace_seconds = 10;         ///< drain: how long running jobs may still take
+};
+
+class Server {
+ public:
+  /// Builds and starts the server. Returns null and sets *status on failure (bad data dir, port
+  /// in use, ...).
+  static std::unique_ptr<Server> start(const ServerOptions& options, Status* status);
+  ~Server();
+
+  /// The bound port (the chosen one when options.port was 0).
+  int port() const;
+  /// "host:port" as bound.
+  std::string address() const;
+  /// Blocks until the server has shut down (after drain()).
+  void wait();
+  /// Drains and shuts down (see the file comment); returns when done. Thread-safe, idempotent.
+  void drain();
+
+ private:
+  Server();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace gd::service

@@ -1,0 +1,295 @@
+#include "service/service.h"
+
+#include <spdlog/fmt/fmt.h>
+
+#include <atomic>
+#include <chrono>
+
+#include "garments/generator.h"
+#include "service/convert.h"
+#include "sim/log.h"
+#include "sim/material.h"
+
+namespace gd::service {
+
+namespace {
+
+std::string request_id(grpc::ServerContext* ctx) {
+  const auto& md = ctx->client_metadata();
+  auto it = md.find("x-request-id");
+  if (it != md.end() && !it->second.empty() && it->second.size() <= 128) return std::string(it->second.data(), it->second.size());
+  static std::atomic<uint64_t> next{1};
+  return fmt::format("r-{}", next++);
+}
+
+}  // namespace
+
+GarmentDynamicsService::GarmentDynamicsService(ScenePool& scenes, JobQueue& jobs, MeshLibrary& meshes,
+                                               HandlerOptions options)
+    : scenes_(scenes), jobs_(jobs), meshes_(meshes), options_(std::move(options)) {}
+
+template <class F>
+grpc::Status GarmentDynamicsService::handle(Ctx* ctx, const char* method, bool info_level, F&& body) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string rid;
+  Status st;
+  try {
+    rid = request_id(ctx);
+    ctx->AddInitialMetadata("x-request-id", rid);
+    st = body(rid);
+  } catch (const std::exception& e) {
+    st = Status::Internal(fmt::format("{} failed unexpectedly: {}", method, e.what()));
+  } catch (...) {
+    st = Status::Internal(fmt::format("{} failed unexpectedly", method));
+  }
+  try {
+    const double ms = 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const auto level = !st.ok() && st.code() == Code::kInternal ? spdlog::level::err
+                       : info_level                              ? spdlog::level::info
+                                                                 : spdlog::level::debug;
+    gd::log().log(level, "rpc {} {} {} {:.1f} ms{}{}", rid, method, code_name(st.code()), ms, st.ok() ? "" : ": ",
+                  st.message());
+  } catch (...) {
+  }
+  return to_grpc(st);
+}
+
+grpc::Status GarmentDynamicsService::CreateScenes(Ctx* ctx, const pb::CreateScenesRequest* req,
+                                                  pb::CreateScenesResponse* resp) {
+  return handle(ctx, "CreateScenes", true, [&](const std::string&) {
+    SceneSpec spec;
+    GD_RETURN_IF_ERROR(to_scene_spec(*req, &spec));
+    if (req->source_case() == pb::CreateScenesRequest::kMeshId) {
+      MeshRecord m;
+      GD_RETURN_IF_ERROR(meshes_.get(req->mesh_id(), &m));
+      spec.mesh_path = m.path;
+    }
+    CreatedScenes created;
+    GD_RETURN_IF_ERROR(scenes_.create(spec, &created));
+    for (const std::string& id : created.ids) resp->add_scene_ids(id);
+    to_proto(created.info, resp->mutable_info());
+    for (const SceneSnapshot& s : created.states) to_proto(s, false, resp->add_states());
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::ResetScenes(Ctx* ctx, const pb::ResetScenesRequest* req,
+                                                 pb::ResetScenesResponse* resp) {
+  return handle(ctx, "ResetScenes", false, [&](const std::string&) {
+    std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
+    std::vector<uint64_t> seeds(req->seeds().begin(), req->seeds().end());
+    std::vector<SceneSnapshot> states;
+    GD_RETURN_IF_ERROR(scenes_.reset(ids, seeds, &states));
+    for (const SceneSnapshot& s : states) to_proto(s, false, resp->add_states());
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::StepScenes(Ctx* ctx, const pb::StepScenesRequest* req,
+                                                pb::StepScenesResponse* resp) {
+  return handle(ctx, "StepScenes", false, [&](const std::string&) {
+    StepRequest r;
+    GD_RETURN_IF_ERROR(to_step_request(*req, &r));
+    std::vector<SceneSnapshot> states;
+    GD_RETURN_IF_ERROR(scenes_.step(r, &states));
+    for (const SceneSnapshot& s : states) to_proto(s, true, resp->add_states());
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::GetState(Ctx* ctx, const pb::GetStateRequest* req, pb::GetStateResponse* resp) {
+  return handle(ctx, "GetState", false, [&](const std::string&) {
+    std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
+    std::vector<SceneSnapshot> states;
+    GD_RETURN_IF_ERROR(scenes_.state(ids, req->include_velocities(), &states));
+    for (const SceneSnapshot& s : states) to_proto(s, true, resp->add_states());
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFramesRequest* req,
+                                                  grpc::ServerWriter<pb::StreamFramesResponse>* writer) {
+  return handle(ctx, "StreamFrames", false, [&](const std::string&) -> Status {
+    if (req->every() < 0) return Status::InvalidArgument(fmt::format("every must be >= 1 (got {})", req->every()));
+    if (req->steps() < 0) return Status::InvalidArgument(fmt::format("steps must be >= 0 (got {})", req->steps()));
+    if (req->max_frames() < 0)
+      return Status::InvalidArgument(fmt::format("max_frames must be >= 0 (got {})", req->max_frames()));
+    const int every = req->every() == 0 ? 1 : req->every();
+    std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
+    int frames = 0;
+    pb::StreamFramesResponse msg;
+    auto send = [&](const SceneSnapshot& s) {
+      msg.Clear();
+      to_proto(s, true, msg.mutable_state());
+      ++frames;
+      return writer->Write(msg);
+    };
+    const auto stop = [&] { return ctx->IsCancelled() || draining_.load(); };
+    if (req->steps() > 0) {  // the stream steps its scenes itself, holding their last commands
+      if (every > scenes_.options().max_substeps)
+        return Status::ResourceExhausted(fmt::format("every {} is over the server's limit of {} steps per call",
+                                                     every, scenes_.options().max_substeps));
+      int done = 0;
+      while (done < req->steps() && !ids.empty()) {
+        if (stop()) return Status::Ok();
+        StepRequest r;
+        r.scene_ids = ids;
+        r.substeps = std::min(every, req->steps() - done);
+        std::vector<SceneSnapshot> states;
+        GD_RETURN_IF_ERROR(scenes_.step(r, &states));
+        done += r.substeps;
+        if (r.substeps < every) break;  // a partial period sends no frame
+        ids.clear();
+        for (const SceneSnapshot& s : states) {
+          if (!send(s)) return Status::Ok();  // the client went away
+          if (req->max_frames() > 0 && frames >= req->max_frames()) return Status::Ok();
+          if (!s.failed) ids.push_back(s.scene_id);
+        }
+      }
+      return Status::Ok();
+    }
+    std::shared_ptr<FrameSubscription> sub;
+    GD_RETURN_IF_ERROR(scenes_.subscribe(ids, every, &sub));
+    writer->SendInitialMetadata();  // tells the client the subscription is in place
+    SceneSnapshot s;
+    while (!stop()) {
+      if (sub->pop(&s, 100)) {
+        if (!send(s)) return Status::Ok();
+        if (req->max_frames() > 0 && frames >= req->max_frames()) return Status::Ok();
+      } else if (sub->finished()) {
+        return Status::Ok();  // every subscribed scene was destroyed
+      }
+    }
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::DestroyScenes(Ctx* ctx, const pb::DestroyScenesRequest* req,
+                                                   pb::DestroyScenesResponse* resp) {
+  return handle(ctx, "DestroyScenes", true, [&](const std::string&) {
+    std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
+    int n = 0;
+    GD_RETURN_IF_ERROR(scenes_.destroy(ids, &n));
+    resp->set_destroyed(n);
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::SubmitJob(Ctx* ctx, const pb::SubmitJobRequest* req, pb::SubmitJobResponse* resp) {
+  return handle(ctx, "SubmitJob", true, [&](const std::string&) {
+    JobSpec spec;
+    GD_RETURN_IF_ERROR(to_job_spec(*req, &spec));
+    std::string id;
+    GD_RETURN_IF_ERROR(jobs_.submit(spec, &id));
+    resp->set_job_id(id);
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::WatchJob(Ctx* ctx, const pb::WatchJobRequest* req,
+                                              grpc::ServerWriter<pb::WatchJobResponse>* writer) {
+  return handle(ctx, "WatchJob", true, [&](const std::string&) -> Status {
+    if (req->job_id().empty()) return Status::InvalidArgument("no job_id given; use the id SubmitJob returned");
+    uint64_t version = 0;
+    JobRecord rec;
+    pb::WatchJobResponse msg;
+    for (;;) {
+      GD_RETURN_IF_ERROR(jobs_.wait(req->job_id(), &version, &rec, 500));
+      msg.Clear();
+      to_proto(rec, msg.mutable_job());
+      if (!writer->Write(msg)) return Status::Ok();
+      if (job_finished(rec.status)) return Status::Ok();
+      if (ctx->IsCancelled()) return Status(Code::kCancelled, "the client cancelled the watch");
+    }
+  });
+}
+
+grpc::Status GarmentDynamicsService::GetReport(Ctx* ctx, const pb::GetReportRequest* req, pb::GetReportResponse* resp) {
+  return handle(ctx, "GetReport", false, [&](const std::string&) {
+    if (req->job_id().empty()) return Status::InvalidArgument("no job_id given; ListReports lists the jobs");
+    JobReport r;
+    GD_RETURN_IF_ERROR(jobs_.report(req->job_id(), req->include_files(), options_.max_report_file_bytes, &r));
+    to_proto(r.job, resp->mutable_job());
+    resp->set_summary_json(r.summary_json);
+    for (const std::string& n : r.file_names) resp->add_file_names(n);
+    for (auto& [name, data] : r.files) {
+      pb::ReportFile* f = resp->add_files();
+      f->set_name(name);
+      f->set_data(std::move(data));
+    }
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::ListReports(Ctx* ctx, const pb::ListReportsRequest* req,
+                                                 pb::ListReportsResponse* resp) {
+  return handle(ctx, "ListReports", false, [&](const std::string&) {
+    std::vector<JobRecord> jobs;
+    int total = 0;
+    GD_RETURN_IF_ERROR(jobs_.list(req->limit(), req->offset(), &jobs, &total));
+    for (const JobRecord& j : jobs) to_proto(j, resp->add_jobs());
+    resp->set_total(total);
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::ListGarments(Ctx* ctx, const pb::ListGarmentsRequest*,
+                                                  pb::ListGarmentsResponse* resp) {
+  return handle(ctx, "ListGarments", false, [&](const std::string&) {
+    for (const std::string& g : garments::garment_types()) resp->add_garments(g);
+    std::vector<MeshRecord> meshes;
+    GD_RETURN_IF_ERROR(meshes_.list(&meshes));
+    for (const MeshRecord& m : meshes) {
+      pb::UploadedMesh* u = resp->add_meshes();
+      u->set_mesh_id(m.mesh_id);
+      u->set_name(m.name);
+      u->set_vertices(m.vertices);
+      u->set_triangles(m.triangles);
+    }
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::ListMaterials(Ctx* ctx, const pb::ListMaterialsRequest*,
+                                                   pb::ListMaterialsResponse* resp) {
+  return handle(ctx, "ListMaterials", false, [&](const std::string&) {
+    const sim::MaterialLibrary lib = sim::MaterialLibrary::load_default();
+    for (const std::string& n : lib.names()) {
+      const sim::Material& m = lib.get(n);
+      pb::MaterialInfo* i = resp->add_materials();
+      i->set_name(n);
+      i->set_density(m.density);
+      i->set_thickness(m.thickness);
+    }
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::UploadMesh(Ctx* ctx, const pb::UploadMeshRequest* req,
+                                                pb::UploadMeshResponse* resp) {
+  return handle(ctx, "UploadMesh", true, [&](const std::string&) {
+    MeshRecord m;
+    GD_RETURN_IF_ERROR(meshes_.upload(req->name(), req->obj(), &m));
+    resp->set_mesh_id(m.mesh_id);
+    resp->set_vertices(m.vertices);
+    resp->set_triangles(m.triangles);
+    return Status::Ok();
+  });
+}
+
+grpc::Status GarmentDynamicsService::GetServerInfo(Ctx* ctx, const pb::GetServerInfoRequest*,
+                                                   pb::GetServerInfoResponse* resp) {
+  return handle(ctx, "GetServerInfo", false, [&](const std::string&) {
+    resp->set_version(options_.version);
+    const sim::BackendKind b = scenes_.options().backend;
+    resp->set_backend(b == sim::BackendKind::kCpu ? "cpu" : b == sim::BackendKind::kCuda ? "cuda" : "auto");
+    resp->set_threads(scenes_.threads());
+    resp->set_max_scenes(scenes_.options().max_scenes);
+    resp->set_max_vertices(scenes_.options().max_vertices);
+    resp->set_scenes(scenes_.size());
+    resp->set_jobs_running(jobs_.active());
+    return Status::Ok();
+  });
+}
+
+}  // namespace gd::service

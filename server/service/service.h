@@ -1,0 +1,74 @@
+#pragma once
+/// \file
+/// The gRPC handlers of garmentdynamics.v1.GarmentDynamics: each translates the request
+/// (convert.h), calls a core (ScenePool, JobQueue, MeshLibrary) that returns a Status, and
+/// translates back. No exception crosses a handler (an unexpected one becomes INTERNAL). Every
+/// call is logged with its request id (the client's x-request-id metadata, else a generated one,
+/// sent back as initial metadata), method and status code. Included only by server.cpp.
+
+#include <atomic>
+#include <string>
+
+#include "garmentdynamics/v1/garmentdynamics.grpc.pb.h"
+#include "service/job_queue.h"
+#include "service/mesh_library.h"
+#include "service/scene_pool.h"
+
+namespace gd::service {
+
+/// Limits the handlers apply themselves.
+struct HandlerOptions {
+  size_t max_report_file_bytes = 32u << 20;  ///< GetReport include_files cap
+  std::string version;
+};
+
+class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynamics::Service {
+ public:
+  GarmentDynamicsService(ScenePool& scenes, JobQueue& jobs, MeshLibrary& meshes, HandlerOptions options);
+
+  /// Ends streams (StreamFrames, WatchJob) at their next check: the server is draining.
+  void begin_drain() { draining_ = true; }
+
+  using Ctx = grpc::ServerContext;
+  grpc::Status CreateScenes(Ctx* ctx, const ::garmentdynamics::v1::CreateScenesRequest* req,
+                      ::garmentdynamics::v1::CreateScenesResponse* resp) override;
+  grpc::Status ResetScenes(Ctx* ctx, const ::garmentdynamics::v1::ResetScenesRequest* req,
+                      ::garmentdynamics::v1::ResetScenesResponse* resp) override;
+  grpc::Status StepScenes(Ctx* ctx, const ::garmentdynamics::v1::StepScenesRequest* req,
+                      ::garmentdynamics::v1::StepScenesResponse* resp) override;
+  grpc::Status GetState(Ctx* ctx, const ::garmentdynamics::v1::GetStateRequest* req,
+                      ::garmentdynamics::v1::GetStateResponse* resp) override;
+  grpc::Status StreamFrames(Ctx* ctx, const ::garmentdynamics::v1::StreamFramesRequest* req,
+                      grpc::ServerWriter<::garmentdynamics::v1::StreamFramesResponse>* writer) override;
+  grpc::Status DestroyScenes(Ctx* ctx, const ::garmentdynamics::v1::DestroyScenesRequest* req,
+                      ::garmentdynamics::v1::DestroyScenesResponse* resp) override;
+  grpc::Status SubmitJob(Ctx* ctx, const ::garmentdynamics::v1::SubmitJobRequest* req,
+                      ::garmentdynamics::v1::SubmitJobResponse* resp) override;
+  grpc::Status WatchJob(Ctx* ctx, const ::garmentdynamics::v1::WatchJobRequest* req,
+                      grpc::ServerWriter<::garmentdynamics::v1::WatchJobResponse>* writer) override;
+  grpc::Status GetReport(Ctx* ctx, const ::garmentdynamics::v1::GetReportRequest* req,
+                      ::garmentdynamics::v1::GetReportResponse* resp) override;
+  grpc::Status ListReports(Ctx* ctx, const ::garmentdynamics::v1::ListReportsRequest* req,
+                      ::garmentdynamics::v1::ListReportsResponse* resp) override;
+  grpc::Status ListGarments(Ctx* ctx, const ::garmentdynamics::v1::ListGarmentsRequest* req,
+                      ::garmentdynamics::v1::ListGarmentsResponse* resp) override;
+  grpc::Status ListMaterials(Ctx* ctx, const ::garmentdynamics::v1::ListMaterialsRequest* req,
+                      ::garmentdynamics::v1::ListMaterialsResponse* resp) override;
+  grpc::Status UploadMesh(Ctx* ctx, const ::garmentdynamics::v1::UploadMeshRequest* req,
+                      ::garmentdynamics::v1::UploadMeshResponse* resp) override;
+  grpc::Status GetServerInfo(Ctx* ctx, const ::garmentdynamics::v1::GetServerInfoRequest* req,
+                      ::garmentdynamics::v1::GetServerInfoResponse* resp) override;
+
+ private:
+  /// Runs a handler body with logging and exception containment.
+  template <class F>
+  grpc::Status handle(Ctx* ctx, const char* method, bool info_level, F&& body);
+
+  ScenePool& scenes_;
+  JobQueue& jobs_;
+  MeshLibrary& meshes_;
+  HandlerOptions options_;
+  std::atomic<bool> draining_{false};
+};
+
+}  // namespace gd::service

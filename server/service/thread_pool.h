@@ -1,0 +1,41 @@
+#pragma once
+/// \file
+/// A fixed set of worker threads that runs batches of tasks: run(n, fn) calls fn(0..n-1) on the
+/// workers and returns when all n are done. Several callers may run batches at the same time;
+/// their tasks share the workers first come, first served.
+
+#include <condition_variable>
+#include <cstddef>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace gd::service {
+
+class ThreadPool {
+ public:
+  /// Starts `threads` workers (at least 1).
+  explicit ThreadPool(int threads);
+  /// Finishes the queued tasks, then joins the workers.
+  ~ThreadPool();
+  ThreadPool(const ThreadPool&) = delete;
+  ThreadPool& operator=(const ThreadPool&) = delete;
+
+  int size() const { return static_cast<int>(workers_.size()); }
+
+  /// Runs fn(i) for i in [0, n) on the workers and waits for all of them. fn must not throw.
+  void run(int n, const std::function<void(int)>& fn);
+
+ private:
+  void loop();
+
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::function<void()>> queue_;
+  bool stop_ = false;
+  std::vector<std::thread> workers_;
+};
+
+}  // namespace gd::service

@@ -1,0 +1,146 @@
+// The `gd` command line's remote commands, run as a process against a real gd-server: output,
+// files written and exit codes (0 ok, 1 failed, 2 bad input, 3 unreachable/RPC error).
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "client_cpp/server_fixture.h"
+
+namespace gd::client_test {
+namespace {
+
+struct CliRun {
+  int rc = -1;
+  std::string out;  ///< stdout
+  std::string err;  ///< stderr
+};
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+std::vector<std::string> lines(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  for (std::string l; std::getline(ss, l);)
+    if (!l.empty()) out.push_back(l);
+  return out;
+}
+
+class CliTest : public ServerTest {
+ protected:
+  /// Runs `gd ARGS` (arguments are shell words without quotes) and collects its output.
+  CliRun gd(const std::string& args) {
+    const auto err_file = fresh_dir("cli_stderr") / "stderr.txt";
+    const std::string cmd = std::string(GD_CLI_BINARY) + " " + args + " 2>" + err_file.string();
+    CliRun r;
+    FILE* p = ::popen(cmd.c_str(), "r");
+    if (p == nullptr) return r;
+    char buf[4096];
+    for (size_t n; (n = std::fread(buf, 1, sizeof buf, p)) > 0;) r.out.append(buf, n);
+    const int status = ::pclose(p);
+    r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.err = slurp(err_file);
+    return r;
+  }
+  std::string server_flag() const { return "--server " + address(); }
+};
+
+TEST_F(CliTest, InfoGarmentsMaterials) {
+  CliRun r = gd(server_flag() + " info");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("backend cpu"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("health SERVING"), std::string::npos) << r.out;
+  r = gd(server_flag() + " garments");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("towel\n"), std::string::npos) << r.out;
+  r = gd(server_flag() + " materials");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("cotton"), std::string::npos) << r.out;
+}
+
+TEST_F(CliTest, CreateStepWritesNpyAndPlyThenDestroy) {
+  CliRun r = gd(server_flag() + " create --garment towel --vertices 200 --count 2 --seed 3 --no-self-contact");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto ids = lines(r.out);
+  ASSERT_EQ(ids.size(), 2u) << r.out;
+
+  const auto dir = fresh_dir("cli_step");
+  r = gd(server_flag() + " step --ids " + ids[0] + "," + ids[1] + " --substeps 3 --out " + (dir / "x.npy").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  ASSERT_EQ(lines(r.out).size(), 2u) << r.out;
+  EXPECT_EQ(r.out.rfind(ids[0], 0), 0u) << r.out;
+  EXPECT_NE(r.out.find("steps 3"), std::string::npos) << r.out;
+
+  // The .npy holds the first scene's positions: header (a multiple of 64 bytes) + N*3 float32.
+  const std::string npy = slurp(dir / "x.npy");
+  ASSERT_GT(npy.size(), 10u);
+  EXPECT_EQ(npy.substr(0, 6), "\x93NUMPY");
+  const size_t header = 10 + static_cast<unsigned char>(npy[8]) + 256 * static_cast<unsigned char>(npy[9]);
+  EXPECT_EQ(header % 64, 0u);
+  const auto state = client_.get_state({ids[0]});
+  ASSERT_EQ(state.size(), 1u);
+  ASSERT_EQ(npy.size(), header + 4 * state[0].positions.size());
+  EXPECT_NE(npy.find("'shape': (" + std::to_string(state[0].positions.size() / 3) + ", 3)"), std::string::npos);
+  std::vector<float> from_file(state[0].positions.size());
+  std::memcpy(from_file.data(), npy.data() + header, 4 * from_file.size());
+  EXPECT_EQ(from_file, state[0].positions);
+
+  r = gd(server_flag() + " step --ids " + ids[0] + " --out " + (dir / "x.ply").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_EQ(slurp(dir / "x.ply").substr(0, 3), "ply");
+
+  r = gd(server_flag() + " destroy --ids " + ids[0] + "," + ids[1]);
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("destroyed 2"), std::string::npos) << r.out;
+}
+
+TEST_F(CliTest, RunAsAJobWritesTheReportFiles) {
+  const auto dir = fresh_dir("cli_run");
+  CliRun r = gd(server_flag() + " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.2 "
+                             "--no-self-contact --quiet --label cli --out " +
+             (dir / "out").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "summary.json")) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "final.obj")) << r.err;
+  EXPECT_NE(r.out.find("towel / cotton / grasp"), std::string::npos) << r.out;
+
+  // The job is listed and its report can be fetched again into another directory.
+  r = gd(server_flag() + " reports --limit 5");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto first = lines(r.out).at(0);
+  EXPECT_NE(first.find("succeeded"), std::string::npos) << r.out;
+  const std::string job = first.substr(0, first.find(' '));
+  r = gd(server_flag() + " report " + job + " --out " + (dir / "again").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_EQ(slurp(dir / "again" / "summary.json"), slurp(dir / "out" / "summary.json"));
+}
+
+TEST_F(CliTest, ExitCodes) {
+  // Bad input refused by the server: 2, with its message.
+  CliRun r = gd(server_flag() + " create --garment sock");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("sock"), std::string::npos) << r.err;
+  r = gd(server_flag() + " step --ids nope");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("NOT_FOUND"), std::string::npos) << r.err;
+  // Bad input found locally: 2.
+  r = gd("step --ids a");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--server"), std::string::npos) << r.err;
+  r = gd(server_flag() + " run --backend cuda --out /tmp/unused");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  // No server there: 3.
+  r = gd("--server 127.0.0.1:1 info");
+  EXPECT_EQ(r.rc, 3) << r.err;
+  EXPECT_NE(r.err.find("unreachable"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace gd::client_test

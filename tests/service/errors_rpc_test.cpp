@@ -1,0 +1,172 @@
+// Bad requests over real gRPC, table-driven: each kind gets the expected status code and a
+// message, and the server keeps serving (a good request works afterwards).
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <limits>
+
+#include "service/server_process.h"
+
+namespace gd::service::testing {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct BadRequest {
+  const char* name;
+  grpc::StatusCode expected;
+  std::function<grpc::Status(pb::GarmentDynamics::Stub&)> call;
+};
+
+pb::CreateScenesRequest towel() {
+  pb::CreateScenesRequest r;
+  r.set_garment("towel");
+  r.set_vertices(200);
+  return r;
+}
+
+grpc::Status create(pb::GarmentDynamics::Stub& s, const pb::CreateScenesRequest& r) {
+  pb::CreateScenesResponse resp;
+  return s.CreateScenes(ctx().get(), r, &resp);
+}
+grpc::Status step(pb::GarmentDynamics::Stub& s, const pb::StepScenesRequest& r) {
+  pb::StepScenesResponse resp;
+  return s.StepScenes(ctx().get(), r, &resp);
+}
+grpc::Status submit(pb::GarmentDynamics::Stub& s, const pb::SubmitJobRequest& r) {
+  pb::SubmitJobResponse resp;
+  return s.SubmitJob(ctx().get(), r, &resp);
+}
+pb::SubmitJobRequest job() {
+  pb::SubmitJobRequest r;
+  r.set_garment("towel");
+  r.set_task("grasp");
+  r.set_vertices(200);
+  return r;
+}
+/// A step of `scene` with one left-arm command built by `fill`.
+pb::StepScenesRequest arm_step(const std::string& scene, const std::function<void(pb::ArmCommand*)>& fill) {
+  pb::StepScenesRequest r;
+  r.add_scene_ids(scene);
+  pb::SceneAction* a = r.add_actions();
+  a->set_scene_id(scene);
+  pb::ArmCommand* c = a->add_arms();
+  c->set_arm(pb::ARM_LEFT);
+  c->mutable_pose()->mutable_position()->set_x(0.3);
+  c->mutable_pose()->mutable_position()->set_z(0.2);
+  c->set_gripper(0.035);
+  fill(c);
+  return r;
+}
+pb::StepScenesRequest target_step(const std::string& scene, const pb::Array& idx, const pb::Array& pos) {
+  pb::StepScenesRequest r;
+  r.add_scene_ids(scene);
+  pb::SceneAction* a = r.add_actions();
+  a->set_scene_id(scene);
+  *a->mutable_targets()->mutable_indices() = idx;
+  *a->mutable_targets()->mutable_positions() = pos;
+  return r;
+}
+
+TEST(ErrorsRpc, EveryBadRequestGetsItsCodeAndTheServerKeepsServing) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data",
+                       {"--max-scenes", "4", "--max-vertices", "1000", "--max-substeps", "50", "--max-message-mb", "1"});
+  auto stub = server.stub();
+  pb::CreateScenesResponse made;
+  pb::CreateScenesRequest two = towel();
+  two.set_count(2);
+  ASSERT_TRUE(stub->CreateScenes(ctx().get(), two, &made).ok());
+  const std::string good = made.scene_ids(0), broken = made.scene_ids(1);
+  // Break the second scene: its left gripper grasps vertex 0, then flies off to 1e300 m, so the
+  // held vertices' energies overflow (finite input, non-finite state).
+  {
+    const std::vector<float> rest = floats(made.info().rest_positions());
+    auto move = [&](double x, double y, double z, double gripper, int substeps) {
+      auto r = arm_step(broken, [&](pb::ArmCommand* c) {
+        c->mutable_pose()->mutable_position()->set_x(x);
+        c->mutable_pose()->mutable_position()->set_y(y);
+        c->mutable_pose()->mutable_position()->set_z(z);
+        c->set_gripper(gripper);
+      });
+      r.set_substeps(substeps);
+      pb::StepScenesResponse resp;
+      EXPECT_TRUE(stub->StepScenes(ctx().get(), r, &resp).ok());
+      return resp.states(0);
+    };
+    move(rest[0], rest[1], rest[2], 0.035, 2);
+    EXPECT_GT(move(rest[0], rest[1], rest[2], 0.0, 1).arms(0).held_vertices(), 0);
+    const pb::SceneState s = move(1e300, 0, 1e300, 0.0, 1);
+    ASSERT_EQ(s.status(), pb::SCENE_FAILED);
+    EXPECT_FALSE(s.failure().empty());
+  }
+
+  using C = grpc::StatusCode;
+  const std::vector<BadRequest> table = {
+      {"unknown garment", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_garment("kilt"); return create(s, r); }},
+      {"unknown material", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_material("kevlar"); return create(s, r); }},
+      {"unknown mode", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_mode("magic"); return create(s, r); }},
+      {"NaN dt", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_settings()->set_dt(kNaN); return create(s, r); }},
+      {"negative count", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_count(-3); return create(s, r); }},
+      {"no garment", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.clear_garment(); return create(s, r); }},
+      {"bad randomization", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_randomization()->set_yaw_deg(-1); return create(s, r); }},
+      {"too many scenes", C::RESOURCE_EXHAUSTED, [](auto& s) { auto r = towel(); r.set_count(3); return create(s, r); }},
+      {"too many vertices", C::RESOURCE_EXHAUSTED, [](auto& s) { auto r = towel(); r.set_vertices(5000); return create(s, r); }},
+      {"unknown mesh id", C::NOT_FOUND, [](auto& s) { auto r = towel(); r.set_mesh_id("m-nope"); return create(s, r); }},
+      {"step unknown scene", C::NOT_FOUND, [](auto& s) { pb::StepScenesRequest r; r.add_scene_ids("s-404"); return step(s, r); }},
+      {"step no scenes", C::INVALID_ARGUMENT, [](auto& s) { return step(s, pb::StepScenesRequest()); }},
+      {"step scene twice", C::INVALID_ARGUMENT, [&](auto& s) { pb::StepScenesRequest r; r.add_scene_ids(good); r.add_scene_ids(good); return step(s, r); }},
+      {"NaN arm position", C::INVALID_ARGUMENT, [&](auto& s) { return step(s, arm_step(good, [](auto* c) { c->mutable_pose()->mutable_position()->set_y(kNaN); })); }},
+      {"unspecified arm", C::INVALID_ARGUMENT, [&](auto& s) { return step(s, arm_step(good, [](auto* c) { c->set_arm(pb::ARM_UNSPECIFIED); })); }},
+      {"zero quaternion", C::INVALID_ARGUMENT, [&](auto& s) { return step(s, arm_step(good, [](auto* c) { c->mutable_pose()->mutable_orientation(); })); }},
+      {"negative gripper", C::INVALID_ARGUMENT, [&](auto& s) { return step(s, arm_step(good, [](auto* c) { c->set_gripper(-0.01); })); }},
+      {"substeps over the limit", C::RESOURCE_EXHAUSTED, [&](auto& s) { pb::StepScenesRequest r; r.add_scene_ids(good); r.set_substeps(51); return step(s, r); }},
+      {"negative substeps", C::INVALID_ARGUMENT, [&](auto& s) { pb::StepScenesRequest r; r.add_scene_ids(good); r.set_substeps(-1); return step(s, r); }},
+      {"action for another scene", C::INVALID_ARGUMENT, [&](auto& s) { auto r = arm_step(good, [](auto*) {}); r.mutable_actions(0)->set_scene_id(broken); return step(s, r); }},
+      {"targets wrong dtype", C::INVALID_ARGUMENT, [&](auto& s) { auto idx = int_array({0}); idx.set_dtype("float64"); return step(s, target_step(good, idx, vec3_array({0, 0, 0.1f}))); }},
+      {"targets data size", C::INVALID_ARGUMENT, [&](auto& s) { auto pos = vec3_array({0, 0, 0.1f}); pos.set_shape(0, 2); return step(s, target_step(good, int_array({0}), pos)); }},
+      {"target vertex out of range", C::INVALID_ARGUMENT, [&](auto& s) { return step(s, target_step(good, int_array({100000}), vec3_array({0, 0, 0.1f}))); }},
+      {"NaN target", C::INVALID_ARGUMENT, [&](auto& s) { return step(s, target_step(good, int_array({0}), vec3_array({0, std::numeric_limits<float>::quiet_NaN(), 0.1f}))); }},
+      {"step a failed scene", C::FAILED_PRECONDITION, [&](auto& s) { pb::StepScenesRequest r; r.add_scene_ids(broken); return step(s, r); }},
+      {"reset with 3 seeds for 1 scene", C::INVALID_ARGUMENT, [&](auto& s) { pb::ResetScenesRequest r; r.add_scene_ids(good); for (int i = 0; i < 3; ++i) r.add_seeds(i); pb::ResetScenesResponse o; return s.ResetScenes(ctx().get(), r, &o); }},
+      {"state of unknown scene", C::NOT_FOUND, [](auto& s) { pb::GetStateRequest r; r.add_scene_ids("s-404"); pb::GetStateResponse o; return s.GetState(ctx().get(), r, &o); }},
+      {"destroy unknown scene", C::NOT_FOUND, [](auto& s) { pb::DestroyScenesRequest r; r.add_scene_ids("s-404"); pb::DestroyScenesResponse o; return s.DestroyScenes(ctx().get(), r, &o); }},
+      {"stream negative every", C::INVALID_ARGUMENT, [&](auto& s) { pb::StreamFramesRequest r; r.add_scene_ids(good); r.set_every(-2); auto c = ctx(); auto rd = s.StreamFrames(c.get(), r); pb::StreamFramesResponse m; while (rd->Read(&m)) {} return rd->Finish(); }},
+      {"stream unknown scene", C::NOT_FOUND, [](auto& s) { pb::StreamFramesRequest r; r.add_scene_ids("s-404"); auto c = ctx(); auto rd = s.StreamFrames(c.get(), r); pb::StreamFramesResponse m; while (rd->Read(&m)) {} return rd->Finish(); }},
+      {"job unknown task", C::INVALID_ARGUMENT, [](auto& s) { auto r = job(); r.set_task("iron"); return submit(s, r); }},
+      {"job bad trajectory", C::INVALID_ARGUMENT, [](auto& s) { auto r = job(); r.set_trajectory("time,arm\n0,left\n"); r.set_trajectory_format("csv"); return submit(s, r); }},
+      {"job trajectory without format", C::INVALID_ARGUMENT, [](auto& s) { auto r = job(); r.set_trajectory("{}"); return submit(s, r); }},
+      {"job capture outside the root", C::INVALID_ARGUMENT, [](auto& s) { auto r = job(); r.set_capture("../../etc"); return submit(s, r); }},
+      {"job NaN time_scale", C::INVALID_ARGUMENT, [](auto& s) { auto r = job(); r.set_time_scale(kNaN); return submit(s, r); }},
+      {"job too many vertices", C::RESOURCE_EXHAUSTED, [](auto& s) { auto r = job(); r.set_vertices(5000); return submit(s, r); }},
+      {"job unknown mesh", C::NOT_FOUND, [](auto& s) { auto r = job(); r.set_mesh_id("m-nope"); return submit(s, r); }},
+      {"report of unknown job", C::NOT_FOUND, [](auto& s) { pb::GetReportRequest r; r.set_job_id("j-nope"); pb::GetReportResponse o; return s.GetReport(ctx().get(), r, &o); }},
+      {"watch unknown job", C::NOT_FOUND, [](auto& s) { pb::WatchJobRequest r; r.set_job_id("j-nope"); auto c = ctx(); auto rd = s.WatchJob(c.get(), r); pb::WatchJobResponse m; while (rd->Read(&m)) {} return rd->Finish(); }},
+      {"list reports negative limit", C::INVALID_ARGUMENT, [](auto& s) { pb::ListReportsRequest r; r.set_limit(-1); pb::ListReportsResponse o; return s.ListReports(ctx().get(), r, &o); }},
+      {"upload garbage OBJ", C::INVALID_ARGUMENT, [](auto& s) { pb::UploadMeshRequest r; r.set_obj("this is not an obj\nf 1 2 3\n"); pb::UploadMeshResponse o; return s.UploadMesh(ctx().get(), r, &o); }},
+      {"message over the size limit", C::RESOURCE_EXHAUSTED, [](auto& s) { pb::UploadMeshRequest r; r.set_obj(std::string(2 << 20, '#')); pb::UploadMeshResponse o; return s.UploadMesh(ctx().get(), r, &o); }},
+  };
+  ASSERT_GE(table.size(), 20u);
+  for (const BadRequest& b : table) {
+    const grpc::Status st = b.call(*stub);
+    EXPECT_EQ(st.error_code(), b.expected) << b.name << ": " << st.error_message();
+    EXPECT_FALSE(st.error_message().empty()) << b.name;
+  }
+
+  // Still serving: the good scene steps, and the state of the refused calls did not change it.
+  pb::StepScenesRequest r;
+  r.add_scene_ids(good);
+  r.set_substeps(3);
+  pb::StepScenesResponse resp;
+  const grpc::Status st = stub->StepScenes(ctx().get(), r, &resp);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(resp.states(0).status(), pb::SCENE_READY);
+  EXPECT_EQ(resp.states(0).steps(), 3);
+  pb::GetServerInfoResponse info;
+  ASSERT_TRUE(stub->GetServerInfo(ctx().get(), pb::GetServerInfoRequest(), &info).ok());
+  EXPECT_EQ(info.scenes(), 2);
+  EXPECT_EQ(info.max_scenes(), 4);
+}
+
+}  // namespace
+}  // namespace gd::service::testing

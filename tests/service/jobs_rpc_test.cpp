@@ -1,0 +1,207 @@
+// Jobs over real gRPC: a short towel grasp with WatchJob progress and its report; kill -9 while a
+// second job runs, then a restart on the same data directory; SIGTERM drains and exits 0.
+#include <gtest/gtest.h>
+
+#include <grpcpp/generic/generic_stub.h>
+
+#include <condition_variable>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "service/server_process.h"
+
+namespace gd::service::testing {
+namespace {
+
+/// A short towel grasp (~2 s simulated at dt 0.01).
+pb::SubmitJobRequest short_grasp(const std::string& label) {
+  pb::SubmitJobRequest r;
+  r.set_garment("towel");
+  r.set_task("grasp");
+  r.set_vertices(200);
+  r.set_dt(0.01);
+  r.set_time_scale(0.2);
+  r.set_settle(0.1);
+  r.set_label(label);
+  return r;
+}
+
+/// A job long enough to be caught running (~12 s simulated).
+pb::SubmitJobRequest long_grasp() {
+  pb::SubmitJobRequest r = short_grasp("long");
+  r.set_time_scale(1.0);
+  r.set_settle(1.0);
+  return r;
+}
+
+/// Watches a job until it ends; returns the messages.
+std::vector<pb::JobInfo> watch(pb::GarmentDynamics::Stub& stub, const std::string& id) {
+  auto c = ctx(120);
+  pb::WatchJobRequest req;
+  req.set_job_id(id);
+  auto reader = stub.WatchJob(c.get(), req);
+  std::vector<pb::JobInfo> seen;
+  pb::WatchJobResponse msg;
+  while (reader->Read(&msg)) seen.push_back(msg.job());
+  const grpc::Status st = reader->Finish();
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return seen;
+}
+
+/// Waits until the job reports RUNNING with some progress.
+void wait_running(pb::GarmentDynamics::Stub& stub, const std::string& id) {
+  auto c = ctx(60);
+  pb::WatchJobRequest req;
+  req.set_job_id(id);
+  auto reader = stub.WatchJob(c.get(), req);
+  pb::WatchJobResponse msg;
+  while (reader->Read(&msg))
+    if (msg.job().status() == pb::JOB_RUNNING && msg.job().progress() > 0) break;
+  ASSERT_EQ(msg.job().status(), pb::JOB_RUNNING);
+  c->TryCancel();
+  reader->Finish();
+}
+
+TEST(JobsRpc, JobWithProgressAndReportSurvivesKillAndRestart) {
+  TempDir dir;
+  const std::string data = dir.str() + "/data";
+  std::string first, second;
+  {
+    ServerProcess server(data);
+    auto stub = server.stub();
+    pb::SubmitJobResponse sub;
+    grpc::Status st = stub->SubmitJob(ctx().get(), short_grasp("first"), &sub);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    first = sub.job_id();
+    ASSERT_EQ(first.rfind("j-", 0), 0u) << first;
+
+    const std::vector<pb::JobInfo> seen = watch(*stub, first);
+    ASSERT_GE(seen.size(), 2u);
+    EXPECT_EQ(seen.back().status(), pb::JOB_SUCCEEDED) << seen.back().message();
+    EXPECT_DOUBLE_EQ(seen.back().progress(), 1.0);
+    bool mid = false;
+    for (const pb::JobInfo& j : seen) mid |= j.status() == pb::JOB_RUNNING && j.progress() > 0 && j.progress() < 1;
+    EXPECT_TRUE(mid) << "no progress message while running";
+
+    pb::GetReportRequest gr;
+    gr.set_job_id(first);
+    gr.set_include_files(true);
+    pb::GetReportResponse rep;
+    st = stub->GetReport(ctx().get(), gr, &rep);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    const auto summary = nlohmann::json::parse(rep.summary_json());
+    EXPECT_EQ(summary["task"], "grasp");
+    EXPECT_EQ(summary["failed"], false);
+    EXPECT_GT(summary["steps"].get<int>(), 100);
+    EXPECT_EQ(rep.job().label(), "first");
+    std::set<std::string> names(rep.file_names().begin(), rep.file_names().end());
+    for (const char* f : {"summary.json", "final.obj", "initial.obj", "trajectory.csv", "timeseries.csv"})
+      EXPECT_TRUE(names.count(f)) << f;
+    bool has_obj = false;
+    for (const pb::ReportFile& f : rep.files())
+      if (f.name() == "final.obj") has_obj = f.data().find("\nf ") != std::string::npos;
+    EXPECT_TRUE(has_obj);
+
+    // A second, long job: killed with -9 while it runs.
+    st = stub->SubmitJob(ctx().get(), long_grasp(), &sub);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    second = sub.job_id();
+    wait_running(*stub, second);
+    pb::GetReportResponse unfinished;
+    gr.set_job_id(second);
+    EXPECT_EQ(stub->GetReport(ctx().get(), gr, &unfinished).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+    server.kill9();
+  }
+  ServerProcess server(data);  // restart on the same data directory
+  auto stub = server.stub();
+  pb::ListReportsResponse list;
+  grpc::Status st = stub->ListReports(ctx().get(), pb::ListReportsRequest(), &list);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  ASSERT_EQ(list.total(), 2);
+  EXPECT_EQ(list.jobs(0).job_id(), second);  // newest first
+  EXPECT_EQ(list.jobs(0).status(), pb::JOB_INTERRUPTED);
+  EXPECT_EQ(list.jobs(0).message(), "server stopped while the job ran");
+  EXPECT_EQ(list.jobs(1).job_id(), first);
+  EXPECT_EQ(list.jobs(1).status(), pb::JOB_SUCCEEDED);
+
+  pb::GetReportRequest gr;
+  gr.set_job_id(first);
+  pb::GetReportResponse rep;
+  st = stub->GetReport(ctx().get(), gr, &rep);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(nlohmann::json::parse(rep.summary_json())["task"], "grasp");
+  EXPECT_GE(rep.file_names_size(), 5);
+  // Watching a finished job of the previous process answers its final status at once.
+  const std::vector<pb::JobInfo> seen = watch(*stub, second);
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].status(), pb::JOB_INTERRUPTED);
+}
+
+/// grpc.health.v1.Health/Check, with the messages encoded by hand (no health.proto is installed).
+/// Returns the serving status (1 SERVING, 2 NOT_SERVING) or -1 when the call failed.
+int health_status(const std::shared_ptr<grpc::Channel>& ch) {
+  grpc::GenericStub generic(ch);
+  grpc::ClientContext c;
+  c.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+  grpc::Slice empty;  // HealthCheckRequest{service: ""} encodes to no bytes
+  grpc::ByteBuffer req(&empty, 1), resp;
+  std::mutex mu;
+  std::condition_variable cv;
+  bool done = false;
+  grpc::Status st;
+  generic.UnaryCall(&c, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &req, &resp, [&](grpc::Status s) {
+    std::lock_guard<std::mutex> l(mu);
+    st = s;
+    done = true;
+    cv.notify_one();
+  });
+  std::unique_lock<std::mutex> l(mu);
+  cv.wait(l, [&] { return done; });
+  if (!st.ok()) return -1;
+  std::vector<grpc::Slice> slices;
+  resp.Dump(&slices);
+  std::string bytes;
+  for (auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  // HealthCheckResponse{status = 1}: field 1, varint.
+  if (bytes.size() == 2 && bytes[0] == 0x08) return bytes[1];
+  return bytes.empty() ? 0 : -2;
+}
+
+TEST(JobsRpc, SigtermDrainsInterruptsTheRunningJobAndExitsZero) {
+  TempDir dir;
+  const std::string data = dir.str() + "/data";
+  std::string id;
+  {
+    ServerProcess server(data, {"--grace-seconds", "1"});
+    EXPECT_EQ(health_status(server.channel()), 1);
+    auto stub = server.stub();
+    pb::SubmitJobResponse sub;
+    ASSERT_TRUE(stub->SubmitJob(ctx().get(), long_grasp(), &sub).ok());
+    id = sub.job_id();
+    wait_running(*stub, id);
+    ::kill(server.pid(), SIGTERM);
+    // Draining: the job has a 1 s grace period, during which health says NOT_SERVING.
+    int h = 1;
+    for (int i = 0; i < 100 && h == 1; ++i) {
+      h = health_status(server.channel());
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    EXPECT_EQ(h, 2) << "health did not turn NOT_SERVING";
+    pb::SubmitJobResponse refused;
+    const grpc::Status st = stub->SubmitJob(ctx().get(), short_grasp("late"), &refused);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAVAILABLE) << st.error_message();
+    EXPECT_EQ(server.signal_and_wait(0, 30), 0) << server.log();
+  }
+  ServerProcess server(data);
+  auto stub = server.stub();
+  pb::GetReportRequest gr;
+  gr.set_job_id(id);
+  pb::GetReportResponse rep;
+  ASSERT_TRUE(stub->GetReport(ctx().get(), gr, &rep).ok());
+  EXPECT_EQ(rep.job().status(), pb::JOB_INTERRUPTED);
+  EXPECT_EQ(rep.job().message(), "server stopped while the job ran");
+}
+
+}  // namespace
+}  // namespace gd::service::testing

@@ -1,0 +1,209 @@
+// ScenePool in-process (no gRPC): creation, stepping, reset determinism, limits, refused input,
+// and a scene that fails while the others of its batch carry on.
+#include "service/scene_pool.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+namespace gd::service {
+namespace {
+
+PoolOptions small_pool() {
+  PoolOptions o;
+  o.threads = 2;
+  o.max_scenes = 8;
+  o.max_vertices = 1000;
+  o.max_substeps = 50;
+  return o;
+}
+
+SceneSpec towel(int count = 1) {
+  SceneSpec s;
+  s.garment = "towel";
+  s.vertices = 200;
+  s.count = count;
+  s.dt = 0.01;
+  return s;
+}
+
+double mean_z(const std::vector<Vec3>& x) {
+  double z = 0;
+  for (const Vec3& p : x) z += p.z();
+  return z / double(x.size());
+}
+
+TEST(ScenePool, CreateStepAndResetAreDeterministicPerSeed) {
+  ScenePool pool(small_pool());
+  SceneSpec spec = towel(2);
+  spec.seed = 7;
+  spec.yaw_deg = 30;
+  spec.offset_m = 0.05;
+  CreatedScenes c;
+  ASSERT_TRUE(pool.create(spec, &c).ok());
+  ASSERT_EQ(c.ids.size(), 2u);
+  EXPECT_EQ(pool.size(), 2);
+  const std::vector<Vec3> x7 = c.states[0].positions;
+  EXPECT_EQ(x7, c.states[1].positions);        // same seed, same pose
+  EXPECT_NE(x7, c.info.rest_positions);        // seed 7 moved the garment
+  ASSERT_EQ(static_cast<int>(x7.size()), c.info.vertex_count);
+  for (size_t i = 0; i < x7.size(); ++i) EXPECT_DOUBLE_EQ(x7[i].z(), c.info.rest_positions[i].z());  // rigid on the table
+
+  StepRequest req;
+  req.scene_ids = c.ids;
+  req.substeps = 10;
+  std::vector<SceneSnapshot> a, b, r;
+  ASSERT_TRUE(pool.step(req, &a).ok());
+  EXPECT_EQ(a[0].steps, 10);
+  EXPECT_LT(mean_z(a[0].positions), mean_z(x7));  // gravity
+  EXPECT_EQ(a[0].positions, a[1].positions);
+
+  ASSERT_TRUE(pool.reset(c.ids, {}, &r).ok());  // creation seed
+  EXPECT_EQ(r[0].positions, x7);
+  EXPECT_EQ(r[0].steps, 0);
+  EXPECT_EQ(r[0].time, 0);
+  ASSERT_TRUE(pool.step(req, &b).ok());
+  EXPECT_EQ(b[0].positions, a[0].positions);  // bit-identical rollout
+
+  ASSERT_TRUE(pool.reset(c.ids, {8, 0}, &r).ok());
+  EXPECT_NE(r[0].positions, x7);
+  EXPECT_EQ(r[1].positions, c.info.rest_positions);  // seed 0: no randomisation
+}
+
+TEST(ScenePool, LimitsAreResourceExhausted) {
+  ScenePool pool(small_pool());
+  CreatedScenes c;
+  EXPECT_EQ(pool.create(towel(9), &c).code(), Code::kResourceExhausted);
+  SceneSpec big = towel();
+  big.vertices = 5000;
+  const Status st = pool.create(big, &c);
+  EXPECT_EQ(st.code(), Code::kResourceExhausted);
+  EXPECT_NE(st.message().find("--max-vertices"), std::string::npos) << st.message();
+  ASSERT_TRUE(pool.create(towel(8), &c).ok());
+  CreatedScenes more;
+  EXPECT_EQ(pool.create(towel(1), &more).code(), Code::kResourceExhausted);
+  StepRequest req;
+  req.scene_ids = {c.ids[0]};
+  req.substeps = 51;
+  std::vector<SceneSnapshot> out;
+  EXPECT_EQ(pool.step(req, &out).code(), Code::kResourceExhausted);
+  int destroyed = 0;
+  ASSERT_TRUE(pool.destroy({c.ids[0]}, &destroyed).ok());
+  EXPECT_EQ(destroyed, 1);
+  EXPECT_TRUE(pool.create(towel(1), &more).ok());  // the slot is free again
+}
+
+TEST(ScenePool, NanCommandIsRefusedAndChangesNothing) {
+  ScenePool pool(small_pool());
+  CreatedScenes c;
+  ASSERT_TRUE(pool.create(towel(), &c).ok());
+  StepRequest req;
+  req.scene_ids = c.ids;
+  SceneAction act;
+  act.scene_id = c.ids[0];
+  ArmCommand cmd;
+  cmd.position = Vec3(0.3, std::numeric_limits<double>::quiet_NaN(), 0.1);
+  act.arms.push_back(cmd);
+  req.actions.push_back(act);
+  std::vector<SceneSnapshot> out;
+  const Status st = pool.step(req, &out);
+  EXPECT_EQ(st.code(), Code::kInvalidArgument);
+  EXPECT_NE(st.message().find("not finite"), std::string::npos) << st.message();
+  ASSERT_TRUE(pool.state(c.ids, false, &out).ok());
+  EXPECT_EQ(out[0].steps, 0);
+  EXPECT_EQ(pool.step(StepRequest{{"s-999"}, {}, 1, true, false}, &out).code(), Code::kNotFound);
+}
+
+TEST(ScenePool, ClosedGripperCarriesTheCorner) {
+  ScenePool pool(small_pool());
+  CreatedScenes c;
+  ASSERT_TRUE(pool.create(towel(), &c).ok());
+  // The towel corner nearest the left arm (largest y, smallest x).
+  int corner = 0;
+  for (int i = 0; i < c.info.vertex_count; ++i) {
+    const Vec3& p = c.info.rest_positions[i];
+    const Vec3& q = c.info.rest_positions[corner];
+    if (p.y() - p.x() > q.y() - q.x()) corner = i;
+  }
+  const Vec3 at = c.info.rest_positions[corner];
+  auto step_left = [&](const Vec3& pos, double gripper, int substeps) {
+    StepRequest req;
+    req.scene_ids = c.ids;
+    req.substeps = substeps;
+    SceneAction act;
+    act.scene_id = c.ids[0];
+    ArmCommand cmd;
+    cmd.arm = tasks::Arm::kLeft;
+    cmd.position = pos;
+    cmd.orientation = tasks::top_down_orientation();
+    cmd.gripper = gripper;
+    act.arms.push_back(cmd);
+    req.actions.push_back(act);
+    std::vector<SceneSnapshot> out;
+    EXPECT_TRUE(pool.step(req, &out).ok());
+    return out.at(0);
+  };
+  step_left(at, 0.035, 5);                    // open, moved onto the corner
+  SceneSnapshot s = step_left(at, 0.0, 1);    // closes there
+  EXPECT_TRUE(s.arms[0].closed);
+  EXPECT_GT(s.arms[0].held_vertices, 0);
+  EXPECT_EQ(s.arms[1].held_vertices, 0);      // the right arm holds at home
+  s = step_left(at + Vec3(0, 0, 0.1), 0.0, 10);  // lift 10 cm
+  EXPECT_NEAR(s.positions[corner].z(), at.z() + 0.1, 0.01);
+}
+
+TEST(ScenePool, FailedSceneIsMarkedWhileTheOthersCarryOn) {
+  ScenePool pool(small_pool());
+  CreatedScenes c;
+  ASSERT_TRUE(pool.create(towel(2), &c).ok());
+  StepRequest req;
+  req.scene_ids = c.ids;
+  req.substeps = 3;
+  SceneAction bad;
+  bad.scene_id = c.ids[0];
+  bad.target_indices = {0};
+  bad.target_positions = {Vec3(1e200, 0, 1e200)};  // finite input, but the energies overflow
+  req.actions.push_back(bad);
+  std::vector<SceneSnapshot> out;
+  ASSERT_TRUE(pool.step(req, &out).ok());
+  EXPECT_TRUE(out[0].failed);
+  EXPECT_FALSE(out[0].failure.empty());
+  EXPECT_FALSE(out[1].failed) << out[1].failure;
+  EXPECT_EQ(out[1].steps, 3);
+  for (const Vec3& p : out[1].positions) ASSERT_TRUE(p.allFinite());
+
+  req.actions.clear();
+  EXPECT_EQ(pool.step(req, &out).code(), Code::kFailedPrecondition);  // stepping a failed scene
+  req.scene_ids = {c.ids[1]};
+  ASSERT_TRUE(pool.step(req, &out).ok());
+  EXPECT_EQ(out[0].steps, 6);
+  std::vector<SceneSnapshot> r;
+  ASSERT_TRUE(pool.reset({c.ids[0]}, {}, &r).ok());
+  EXPECT_FALSE(r[0].failed);
+}
+
+TEST(ScenePool, SubscribersGetEveryKthStep) {
+  ScenePool pool(small_pool());
+  CreatedScenes c;
+  ASSERT_TRUE(pool.create(towel(), &c).ok());
+  std::shared_ptr<FrameSubscription> sub;
+  ASSERT_TRUE(pool.subscribe(c.ids, 2, &sub).ok());
+  StepRequest req;
+  req.scene_ids = c.ids;
+  req.substeps = 5;
+  std::vector<SceneSnapshot> out;
+  ASSERT_TRUE(pool.step(req, &out).ok());
+  SceneSnapshot f;
+  ASSERT_TRUE(sub->pop(&f, 0));
+  EXPECT_EQ(f.steps, 2);
+  ASSERT_TRUE(sub->pop(&f, 0));
+  EXPECT_EQ(f.steps, 4);
+  EXPECT_FALSE(sub->pop(&f, 0));
+  int n = 0;
+  ASSERT_TRUE(pool.destroy(c.ids, &n).ok());
+  EXPECT_TRUE(sub->finished());
+}
+
+}  // namespace
+}  // namespace gd::service

@@ -1,0 +1,164 @@
+// Scenes over real gRPC: a gd-server process on a loopback port, driven by the generated stub.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "service/server_process.h"
+
+namespace gd::service::testing {
+namespace {
+
+pb::CreateScenesRequest towel(int count, int vertices = 200) {
+  pb::CreateScenesRequest r;
+  r.set_garment("towel");
+  r.set_vertices(vertices);
+  r.set_count(count);
+  r.mutable_settings()->set_dt(0.01);
+  return r;
+}
+
+TEST(ScenesRpc, SixteenScenesInOneBatchedStepFallUnderGravity) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data");
+  auto stub = server.stub();
+
+  pb::CreateScenesResponse created;
+  grpc::Status st = stub->CreateScenes(ctx().get(), towel(16), &created);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  ASSERT_EQ(created.scene_ids_size(), 16);
+  EXPECT_EQ(std::set<std::string>(created.scene_ids().begin(), created.scene_ids().end()).size(), 16u);
+  const int n = created.info().vertex_count();
+  EXPECT_GE(n, 150);
+  EXPECT_LE(n, 300);
+  EXPECT_EQ(created.info().backend(), "cpu");
+  ASSERT_EQ(created.info().triangles().shape_size(), 2);
+  EXPECT_EQ(created.info().triangles().shape(1), 3);
+  ASSERT_EQ(created.states_size(), 16);
+  const std::vector<float> x0 = floats(created.states(0).positions());
+  ASSERT_EQ(x0.size(), 3u * n);
+
+  // The towel starts 1 cm above the table; after 20 steps (0.2 s) it has settled lower.
+  pb::StepScenesRequest step;
+  for (const std::string& id : created.scene_ids()) step.add_scene_ids(id);
+  step.set_substeps(20);
+  step.set_include_velocities(true);
+  pb::StepScenesResponse resp;
+  st = stub->StepScenes(ctx().get(), step, &resp);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  ASSERT_EQ(resp.states_size(), 16);
+  for (int i = 0; i < 16; ++i) {
+    const pb::SceneState& s = resp.states(i);
+    EXPECT_EQ(s.scene_id(), created.scene_ids(i));
+    EXPECT_EQ(s.status(), pb::SCENE_READY) << s.failure();
+    EXPECT_EQ(s.steps(), 20);
+    EXPECT_NEAR(s.time(), 0.2, 1e-9);
+    ASSERT_EQ(s.positions().dtype(), "float32");
+    ASSERT_EQ(s.positions().shape_size(), 2);
+    EXPECT_EQ(s.positions().shape(0), n);
+    EXPECT_EQ(s.positions().shape(1), 3);
+    ASSERT_EQ(s.velocities().shape(0), n);
+    const std::vector<float> x = floats(s.positions());
+    double mean_z0 = 0, mean_z = 0;
+    for (int v = 0; v < n; ++v) mean_z0 += x0[3 * v + 2], mean_z += x[3 * v + 2];
+    EXPECT_LT(mean_z / n, mean_z0 / n - 1e-3) << "gravity did not move scene " << i;
+    for (float f : x) ASSERT_TRUE(std::isfinite(f));
+    EXPECT_GT(s.stats().newton_iterations(), 0);
+    EXPECT_GT(s.stats().wall_ms(), 0);
+  }
+  // Identical scenes, identical results.
+  EXPECT_EQ(resp.states(0).positions().data(), resp.states(15).positions().data());
+}
+
+}  // namespace
+}  // namespace gd::service::testing
+
+namespace gd::service::testing {
+namespace {
+
+std::vector<std::string> create(pb::GarmentDynamics::Stub& stub, int count) {
+  pb::CreateScenesRequest r;
+  r.set_garment("towel");
+  r.set_vertices(200);
+  r.set_count(count);
+  pb::CreateScenesResponse created;
+  const grpc::Status st = stub.CreateScenes(ctx().get(), r, &created);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return {created.scene_ids().begin(), created.scene_ids().end()};
+}
+
+TEST(ScenesRpc, StreamFramesStepsItsScenesItself) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data");
+  auto stub = server.stub();
+  const std::vector<std::string> ids = create(*stub, 2);
+  pb::StreamFramesRequest req;
+  for (const auto& id : ids) req.add_scene_ids(id);
+  req.set_every(5);
+  req.set_steps(20);
+  auto c = ctx();
+  auto reader = stub->StreamFrames(c.get(), req);
+  pb::StreamFramesResponse msg;
+  std::vector<std::pair<std::string, int64_t>> got;
+  while (reader->Read(&msg)) {
+    got.emplace_back(msg.state().scene_id(), msg.state().steps());
+    EXPECT_EQ(msg.state().positions().shape(1), 3);
+  }
+  ASSERT_TRUE(reader->Finish().ok());
+  ASSERT_EQ(got.size(), 8u);  // 4 frames of 2 scenes
+  for (size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].first, ids[i % 2]);
+    EXPECT_EQ(got[i].second, 5 * int64_t(i / 2 + 1));
+  }
+}
+
+TEST(ScenesRpc, StreamFramesFollowsStepScenesUntilMaxFramesOrDestroy) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data");
+  auto stub = server.stub();
+  const std::vector<std::string> ids = create(*stub, 1);
+  auto step = [&](int substeps) {
+    pb::StepScenesRequest s;
+    s.add_scene_ids(ids[0]);
+    s.set_substeps(substeps);
+    pb::StepScenesResponse r;
+    ASSERT_TRUE(stub->StepScenes(ctx().get(), s, &r).ok());
+  };
+  {  // every 2nd step, at most 3 frames: one StepScenes of 7 steps gives frames at 2, 4, 6
+    pb::StreamFramesRequest req;
+    req.add_scene_ids(ids[0]);
+    req.set_every(2);
+    req.set_max_frames(3);
+    auto c = ctx();
+    auto reader = stub->StreamFrames(c.get(), req);
+    reader->WaitForInitialMetadata();  // subscribed
+    step(7);
+    std::vector<int64_t> steps;
+    pb::StreamFramesResponse msg;
+    while (reader->Read(&msg)) steps.push_back(msg.state().steps());
+    ASSERT_TRUE(reader->Finish().ok());
+    EXPECT_EQ(steps, (std::vector<int64_t>{2, 4, 6}));
+  }
+  {  // every step, no cap: the stream ends (OK) when its scene is destroyed
+    pb::StreamFramesRequest req;
+    req.add_scene_ids(ids[0]);
+    auto c = ctx();
+    auto reader = stub->StreamFrames(c.get(), req);
+    reader->WaitForInitialMetadata();
+    step(2);
+    pb::DestroyScenesRequest d;
+    d.add_scene_ids(ids[0]);
+    pb::DestroyScenesResponse dr;
+    ASSERT_TRUE(stub->DestroyScenes(ctx().get(), d, &dr).ok());
+    EXPECT_EQ(dr.destroyed(), 1);
+    std::vector<int64_t> steps;
+    pb::StreamFramesResponse msg;
+    while (reader->Read(&msg)) steps.push_back(msg.state().steps());
+    ASSERT_TRUE(reader->Finish().ok());
+    EXPECT_EQ(steps, (std::vector<int64_t>{8, 9}));
+  }
+}
+
+}  // namespace
+}  // namespace gd::service::testing

@@ -1,0 +1,162 @@
+// The server itself over real gRPC: reflection, assets (garments, materials, an uploaded mesh that
+// survives a restart), server info, JSON logs.
+#include <grpcpp/generic/generic_stub.h>
+#include <google/protobuf/unknown_field_set.h>
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "service/server_process.h"
+
+namespace gd::service::testing {
+namespace {
+
+using google::protobuf::UnknownFieldSet;
+
+/// The services listed by grpc.reflection.v1alpha (messages encoded by hand: no reflection.proto
+/// is installed).
+std::vector<std::string> reflected_services(const std::shared_ptr<grpc::Channel>& ch) {
+  grpc::GenericStub generic(ch);
+  grpc::CompletionQueue cq;
+  grpc::ClientContext c;
+  c.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  auto call = generic.PrepareCall(&c, "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo", &cq);
+  void* tag;
+  bool ok = false;
+  auto next = [&] { return cq.Next(&tag, &ok) && ok; };
+  call->StartCall(reinterpret_cast<void*>(1));
+  EXPECT_TRUE(next());
+  const char req_bytes[] = {0x3a, 0x00};  // ServerReflectionRequest{list_services: ""} (field 7)
+  grpc::Slice slice(req_bytes, 2);
+  grpc::ByteBuffer req(&slice, 1), resp;
+  call->Write(req, reinterpret_cast<void*>(2));
+  EXPECT_TRUE(next());
+  call->WritesDone(reinterpret_cast<void*>(3));
+  EXPECT_TRUE(next());
+  call->Read(&resp, reinterpret_cast<void*>(4));
+  const bool got = next();
+  grpc::Status st;
+  call->Finish(&st, reinterpret_cast<void*>(5));
+  next();
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  std::vector<std::string> names;
+  if (!got) return names;
+  std::vector<grpc::Slice> slices;
+  resp.Dump(&slices);
+  std::string bytes;
+  for (auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  // ServerReflectionResponse.list_services_response (6) -> ListServiceResponse.service (1) -> name (1).
+  UnknownFieldSet top;
+  EXPECT_TRUE(top.ParseFromString(bytes));
+  for (int i = 0; i < top.field_count(); ++i) {
+    if (top.field(i).number() != 6) continue;
+    UnknownFieldSet list;
+    list.ParseFromString(top.field(i).length_delimited());
+    for (int j = 0; j < list.field_count(); ++j) {
+      UnknownFieldSet svc;
+      svc.ParseFromString(list.field(j).length_delimited());
+      for (int k = 0; k < svc.field_count(); ++k)
+        if (svc.field(k).number() == 1) names.push_back(svc.field(k).length_delimited());
+    }
+  }
+  return names;
+}
+
+/// A flat 12 x 8 grid (0.33 m x 0.21 m) as OBJ text.
+std::string grid_obj() {
+  std::ostringstream o;
+  const int nx = 12, ny = 8;
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) o << "v " << 0.03 * i << " " << 0.03 * j - 0.105 << " 0\n";
+  for (int j = 0; j + 1 < ny; ++j)
+    for (int i = 0; i + 1 < nx; ++i) {
+      const int a = j * nx + i + 1, b = a + 1, c = a + nx, d = c + 1;
+      o << "f " << a << " " << b << " " << d << "\nf " << a << " " << d << " " << c << "\n";
+    }
+  return o.str();
+}
+
+TEST(ServerRpc, ReflectionListsTheServiceAndHealth) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data");
+  const std::vector<std::string> names = reflected_services(server.channel());
+  EXPECT_NE(std::find(names.begin(), names.end(), "garmentdynamics.v1.GarmentDynamics"), names.end());
+  EXPECT_NE(std::find(names.begin(), names.end(), "grpc.health.v1.Health"), names.end());
+}
+
+TEST(ServerRpc, AssetsInfoAndAnUploadedMeshThatSurvivesARestart) {
+  TempDir dir;
+  const std::string data = dir.str() + "/data";
+  std::string mesh_id;
+  {
+    ServerProcess server(data, {"--log-format", "json"});
+    auto stub = server.stub();
+    pb::ListGarmentsResponse g;
+    ASSERT_TRUE(stub->ListGarments(ctx().get(), {}, &g).ok());
+    EXPECT_NE(std::find(g.garments().begin(), g.garments().end(), "towel"), g.garments().end());
+    EXPECT_NE(std::find(g.garments().begin(), g.garments().end(), "tshirt"), g.garments().end());
+    pb::ListMaterialsResponse m;
+    ASSERT_TRUE(stub->ListMaterials(ctx().get(), {}, &m).ok());
+    bool cotton = false;
+    for (const auto& mat : m.materials()) cotton |= mat.name() == "cotton" && mat.density() > 0 && mat.thickness() > 0;
+    EXPECT_TRUE(cotton);
+
+    pb::UploadMeshRequest up;
+    up.set_name("grid");
+    up.set_obj(grid_obj());
+    pb::UploadMeshResponse ur;
+    grpc::Status st = stub->UploadMesh(ctx().get(), up, &ur);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    EXPECT_EQ(ur.vertices(), 96);
+    EXPECT_EQ(ur.triangles(), 2 * 11 * 7);
+    mesh_id = ur.mesh_id();
+
+    pb::CreateScenesRequest cr;
+    cr.set_mesh_id(mesh_id);
+    pb::CreateScenesResponse created;
+    grpc::ClientContext c;
+    c.AddMetadata("x-request-id", "req-test-42");
+    st = stub->CreateScenes(&c, cr, &created);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    EXPECT_EQ(created.info().vertex_count(), 96);
+    const auto md = c.GetServerInitialMetadata().find("x-request-id");
+    ASSERT_NE(md, c.GetServerInitialMetadata().end());
+    EXPECT_EQ(std::string(md->second.data(), md->second.size()), "req-test-42");
+
+    pb::GetServerInfoResponse info;
+    ASSERT_TRUE(stub->GetServerInfo(ctx().get(), {}, &info).ok());
+    EXPECT_EQ(info.scenes(), 1);
+    EXPECT_EQ(info.threads(), 2);
+    EXPECT_EQ(info.backend(), "cpu");
+    EXPECT_FALSE(info.version().empty());
+    EXPECT_EQ(server.signal_and_wait(SIGTERM, 30), 0);
+
+    // --log-format json: every log line is one JSON object; the create call is logged with its id.
+    std::istringstream log(server.log());
+    std::string line;
+    bool logged_call = false;
+    while (std::getline(log, line)) {
+      if (line.empty() || line[0] != '{') continue;  // "listening on ..." (stdout)
+      const auto j = nlohmann::json::parse(line);
+      const std::string msg = j.at("msg");
+      logged_call |= msg.find("req-test-42") != std::string::npos && msg.find("CreateScenes") != std::string::npos &&
+                     msg.find("OK") != std::string::npos;
+    }
+    EXPECT_TRUE(logged_call) << server.log();
+  }
+  ServerProcess server(data);
+  auto stub = server.stub();
+  pb::ListGarmentsResponse g;
+  ASSERT_TRUE(stub->ListGarments(ctx().get(), {}, &g).ok());
+  ASSERT_EQ(g.meshes_size(), 1);
+  EXPECT_EQ(g.meshes(0).mesh_id(), mesh_id);
+  EXPECT_EQ(g.meshes(0).name(), "grid");
+  pb::CreateScenesRequest cr;
+  cr.set_mesh_id(mesh_id);
+  pb::CreateScenesResponse created;
+  EXPECT_TRUE(stub->CreateScenes(ctx().get(), cr, &created).ok());
+}
+
+}  // namespace
+}  // namespace gd::service::testing
