@@ -32,8 +32,13 @@ class Reward:
             near = np.flatnonzero(rest[:, 0] <= x_mid)
             mirror = rest[far].copy()
             mirror[:, 0] = 2 * x_mid - mirror[:, 0]
-            d = np.linalg.norm(mirror[:, None, :2] - rest[near][None, :, :2], axis=2)
-            self.pairs = np.stack([far, near[np.argmin(d, axis=1)]], axis=1)
+            # Nearest near-half vertex of each mirror image, in chunks (memory O(chunk * N)).
+            near_xy = rest[near, :2]
+            match = np.empty(len(far), dtype=np.int64)
+            for i in range(0, len(far), 1024):
+                d2 = ((mirror[i:i + 1024, None, :2] - near_xy[None, :, :]) ** 2).sum(axis=2)
+                match[i:i + 1024] = near[np.argmin(d2, axis=1)]
+            self.pairs = np.stack([far, match], axis=1)
 
     def potential(self, x: np.ndarray) -> np.ndarray:
         """x: (..., N, 3) -> (...,) float64."""
