@@ -22,12 +22,14 @@ class GarmentTask : public ::testing::TestWithParam<Case> {};
 
 TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
   const auto& [garment, task] = GetParam();
-  // CI runs the cases verified green at this resolution; the whole matrix with GD_FULL_MATRIX=1
-  // (docs/validation.md lists the open cases: coarse two-layer garments can still tangle or not
-  // settle in the shortened tasks).
-  static const std::set<std::string> kCi = {"towel_grasp", "towel_fold", "towel_fling", "tshirt_grasp", "skirt_grasp"};
-  if (!std::getenv("GD_FULL_MATRIX") && !kCi.count(garment + "_" + task))
-    GTEST_SKIP() << "outside the CI subset; run with GD_FULL_MATRIX=1";
+  // CI runs every case verified green at this resolution; the open ones (docs/validation.md) run
+  // with GD_FULL_MATRIX=1: folds whose fold loop stands > 10 cm tall at ~400 vertices, and
+  // garments that tangle in the fast (time-scaled) lifts.
+  static const std::set<std::string> kOpen = {"tshirt_fold", "long_sleeve_fold", "cake_skirt_fold",
+                                              "hoodie_fold", "dress_grasp", "hoodie_grasp",
+                                              "coat_grasp", "coat_fold", "coat_fling"};
+  if (!std::getenv("GD_FULL_MATRIX") && kOpen.count(garment + "_" + task))
+    GTEST_SKIP() << "an open case (docs/validation.md); run with GD_FULL_MATRIX=1";
   ExperimentConfig c;
   c.garment = garment;
   c.task = task;
