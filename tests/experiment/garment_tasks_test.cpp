@@ -22,7 +22,7 @@ class GarmentTask : public ::testing::TestWithParam<Case> {};
 
 TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
   const auto& [garment, task] = GetParam();
-  // CI runs every case verified green at this resolution (twice, with no untangling); the open
+  // CI runs every case green in two runs at this resolution (no untangling in the second); the open
   // ones (docs/validation.md) run with GD_FULL_MATRIX=1: folds whose fold loop stands > 10 cm tall
   // at ~400 vertices, garments that tangle in the fast (time-scaled) lifts, and two flings that
   // need the untangling fail-safe in some runs and not in others (the broad phase's pair order
