@@ -71,12 +71,21 @@ double fitness_as_is(const Cloud& src, const Cloud& dst, double max_distance) {
   return n ? sum / double(n) : std::numeric_limits<double>::max();
 }
 
-template <class Icp>
-void configure(Icp& icp, const IcpOptions& o) {
+/// Runs a configured PCL ICP of `source` onto `target`; returns the rigid motion found (which
+/// maps the source onto the target) and whether it converged.
+template <class Icp, class CloudPtr>
+Eigen::Matrix4d run_icp(Icp& icp, const CloudPtr& source, const CloudPtr& target, const IcpOptions& o,
+                        bool* converged) {
+  icp.setInputSource(source);
+  icp.setInputTarget(target);
   icp.setMaxCorrespondenceDistance(o.max_correspondence_distance);
   icp.setMaximumIterations(o.max_iterations);
   icp.setTransformationEpsilon(o.transformation_epsilon);
   icp.setEuclideanFitnessEpsilon(o.euclidean_fitness_epsilon);
+  typename CloudPtr::element_type aligned;
+  icp.align(aligned);
+  *converged = icp.hasConverged();
+  return icp.getFinalTransformation();
 }
 
 }  // namespace
@@ -103,7 +112,6 @@ Eigen::Matrix4d refine_world_to_camera(const Cloud& sim_world, const Cloud& real
 
   Eigen::Matrix4d D;
   bool converged = false;
-  double fitness = 0;
   if (o.point_to_plane) {
     // Point-to-plane: target normals from the k nearest neighbours; no sliding along the cloth.
     auto target = to_pcl_normals(dst);
@@ -123,31 +131,18 @@ Eigen::Matrix4d refine_world_to_camera(const Cloud& sim_world, const Cloud& real
     target->height = 1;
     if (target->empty()) throw sim::InputError("ICP: no target normal could be estimated");
     pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal, double> icp;
-    icp.setInputSource(to_pcl_normals(src));
-    icp.setInputTarget(target);
-    configure(icp, o);
-    pcl::PointCloud<pcl::PointNormal> aligned;
-    icp.align(aligned);
-    D = icp.getFinalTransformation();
-    converged = icp.hasConverged();
-    fitness = icp.getFitnessScore(o.max_correspondence_distance);
+    D = run_icp(icp, to_pcl_normals(src), target, o, &converged);
   } else {
     pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ, double> icp;
-    icp.setInputSource(to_pcl(src));
-    icp.setInputTarget(to_pcl(dst));
-    configure(icp, o);
-    pcl::PointCloud<pcl::PointXYZ> aligned;
-    icp.align(aligned);
-    D = icp.getFinalTransformation();
-    converged = icp.hasConverged();
-    fitness = icp.getFitnessScore(o.max_correspondence_distance);
+    D = run_icp(icp, to_pcl(src), to_pcl(dst), o, &converged);
   }
 
+  // Both fitnesses by the same measure, so that the acceptance compares like with like.
   IcpReport r;
   r.converged = converged;
-  r.fitness = fitness;
+  r.fitness = fitness_as_is(transform_cloud(src, D), dst, o.max_correspondence_distance);
   r.initial_fitness = fitness_as_is(src, dst, o.max_correspondence_distance);
-  const bool better = fitness <= (1.0 - o.min_improvement) * r.initial_fitness;
+  const bool better = r.fitness <= (1.0 - o.min_improvement) * r.initial_fitness;
   const Eigen::AngleAxisd aa(Eigen::Matrix3d(D.topLeftCorner<3, 3>()));
   r.rotation_deg = std::abs(aa.angle()) * 180.0 / std::numbers::pi;
   r.translation = D.topRightCorner<3, 1>().norm();

@@ -33,7 +33,8 @@ struct IcpOptions {
 struct IcpReport {
   bool converged = false;
   bool accepted = false;       ///< false: the initial transform was returned
-  double fitness = 0;          ///< PCL fitness score: mean squared distance of matched pairs, m²
+  double fitness = 0;          ///< after: mean squared distance from each source point to its nearest
+                               ///< target point, over pairs closer than max_correspondence_distance, m²
   double initial_fitness = 0;  ///< the same score for the initial transform
   double rotation_deg = 0;     ///< size of the correction
   double translation = 0;      ///< m
