@@ -111,6 +111,8 @@ int main(int argc, char** argv) {
   run->add_flag("--icp", cfg.icp, "refine the capture's camera transform by ICP on the first frame");
   run->add_flag("--no-self-contact", no_self_contact, "turn cloth self-contact off (faster, may interpenetrate)");
   run->add_flag("--no-plots", no_plots, "do not draw the PNG plots");
+  run->add_option("--mesh-every", cfg.mesh_interval, "write OUT/meshes/t_<ms>.obj every S seconds (0: none)")
+      ->capture_default_str();
   run->add_flag("--quiet", quiet, "no progress bar");
   std::string label;
   run->add_option("--label", label, "with --server: free text kept with the job's report");
@@ -150,7 +152,7 @@ int main(int argc, char** argv) {
     gd::log();  // the logger reads GD_LOG_LEVEL
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
-                                     "--contact-hessian", "--no-plots"})
+                                     "--contact-hessian", "--no-plots", "--mesh-every"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

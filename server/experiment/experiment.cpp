@@ -88,6 +88,15 @@ class Run {
     record();
   }
 
+  /// Writes the positions as OUT/meshes/t_<ms>.obj every `interval` seconds from now on.
+  void write_meshes(const sim::Mesh& mesh, const std::string& dir, double interval) {
+    mesh_ = &mesh;
+    mesh_dir_ = dir;
+    mesh_interval_ = interval;
+    fs::create_directories(dir);
+    write_mesh();
+  }
+
   /// Steps until the scene time reaches t (overshoot < 1 dt); false once the scene has failed.
   bool advance(double t) {
     while (scene_->time() < t - 1e-12) {
@@ -102,6 +111,7 @@ class Run {
       pcg_ += s.pcg_iters;
       if (!ok) return false;
       if (scene_->time() >= next_record_ - 1e-9) record();
+      if (mesh_ && scene_->time() >= next_mesh_ - 1e-9) write_mesh();
       if (progress_) progress_(scene_->time(), end_time_, s);
     }
     return !scene_->failed();
@@ -134,9 +144,18 @@ class Run {
     next_record_ = scene_->time() + frame_interval_;
   }
 
+  void write_mesh() {
+    const long ms = std::lround(1e3 * scene_->time());
+    sim::write_obj(*mesh_, scene_->positions(), fmt::format("{}/t_{:06d}.obj", mesh_dir_, ms));
+    next_mesh_ = scene_->time() + mesh_interval_;
+  }
+
   std::unique_ptr<sim::Scene> scene_;
   tasks::GripperController controller_;
   double frame_interval_;
+  const sim::Mesh* mesh_ = nullptr;  // set by write_meshes
+  std::string mesh_dir_;
+  double mesh_interval_ = 0, next_mesh_ = 0;
   ProgressFn progress_;
   double end_time_;
   double next_record_ = 0;
@@ -164,6 +183,8 @@ void ExperimentConfig::validate() const {
   if (!(settle_after >= 0) || !std::isfinite(settle_after))
     throw InputError(fmt::format("settle_after must be >= 0 s (got {})", settle_after));
   if (keep_frames < 0) throw InputError("keep_frames must be >= 0");
+  if (!(mesh_interval >= 0) || !std::isfinite(mesh_interval))
+    throw InputError(fmt::format("mesh_interval must be >= 0 s (got {})", mesh_interval));
   scene.validate();
   task_params.validate();
 }
@@ -299,6 +320,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   const std::vector<Vec3> x0 = scene->positions();
   sim::write_obj(mesh, x0, out + "/initial.obj");
   Run run(std::move(scene), std::move(controller), config.frame_interval, progress, end_time);
+  if (config.mesh_interval > 0) run.write_meshes(mesh, out + "/meshes", config.mesh_interval);
 
   ExperimentResult result;
   nlohmann::json& s = result.summary;

@@ -52,6 +52,9 @@ struct ExperimentConfig {
   std::array<int, 2> shoulder_vertices{-1, -1};
   double settle_after = 1.0;             ///< s simulated after the trajectory ends (no capture)
   double frame_interval = 0.1;           ///< s between rows of timeseries.csv
+  /// s between meshes written to OUT/meshes/t_<ms>.obj (with pattern UVs), for viewing the motion
+  /// in any mesh viewer; 0: none.
+  double mesh_interval = 0;
   bool icp = false;                      ///< refine the capture's camera transform by ICP first
   int keep_frames = 4;                   ///< (sim, real) pairs kept for frames.png
   std::string baselines_csv;             ///< RGBench's paper_baselines.csv (empty: look in GD_SHARED_DIR)

@@ -219,6 +219,10 @@ bool Scene::do_step(bool quasi_static) {
   }
   time_ += options_.dt;
   if (stats_.untangled) ++untangle_runs_;
+  gd::log().debug("step t={:.3f}: newton {} pcg {} min_alpha {:.3g} |dx|/dt {:.3g} contacts {} candidates {} "
+                  "intersecting {} (found {}){}",
+                  time_, stats_.newton_iters, stats_.pcg_iters, stats_.min_alpha, stats_.step_norm, stats_.contacts,
+                  stats_.candidates, stats_.intersecting_pairs, stats_.intersecting_found, stats_.untangled ? " (untangled)" : "");
   return true;
 }
 
@@ -277,6 +281,7 @@ void SceneOptions::validate() const {
   nonneg(membrane_damping, "membrane_damping");
   nonneg(bending_damping, "bending_damping");
   nonneg(mass_damping, "mass_damping");
+  positive(grip_stiffness, "grip_stiffness");
 }
 
 }  // namespace gd::sim

@@ -86,18 +86,23 @@ class Builder {
     t_ += duration;
     cur_ = to;
   }
-  /// Like move, plus a vertical bump of `arc` metres: z += arc * sin(pi * s(u)), s the
-  /// minimum-jerk progress (zero at both ends).
-  void move_arc(const Waypoint& to, double arc, double duration) {
-    if (arc == 0) return move(to, duration);
+  /// A page turn from the current waypoint to `to`: each arm moves on a half ellipse whose
+  /// horizontal axis is the chord and whose vertical semi-axis is `rise` (m),
+  ///   p(phi) = c - (to - from)/2 cos(phi) + rise sin(phi) z,  phi = pi s(u),
+  /// s the minimum-jerk progress. A point of cloth held at the start swings about the chord's
+  /// midpoint at a nearly constant distance, so the part of the garment between that midpoint
+  /// and the gripper stays taut, like a page turned over its spine, and is laid down flat.
+  void turn_page(const Waypoint& to, double rise, double duration) {
     if (duration <= 0) return;
     const int n = std::max(1, static_cast<int>(std::ceil(duration / dt_ - 1e-9)));
     for (int k = 1; k <= n; ++k) {
       const double u = static_cast<double>(k) / n;
-      const double s = min_jerk(u);
+      const double phi = kPi * min_jerk(u);
       Waypoint w;
-      for (int a = 0; a < 2; ++a)
-        w.pos[a] = cur_.pos[a] + s * (to.pos[a] - cur_.pos[a]) + Vec3(0, 0, arc * std::sin(kPi * s));
+      for (int a = 0; a < 2; ++a) {
+        const Vec3 half = 0.5 * (to.pos[a] - cur_.pos[a]);
+        w.pos[a] = cur_.pos[a] + half - std::cos(phi) * half + Vec3(0, 0, rise * std::sin(phi));
+      }
       w.gripper = cur_.gripper + u * (to.gripper - cur_.gripper);
       emit(t_ + u * duration, w);
     }
@@ -241,8 +246,19 @@ DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d&
                                    p.fold_margin, s.hem_x, s.grasp_local[a].x()));
     over[a] = s.grasp[a] + dx * s.forward;
   }
-  b.move_arc(at(raised(over, p.fold_lift), 0.0), p.fold_arc >= 0 ? p.fold_arc : 0.35 * s.length, p.fold_duration * k);
-  b.move(at(raised(over, p.place_height), 0.0), p.lower_duration * k);
+  if (p.fold_arc == 0) {  // the paper's level translation, then lower
+    b.move(at(raised(over, p.fold_lift), 0.0), p.fold_duration * k);
+    b.move(at(raised(over, p.place_height), 0.0), p.lower_duration * k);
+  } else {
+    // Turn the top half over like a page about the fold line (midway between the grasp points and
+    // where they are put down), ending just above the table; then a pause before opening.
+    // Auto: a circle about the fold line at grasp height (the chord's midpoint is
+    // (fold_lift + place_height) / 2 above it).
+    const double half = 0.5 * (over[0] - s.grasp[0]).norm();
+    const double rise = p.fold_arc > 0 ? p.fold_arc : std::max(0.0, half - 0.5 * (p.fold_lift + p.place_height));
+    b.turn_page(at(raised(over, p.place_height), 0.0), rise, p.fold_duration * k);
+    b.hold(p.lower_duration * k);
+  }
   b.gripper(kGripperOpen, p.close_duration * k);
   b.move(at(raised(over, p.place_height + p.retreat_height), kGripperOpen), p.retreat_duration * k);
   b.hold(p.settle_duration * k);

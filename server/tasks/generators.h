@@ -8,8 +8,8 @@
 /// * Fling: grasp the shoulders, lift until the garment hangs clear, then a rapid forward-then-
 ///   backward sweep (+x, then back) that makes it flutter; it ends held in the air with the arms
 ///   apart at about the shoulder distance, so the garment hangs spread.
-/// * Fold: grasp the shoulders, lift slightly, translate forward towards the hem so the top half
-///   lands on the bottom half, lower, open, retreat upwards.
+/// * Fold: grasp the shoulders, lift slightly, turn the top half over onto the bottom half like a
+///   page (half circles about the fold line) to just short of the hem, open, retreat upwards.
 ///
 /// The garment lies as RGBench's T-shirt mesh does (garments/garment.h): length along +x away
 /// from the robots, shoulders at the small-x end. Grasp points are the shoulder landmarks mapped
@@ -60,13 +60,15 @@ struct TaskParams {
   /// m short of the hem where the shoulders are put down, measured along garment x.
   double fold_margin = 0.03;
   double fold_duration = 3.5;         ///< s for the forward translation
-  /// m of extra height in the middle of the translation (z = fold_lift + fold_arc * sin(pi s)):
-  /// the top half then hangs from the grippers instead of being dragged over the bottom half
-  /// (which, without cloth self-contact, drags the whole garment over the table). 0: a straight,
-  /// level translation as in the paper's description; < 0: automatic, 0.35 * garment length.
+  /// How the shoulders travel to the hem. < 0 (default): a page turn, each gripper on a half circle
+  /// about the fold line (midway between where it grasped and where it puts down) from the lifted
+  /// grasp point to place_height above the put-down point, so the top half stays taut and is laid
+  /// flat instead of landing slack and bunching into a loop at the fold. > 0: the same half ellipse
+  /// with this vertical semi-axis (m). 0: the paper's level translation at fold_lift, then a vertical
+  /// lowering to place_height in lower_duration.
   double fold_arc = -1;
   double place_height = 0.01;         ///< m above the grasp height where the gripper opens
-  double lower_duration = 1.0;        ///< s
+  double lower_duration = 1.0;        ///< s: lowering (level translation) or pause before opening
   double retreat_height = 0.1;        ///< m lifted after opening
   double retreat_duration = 1.0;      ///< s
   double settle_duration = 2.0;       ///< s of stillness at the end of a fold
@@ -82,8 +84,8 @@ DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d
 /// arms to fling_spread on the way back), hold.
 DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
                              const TaskParams& p = {});
-/// Fold: approach, close, lift by fold_lift, translate to the hem minus fold_margin, lower, open,
-/// retreat, settle.
+/// Fold: approach, close, lift by fold_lift, turn over to the hem minus fold_margin (see
+/// TaskParams::fold_arc), open, retreat, settle.
 DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
                             const TaskParams& p = {});
 /// "grasp" | "fold" | "fling"; InputError otherwise.

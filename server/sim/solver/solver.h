@@ -25,6 +25,7 @@ struct StepStats {
   int contacts = 0;            ///< active self-contact pairs (closer than the contact distance)
   int candidates = 0;          ///< broad-phase candidate pairs
   int intersecting_pairs = 0;  ///< intersecting triangle pairs after the step (and untangling)
+  int intersecting_found = 0;  ///< intersecting triangle pairs the solve left (before untangling)
   bool untangled = false;      ///< the untangling fail-safe ran this step
   double broad_phase_seconds = 0;
   double seconds = 0;          ///< wall time of the step

@@ -59,7 +59,7 @@ struct Params {
   HessianKind contact_hessian = HessianKind::kGaussNewton;  ///< self-contact pairs
   bool self_contact = false;
   Real dhat_self = 0, mu_self = 0;
-  Real kin_stiffness = 1e3;
+  Real kin_stiffness = 30;  // SceneOptions::grip_stiffness
   Real membrane_ref = 0;  // N/m, the material's largest stretch stiffness
 };
 
@@ -312,6 +312,7 @@ class Solver final : public SolverBase {
     P_.contact_hessian = opt.contact_hessian == ContactHessianKind::kGaussNewton ? HessianKind::kGaussNewton
                                                                                  : HessianKind::kProjected;
     P_.membrane_ref = d.stiffness_ref;
+    P_.kin_stiffness = opt.grip_stiffness;
     P_.self_contact = opt.self_contact && d.triangles() > 1;
     if (P_.self_contact) {
       P_.dhat_self = P_.dhat;
@@ -341,7 +342,9 @@ class Solver final : public SolverBase {
       axpy(alpha, dx_, x_);                            // x += alpha dx
       st.newton_iters = k + 1;
       st.min_alpha = std::min(st.min_alpha, alpha);
-      st.step_norm = alpha * max_abs(dx_) / P_.h;
+      // Converged when the Newton direction itself is small: a step cut short by CCD or the line
+      // search (alpha << 1) moves little without being at the minimum.
+      st.step_norm = max_abs(dx_) / P_.h;
       if (st.step_norm < opt_.newton_tol) {
         st.converged = true;
         break;
@@ -607,6 +610,7 @@ class Solver final : public SolverBase {
   void check_intersections(StepStats* st) {
     if (!self_ || !opt_.check_intersections) return;
     st->intersecting_pairs = self_->count_intersections(host_x_);
+    st->intersecting_found = st->intersecting_pairs;
     if (st->intersecting_pairs > 0 && opt_.untangle) {
       st->untangled = true;
       st->intersecting_pairs = self_->untangle(&host_x_, kin_fixed_host_);
