@@ -38,6 +38,14 @@ TEST(SceneCreate, RejectsBadOptionsWithTheirName) {
   o = SceneOptions();
   o.gravity = Vec3(0, 0, NAN);
   EXPECT_THROW(Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), o), InputError);
+  o = SceneOptions();
+  o.grip_stiffness = 0;
+  try {
+    Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), o);
+    FAIL() << "zero grip stiffness accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("grip_stiffness"), std::string::npos);
+  }
 }
 
 TEST(SceneCreate, RejectsZeroThicknessMaterial) {

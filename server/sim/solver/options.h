@@ -69,7 +69,8 @@ struct SceneOptions {
   /// k_membrane the fabric's largest stretch stiffness, N/m): stiff enough that a held vertex
   /// tracks its target to a small fraction of the cloth's own deformation, soft enough that a
   /// gripper pulling cloth into cloth cannot overpower the contact barrier (at 1e3 a fast lift
-  /// squeezed gaps to 1e-8 m, stalled CCD and tangled the coat; 30 runs every garment clean).
+  /// squeezed gaps to 1e-8 m, stalled CCD and tangled the coat; at 30 the coat, hoodie and dress
+  /// grasps run clean, docs/physics.md).
   Real grip_stiffness = 30;
 
   // --- air drag ---------------------------------------------------------------------------
