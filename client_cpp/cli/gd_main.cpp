@@ -108,6 +108,9 @@ int main(int argc, char** argv) {
   std::string contact_hessian = "projected";
   run->add_option("--contact-hessian", contact_hessian, "self-contact Hessian: gauss-newton | projected")
       ->capture_default_str();
+  run->add_option("--compression-ratio", cfg.scene.compression_ratio,
+                  "compressive / tensile stretch stiffness (0, 1]; 1: no buckling model")
+      ->capture_default_str();
   run->add_flag("--icp", cfg.icp, "refine the capture's camera transform by ICP on the first frame");
   run->add_flag("--no-self-contact", no_self_contact, "turn cloth self-contact off (faster, may interpenetrate)");
   run->add_flag("--no-plots", no_plots, "do not draw the PNG plots");
@@ -152,7 +155,8 @@ int main(int argc, char** argv) {
     gd::log();  // the logger reads GD_LOG_LEVEL
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
-                                     "--contact-hessian", "--no-plots", "--mesh-every"})
+                                     "--contact-hessian", "--no-plots", "--mesh-every",
+                                     "--compression-ratio"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

@@ -282,6 +282,9 @@ void SceneOptions::validate() const {
   nonneg(bending_damping, "bending_damping");
   nonneg(mass_damping, "mass_damping");
   positive(grip_stiffness, "grip_stiffness");
+  if (!(compression_ratio > 0 && compression_ratio <= 1))
+    throw InputError(fmt::format("option compression_ratio must be in (0, 1] (got {}); 1 resists compression "
+                                 "as much as stretch", compression_ratio));
 }
 
 }  // namespace gd::sim

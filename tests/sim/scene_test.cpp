@@ -46,6 +46,16 @@ TEST(SceneCreate, RejectsBadOptionsWithTheirName) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("grip_stiffness"), std::string::npos);
   }
+  for (Real bad : {0.0, -0.1, 1.5, static_cast<Real>(NAN)}) {
+    o = SceneOptions();
+    o.compression_ratio = bad;
+    try {
+      Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), o);
+      FAIL() << "compression_ratio " << bad << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("compression_ratio"), std::string::npos);
+    }
+  }
 }
 
 TEST(SceneCreate, RejectsZeroThicknessMaterial) {

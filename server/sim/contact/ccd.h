@@ -40,6 +40,21 @@ namespace gd::sim {
 inline constexpr Real kCcdGapFraction = Real(0.9);
 /// Default cap on conservative-advancement iterations (returns the alpha reached so far).
 inline constexpr int kCcdMaxIterations = 1000;
+/// The self-contact solver's CCD floor as a fraction of the barrier distance dhat: pairs keep at
+/// least this gap (1e-6 m at dhat = 1 mm), far above the rounding of distances and of the exact
+/// triangle-triangle test (solver_impl.h self_ccd_bound).
+inline constexpr Real kCcdFloorFraction = Real(1e-3);
+
+/// The offset to pass to the CCD of a pair now at distance d0 (m): the floor (m) for a pair more
+/// than twice above it, which then keeps at least the floor; half its distance for a pair closer
+/// than that, so the working gap (distance - offset) is never less than half the distance. That
+/// matters for sliding: conservative advancement needs about (sliding distance) / (working gap)
+/// iterations, so a pair held just above a hard floor could not slide along the other layer.
+/// Without a floor, repeated steps that each consume 90% of the gap shrink it geometrically
+/// (1e-3 m to 1e-13 m in ten, where rounding decides whether the exact test sees a crossing); with
+/// it a pair pushed head-on stops near the floor and then closes by at most 45% per step while
+/// the barrier, steep there, pushes back.
+GD_HD Real ccd_floor_offset(Real d0, Real floor) { return d0 > Real(2) * floor ? floor : Real(0.5) * d0; }
 
 /// Global conservative step bound: the largest fraction alpha in [0, 1] such that a pair at gap
 /// `gap` (m) keeps at least (1 - fraction) gap when every pair's relative displacement over the full

@@ -5,6 +5,7 @@
 #include <limits>
 #include <tuple>
 
+#include "sim/contact/distance.h"
 #include "sim/contact/tri_tri_intersect.h"
 #include "sim/demand.h"
 
@@ -12,6 +13,18 @@ namespace gd::sim {
 namespace {
 
 Vec3 vtx(const std::vector<double>& x, int i) { return Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]); }
+
+/// Smallest of the 15 primitive distances (6 point-triangle, 9 edge-edge) between two triangles, m.
+double min_primitive_distance(const Vec3 (&a)[3], const Vec3 (&b)[3]) {
+  double d2 = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    d2 = std::min(d2, point_triangle_distance2(a[k], b[0], b[1], b[2], nullptr, nullptr));
+    d2 = std::min(d2, point_triangle_distance2(b[k], a[0], a[1], a[2], nullptr, nullptr));
+    for (int j = 0; j < 3; ++j)
+      d2 = std::min(d2, edge_edge_distance2(a[k], a[(k + 1) % 3], b[j], b[(j + 1) % 3], nullptr, nullptr));
+  }
+  return std::sqrt(std::max(d2, 0.0));
+}
 
 bool share_vertex(const int* a, const int* b) {
   for (int i = 0; i < 3; ++i)
@@ -423,7 +436,13 @@ std::vector<Eigen::Vector2i> intersecting_pairs(const std::vector<double>& x, co
     const Vec3 blo = b0.cwiseMin(b1).cwiseMin(b2), bhi = b0.cwiseMax(b1).cwiseMax(b2);
     const double slack = 1e-9 * (ahi.cwiseMax(bhi) - alo.cwiseMin(blo)).maxCoeff();
     if (((alo.array() - slack) > bhi.array()).any() || ((blo.array() - slack) > ahi.array()).any()) continue;
-    if (triangles_intersect(a0, a1, a2, b0, b1, b2)) out.emplace_back(a, b);
+    if (!triangles_intersect(a0, a1, a2, b0, b1, b2)) continue;
+    // Touching within rounding is contact, not a crossing: a crossing formed by continuous
+    // motion has no primitive pair at (numerically) zero distance, since it passes through
+    // contact first.
+    const Vec3 ta3[3] = {a0, a1, a2}, tb3[3] = {b0, b1, b2};
+    if (min_primitive_distance(ta3, tb3) < kTouchDistance) continue;
+    out.emplace_back(a, b);
   }
   std::sort(out.begin(), out.end(),
             [](const Eigen::Vector2i& p, const Eigen::Vector2i& q) { return std::tie(p[0], p[1]) < std::tie(q[0], q[1]); });
@@ -447,6 +466,7 @@ UntangleResult untangle(std::vector<double>* x, const std::vector<int>& tris, co
   // Stall handling: after two passes without a new lowest pair count, two passes that move the
   // other colour, then two fallback passes (both colours), then normal again, and so on.
   size_t best = pairs.size();
+  std::vector<double> best_x = *x;  // the state with the fewest pairs so far (the input first)
   int stall = 0, idle = 0;
   while (!pairs.empty() && r.iterations < max_iters) {
     const int mode = (stall / 2) % 3;
@@ -462,10 +482,15 @@ UntangleResult untangle(std::vector<double>* x, const std::vector<int>& tris, co
     pairs = intersecting_pairs(*x, tris, candidates(*x));
     if (pairs.size() < best) {
       best = pairs.size();
+      best_x = *x;
       stall = 0;
     } else {
       ++stall;
     }
+  }
+  if (pairs.size() > best) {  // never hand back more crossings than the best state seen
+    *x = std::move(best_x);
+    pairs = intersecting_pairs(*x, tris, candidates(*x));
   }
   r.intersecting_after = static_cast<int>(pairs.size());
   return r;

@@ -43,7 +43,9 @@
 /// its depth plus gap. Stall handling: after two passes without a new lowest pair count, two
 /// passes move the dearer colour instead, then two use the fallback for every group, then back
 /// to normal (cyclically); a pass that moves nothing switches mode at once, and three such in a
-/// row end the loop.
+/// row end the loop. It never hands back more intersecting pairs than it was given: when the
+/// passes end worse than the best state they reached (the input included), that state is
+/// restored.
 ///
 /// Tested behaviour (see untangle_test.cpp; 600 randomised cases of sheets, bumps 1-40 mm deep
 /// over 10 mm edges, tilted sheets, folds, wavy interpenetrating sheets and gripped bumps all
@@ -84,11 +86,18 @@ struct UntangleResult {
   int iterations = 0;           ///< displacement passes applied (0 when the input was clean)
 };
 
+/// Distance (m) below which two triangles whose exact test says "intersect" count as touching:
+/// a nanometre, above the rounding of the distance and orientation tests on garment coordinates.
+inline constexpr double kTouchDistance = 1e-9;
+
 /// Exact list of intersecting triangle pairs (t_a < t_b, sorted, unique) among the candidate
 /// pairs given (the broad phase provides them; pass all_triangle_pairs for small meshes).
 /// Candidates may come in either order and may repeat. Pairs that share a vertex are skipped:
 /// adjacent triangles touch by construction. `x`: 3 coordinates per vertex (m); `tris`: 3
-/// vertex indices per triangle. Uses triangles_intersect (closed triangles: touching counts).
+/// vertex indices per triangle. Uses triangles_intersect (closed triangles), then drops pairs that
+/// only touch: some vertex-triangle or edge-edge distance between them is below kTouchDistance
+/// (a crossing has every such distance positive unless it is exactly at contact, where rounding
+/// decides; the solver keeps such pairs apart by CCD, so they are contact, not crossings).
 std::vector<Eigen::Vector2i> intersecting_pairs(const std::vector<double>& x, const std::vector<int>& tris,
                                                 const std::vector<Eigen::Vector2i>& candidates);
 

@@ -3,6 +3,13 @@
 /// Anisotropic Baraff-Witkin membrane energy (warp stretch, weft stretch, in-plane shear) of one
 /// triangle. Pattern (rest) coordinates are 2D: axis 0 = u = warp, axis 1 = v = weft.
 ///
+/// Compression along warp or weft (|w| < 1) is resisted with the stretch stiffness times
+/// `compression_ratio` (<= 1): real fabric buckles into wrinkles far smaller than a triangle as
+/// soon as it is compressed (critical strain pi^2 B / (k h^2), about 1e-5 for cotton at h = 5 cm),
+/// so it carries almost no compressive force; a coarse mesh cannot form those wrinkles and, with
+/// the full stiffness, would hold curved cloth up like a shell (docs/physics.md). The energy stays
+/// C1 across |w| = 1 (the Hessian jumps there).
+///
 /// Vertex order: x0, x1, x2 (world positions, m). The deformation gradient is
 ///   F = [x1 - x0, x2 - x0] * Dm_inv = [w_u  w_v]   (3x2, dimensionless)
 /// where Dm_inv is the inverse of the rest edge matrix [X1 - X0, X2 - X0] (2x2, 1/m) built from the
@@ -25,7 +32,16 @@ struct StretchShearRest {
   Real k_warp;   ///< warp (u) stretch stiffness, N/m
   Real k_weft;   ///< weft (v) stretch stiffness, N/m
   Real k_shear;  ///< in-plane shear stiffness, N/m
+  /// Compressive / tensile stretch stiffness (0, 1]: the warp (weft) term uses k_warp (k_weft)
+  /// times this when |w_u| < 1 (|w_v| < 1). 1: the symmetric Baraff-Witkin model.
+  Real compression_ratio = 1;
 };
+
+/// Stretch stiffness in effect at stretch `len` = |w| (N/m): k, or k * compression_ratio when
+/// compressed (len < 1).
+GD_HD Real effective_stretch_stiffness(Real k, Real len, Real compression_ratio) {
+  return len < Real(1) ? k * compression_ratio : k;
+}
 
 /// Columns of the deformation gradient: w_u = F e_u, w_v = F e_v with F = [x1-x0, x2-x0] Dm_inv.
 /// Dimensionless (|w_u| = 1 means the warp direction is unstretched). Vertex order x0, x1, x2.
@@ -93,7 +109,8 @@ GD_HD Mat3 stretch_block_hessian(Real k, Real len, const Vec3& what, bool projec
 }  // namespace detail
 
 /// Baraff-Witkin membrane energy of one triangle, J:
-///   E = area/2 * [k_warp (|w_u|-1)^2 + k_weft (|w_v|-1)^2 + k_shear (w_u . w_v)^2]
+///   E = area/2 * [k_u (|w_u|-1)^2 + k_v (|w_v|-1)^2 + k_shear (w_u . w_v)^2]
+/// with k_u = k_warp, k_v = k_weft, each times compression_ratio where that direction is compressed.
 /// Vertex order x0, x1, x2 (m); gradient (N) ordered (x0, x1, x2) xyz. The Hessian (N/m) is
 /// written when `hess` is non-null and kind != kNone:
 ///  - kExact: the true second derivative; stretch blocks k area [ŵŵᵀ + (1-1/|w|)(I-ŵŵᵀ)], shear
@@ -111,7 +128,9 @@ GD_HD Real stretch_shear_energy(const Vec3& x0, const Vec3& x1, const Vec3& x2,
   const Real s = wu.dot(wv);
   const Real du = lu - Real(1);
   const Real dv = lv - Real(1);
-  const Real energy = Real(0.5) * r.area * (r.k_warp * du * du + r.k_weft * dv * dv + r.k_shear * s * s);
+  const Real ku = effective_stretch_stiffness(r.k_warp, lu, r.compression_ratio);
+  const Real kv = effective_stretch_stiffness(r.k_weft, lv, r.compression_ratio);
+  const Real energy = Real(0.5) * r.area * (ku * du * du + kv * dv * dv + r.k_shear * s * s);
 
   const bool want_hess = hess != nullptr && kind != HessianKind::kNone;
   if (grad == nullptr && !want_hess) return energy;
@@ -123,15 +142,15 @@ GD_HD Real stretch_shear_energy(const Vec3& x0, const Vec3& x1, const Vec3& x2,
   detail::membrane_weights(r.Dm_inv, &cu, &cv);
 
   if (grad != nullptr) {
-    const Vec3 gu = r.area * (r.k_warp * du * hu + r.k_shear * s * wv);
-    const Vec3 gv = r.area * (r.k_weft * dv * hv + r.k_shear * s * wu);
+    const Vec3 gu = r.area * (ku * du * hu + r.k_shear * s * wv);
+    const Vec3 gv = r.area * (kv * dv * hv + r.k_shear * s * wu);
     detail::membrane_map_gradient(cu, cv, gu, gv, grad);
   }
   if (want_hess) {
     const bool projected = kind == HessianKind::kProjected;
     MatN<6> Hw = MatN<6>::Zero();
-    Hw.block<3, 3>(0, 0) = detail::stretch_block_hessian(r.area * r.k_warp, lu, hu, projected);
-    Hw.block<3, 3>(3, 3) = detail::stretch_block_hessian(r.area * r.k_weft, lv, hv, projected);
+    Hw.block<3, 3>(0, 0) = detail::stretch_block_hessian(r.area * ku, lu, hu, projected);
+    Hw.block<3, 3>(3, 3) = detail::stretch_block_hessian(r.area * kv, lv, hv, projected);
     VecN<6> gs;
     gs.segment<3>(0) = wv;
     gs.segment<3>(3) = wu;

@@ -121,6 +121,7 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
     r.k_warp = mat.stretch_warp;
     r.k_weft = mat.stretch_weft;
     r.k_shear = mat.shear;
+    r.compression_ratio = opt.compression_ratio;
     for (int k = 0; k < 3; ++k) {
       d.tris[3 * t + k] = tri[k];
       d.mass[tri[k]] += mat.density * area / 3.0;

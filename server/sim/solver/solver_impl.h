@@ -59,6 +59,8 @@ struct Params {
   HessianKind contact_hessian = HessianKind::kGaussNewton;  ///< self-contact pairs
   bool self_contact = false;
   Real dhat_self = 0, mu_self = 0;
+  /// Smallest gap CCD lets a self-contact pair close to, m (kCcdFloorFraction * dhat_self).
+  Real ccd_floor = 0;
   Real kin_stiffness = 30;  // SceneOptions::grip_stiffness
   Real membrane_ref = 0;  // N/m, the material's largest stretch stiffness
 };
@@ -316,6 +318,7 @@ class Solver final : public SolverBase {
     P_.self_contact = opt.self_contact && d.triangles() > 1;
     if (P_.self_contact) {
       P_.dhat_self = P_.dhat;
+      P_.ccd_floor = kCcdFloorFraction * P_.dhat_self;
       P_.mu_self = opt.self_friction >= 0 ? opt.self_friction : d.friction;
       self_ = std::make_unique<SelfContact>(d, P_.dhat_self, P_.kappa_per_mass);
     }
@@ -938,20 +941,30 @@ class Solver final : public SolverBase {
     return inv > 1.0 ? 1.0 / inv : 1.0;
   }
 
-  /// Largest fraction of dx along which no candidate pair closes more than 90% of its gap.
+  /// Largest fraction of dx along which no candidate pair closes more than 90% of its gap above
+  /// the CCD floor. The floor (a micrometre at the default dhat) keeps pairs far above the rounding
+  /// of the distance and triangle-triangle tests: without it a pair the barrier could not stop
+  /// (a gripper pulling cloth through cloth) closed to 1e-14 m over a few steps, the exact test then
+  /// read the touching edges as crossing, and the untangling fail-safe made real crossings of them.
+  /// A pair within twice the floor may close to about half its distance (ccd_floor_offset).
   double self_ccd_bound() {
     if (!self_ || cand_.n == 0) return 1.0;
     const detail::View V = view();
     const double* x = Exec::ptr(x_);
     const double* dx = Exec::ptr(dx_);
+    const Real ccd_floor = P_.ccd_floor;
     const double inv = Exec::max(V.cand.n, [=] GD_HD_LAMBDA(int c) {
       const int* v = V.cand.v + 4 * c;
       const Vec3 a = detail::load3(x, v[0]), b = detail::load3(x, v[1]), q = detail::load3(x, v[2]),
                  d = detail::load3(x, v[3]);
       const Vec3 da = detail::load3(dx, v[0]), db = detail::load3(dx, v[1]), dq = detail::load3(dx, v[2]),
                  dd = detail::load3(dx, v[3]);
-      const Real alpha = V.cand.type[c] == 0 ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, 0.0)
-                                             : edge_edge_ccd(a, b, q, d, da, db, dq, dd, 0.0);
+      const bool vf = V.cand.type[c] == 0;
+      const Real d0 = sqrt(vf ? point_triangle_distance2(a, b, q, d, nullptr, nullptr)
+                              : edge_edge_distance2(a, b, q, d, nullptr, nullptr));
+      const Real offset = ccd_floor_offset(d0, ccd_floor);
+      const Real alpha = vf ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, offset)
+                            : edge_edge_ccd(a, b, q, d, da, db, dq, dd, offset);
       return alpha >= 1.0 ? 0.0 : (alpha > 1e-12 ? 1.0 / alpha : 1e12);
     }, Exec::kParallelMinHeavy);
     return inv > 1.0 ? 1.0 / inv : 1.0;

@@ -77,7 +77,8 @@ TEST(StretchShearEnergy, GradientAndHessianMatchFiniteDifferences) {
   for (const auto& fab : kFabrics) {
     for (int it = 0; it < 25; ++it) {
       const Real L = 0.005 + 0.05 * u01(rng);
-      const Tri t = random_rest(rng, L, fab.stretch, 0.6 * fab.stretch, 0.15 * fab.stretch);
+      Tri t = random_rest(rng, L, fab.stretch, 0.6 * fab.stretch, 0.15 * fab.stretch);
+      t.rest.compression_ratio = (it % 2 == 0) ? 1.0 : 0.05;  // symmetric and buckling models
       const Mat3 R = test::random_rotation(rng);
       const Vec3 T = 0.5 * test::random_vec3(rng);
       const Real amp = (it % 3 == 0) ? 0.05 : 0.4;  // mild and large (incl. compressed) states
@@ -172,6 +173,49 @@ TEST(StretchShearEnergy, UniaxialStretchGivesQuadraticEnergy) {
       EXPECT_NEAR(eu, eps, 1e-12);
       EXPECT_NEAR(ev, 0, 1e-12);
       EXPECT_NEAR(s, 0, 1e-12);
+    }
+  }
+}
+
+TEST(StretchShearEnergy, CompressionUsesTheCompressionRatio) {
+  // Uniaxial compression along warp or weft: E = area k ratio eps^2 / 2; stretch keeps k.
+  std::mt19937 rng(11);
+  const Real kw = 1000, kf = 600, ratio = 0.1;
+  Tri t = random_rest(rng, 0.02, kw, kf, 100);
+  t.rest.compression_ratio = ratio;
+  for (Real eps : {-0.2, -0.05, -1e-3, 1e-3, 0.05}) {
+    Vec3 x[3], y[3];
+    for (int i = 0; i < 3; ++i) {
+      x[i] = Vec3((1 + eps) * t.X[i].x(), t.X[i].y(), 0);
+      y[i] = Vec3(t.X[i].x(), (1 + eps) * t.X[i].y(), 0);
+    }
+    const Real f = eps < 0 ? ratio : 1.0;
+    const Real Ew = stretch_shear_energy(x[0], x[1], x[2], t.rest, nullptr, nullptr, HessianKind::kNone);
+    const Real Ef = stretch_shear_energy(y[0], y[1], y[2], t.rest, nullptr, nullptr, HessianKind::kNone);
+    EXPECT_NEAR(Ew, t.rest.area * kw * f / 2 * eps * eps, 1e-9 * t.rest.area * kw * eps * eps) << eps;
+    EXPECT_NEAR(Ef, t.rest.area * kf * f / 2 * eps * eps, 1e-9 * t.rest.area * kf * eps * eps) << eps;
+  }
+  EXPECT_EQ(effective_stretch_stiffness(kw, 0.99, ratio), kw * ratio);
+  EXPECT_EQ(effective_stretch_stiffness(kw, 1.0, ratio), kw);
+}
+
+TEST(StretchShearEnergy, CompressionRatioKeepsForcesContinuousAtRestLength) {
+  // The two branches meet with zero force at |w| = 1: the force just below and just above the
+  // rest length both tend to 0 (C1 energy), so Newton sees no jump in the gradient.
+  const Tri base = make_rest(Vec2(0, 0), Vec2(0.02, 0), Vec2(0, 0.02), 1000, 1000, 100);
+  for (Real ratio : {1.0, 0.3, 0.01}) {
+    Tri t = base;
+    t.rest.compression_ratio = ratio;
+    Real prev = 0;
+    for (Real eps : {-1e-4, -1e-6, 1e-6, 1e-4}) {
+      Vec3 x[3];
+      for (int i = 0; i < 3; ++i) x[i] = Vec3((1 + eps) * t.X[i].x(), t.X[i].y(), 0);
+      Vec9 g;
+      stretch_shear_energy(x[0], x[1], x[2], t.rest, &g, nullptr, HessianKind::kNone);
+      const Real fx = g[3];  // force on x1 along warp (x1 = (0.02, 0))
+      EXPECT_NEAR(fx, t.rest.area * 1000 * (eps < 0 ? ratio : 1.0) * eps / 0.02, 1e-9) << ratio << " " << eps;
+      if (eps > 0) EXPECT_GT(fx, prev);  // monotone through 0
+      prev = fx;
     }
   }
 }
