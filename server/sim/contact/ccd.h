@@ -52,7 +52,7 @@ inline constexpr Real kCcdFloorFraction = Real(1e-3);
 /// iterations, so a pair held just above a hard floor could not slide along the other layer.
 /// Without a floor, repeated steps that each consume 90% of the gap shrink it geometrically
 /// (1e-3 m to 1e-13 m in ten, where rounding decides whether the exact test sees a crossing); with
-/// it a pair pushed head-on stops near the floor and then closes by at most 45% per step while
+/// it a pair pushed head-on stops near the floor and then closes by at most 45% per iteration while
 /// the barrier, steep there, pushes back.
 GD_HD Real ccd_floor_offset(Real d0, Real floor) { return d0 > Real(2) * floor ? floor : Real(0.5) * d0; }
 
