@@ -101,38 +101,42 @@ GD_HD Real conservative_advancement(const GapFn& gap, Real g0, Real l, Real s, i
 /// guarantee of the file comment: the point-triangle distance stays > offset on [0, alpha] and is
 /// >= offset + (1 - s)(dist0 - offset) at alpha. s in (0, 1): fraction of the initial gap that may be
 /// consumed (default 0.9); max_iter caps the advancement steps (the alpha reached is returned).
+/// floor > 0 raises the offset by ccd_floor_offset(dist0 - offset, floor), from the same distance
+/// evaluation the advancement starts with.
 GD_HD Real point_triangle_ccd(const Vec3& p, const Vec3& t0, const Vec3& t1, const Vec3& t2, const Vec3& dp,
                               const Vec3& dt0, const Vec3& dt1, const Vec3& dt2, Real offset,
-                              Real s = kCcdGapFraction, int max_iter = kCcdMaxIterations) {
+                              Real s = kCcdGapFraction, int max_iter = kCcdMaxIterations, Real floor = 0) {
   const Vec3 mean = Real(0.25) * (dp + dt0 + dt1 + dt2);
   const Vec3 up = dp - mean, u0 = dt0 - mean, u1 = dt1 - mean, u2 = dt2 - mean;
   const Real m01 = u0.norm() > u1.norm() ? u0.norm() : u1.norm();
   const Real l = up.norm() + (m01 > u2.norm() ? m01 : u2.norm());
-  auto gap = [&](Real a) {
-    return sqrt(point_triangle_distance2(p + a * up, t0 + a * u0, t1 + a * u1, t2 + a * u2, nullptr,
-                                         nullptr)) -
-           offset;
+  auto dist = [&](Real a) {
+    return sqrt(point_triangle_distance2(p + a * up, t0 + a * u0, t1 + a * u1, t2 + a * u2, nullptr, nullptr));
   };
-  return contact_detail::conservative_advancement(gap, gap(Real(0)), l, s, max_iter);
+  const Real d0 = dist(Real(0));
+  if (floor > Real(0)) offset += ccd_floor_offset(d0 - offset, floor);
+  auto gap = [&](Real a) { return dist(a) - offset; };
+  return contact_detail::conservative_advancement(gap, d0 - offset, l, s, max_iter);
 }
 
 /// Conservative CCD of the segment (a0, a1) moving by (da0, da1) against the segment (b0, b1) moving
 /// by (db0, db1) (m). Returns alpha in [0, 1] with the guarantee of the file comment for the
-/// segment-segment distance (see point_triangle_ccd for s and max_iter).
+/// segment-segment distance (see point_triangle_ccd for s, max_iter and floor).
 GD_HD Real edge_edge_ccd(const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec3& b1, const Vec3& da0,
                          const Vec3& da1, const Vec3& db0, const Vec3& db1, Real offset,
-                         Real s = kCcdGapFraction, int max_iter = kCcdMaxIterations) {
+                         Real s = kCcdGapFraction, int max_iter = kCcdMaxIterations, Real floor = 0) {
   const Vec3 mean = Real(0.25) * (da0 + da1 + db0 + db1);
   const Vec3 ua0 = da0 - mean, ua1 = da1 - mean, ub0 = db0 - mean, ub1 = db1 - mean;
   const Real la = ua0.norm() > ua1.norm() ? ua0.norm() : ua1.norm();
   const Real lb = ub0.norm() > ub1.norm() ? ub0.norm() : ub1.norm();
   const Real l = la + lb;
-  auto gap = [&](Real a) {
-    return sqrt(edge_edge_distance2(a0 + a * ua0, a1 + a * ua1, b0 + a * ub0, b1 + a * ub1, nullptr,
-                                    nullptr)) -
-           offset;
+  auto dist = [&](Real a) {
+    return sqrt(edge_edge_distance2(a0 + a * ua0, a1 + a * ua1, b0 + a * ub0, b1 + a * ub1, nullptr, nullptr));
   };
-  return contact_detail::conservative_advancement(gap, gap(Real(0)), l, s, max_iter);
+  const Real d0 = dist(Real(0));
+  if (floor > Real(0)) offset += ccd_floor_offset(d0 - offset, floor);
+  auto gap = [&](Real a) { return dist(a) - offset; };
+  return contact_detail::conservative_advancement(gap, d0 - offset, l, s, max_iter);
 }
 
 }  // namespace gd::sim

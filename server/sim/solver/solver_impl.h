@@ -959,12 +959,10 @@ class Solver final : public SolverBase {
                  d = detail::load3(x, v[3]);
       const Vec3 da = detail::load3(dx, v[0]), db = detail::load3(dx, v[1]), dq = detail::load3(dx, v[2]),
                  dd = detail::load3(dx, v[3]);
-      const bool vf = V.cand.type[c] == 0;
-      const Real d0 = sqrt(vf ? point_triangle_distance2(a, b, q, d, nullptr, nullptr)
-                              : edge_edge_distance2(a, b, q, d, nullptr, nullptr));
-      const Real offset = ccd_floor_offset(d0, ccd_floor);
-      const Real alpha = vf ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, offset)
-                            : edge_edge_ccd(a, b, q, d, da, db, dq, dd, offset);
+      const Real alpha =
+          V.cand.type[c] == 0
+              ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor)
+              : edge_edge_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor);
       return alpha >= 1.0 ? 0.0 : (alpha > 1e-12 ? 1.0 / alpha : 1e12);
     }, Exec::kParallelMinHeavy);
     return inv > 1.0 ? 1.0 / inv : 1.0;

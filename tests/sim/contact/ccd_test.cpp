@@ -156,8 +156,10 @@ TEST(ContactCcd, FloorStopsTheGapShrinkingGeometrically) {
       if (vf) m.dx[1] = Vec3::Zero();
       Real gap = gap_at(m, 0, 0, vf);
       for (int it = 0; it < 10; ++it) {
-        const Real offset = with_floor ? ccd_floor_offset(gap, floor) : Real(0);
-        const Real a = ccd(m, offset, vf);
+        const Real a = vf ? point_triangle_ccd(m.x[0], m.x[1], m.x[2], m.x[3], m.dx[0], m.dx[1], m.dx[2], m.dx[3], 0.0,
+                                               kCcdGapFraction, kCcdMaxIterations, with_floor ? floor : 0.0)
+                          : edge_edge_ccd(m.x[0], m.x[1], m.x[2], m.x[3], m.dx[0], m.dx[1], m.dx[2], m.dx[3], 0.0,
+                                          kCcdGapFraction, kCcdMaxIterations, with_floor ? floor : 0.0);
         for (int i = 0; i < 4; ++i) m.x[i] += a * m.dx[i];
         gap = gap_at(m, 0, 0, vf);
         ASSERT_GT(gap, 0.0) << vf << with_floor << it;
