@@ -24,9 +24,9 @@ TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
   const auto& [garment, task] = GetParam();
   // CI runs the 20 cases that pass at this resolution; the open ones (docs/validation.md) run with
   // GD_FULL_MATRIX=1: the folds of two-layer garments, whose folded stack stands 13-27 cm tall at
-  // ~400 vertices (the T-shirt's is under 10 cm at ~1000, or with compression_ratio 0.1), and the
-  // dress fling, clean in 8 of 9 runs since the CCD floor but left with 1 intersecting pair in one
-  // (a clean-clone CI run; the runs differ because the threaded solve is not bit-reproducible).
+  // ~400 vertices (finer meshes and compression_ratio 0.1 lower them; docs/validation.md), and the
+  // dress fling, where a grip can squeeze a pair below the CCD floor until a Newton direction
+  // breaks down (1 intersecting pair, untangled, in builds whose numbers differ in the last bits).
   static const std::set<std::string> kOpen = {"tshirt_fold", "long_sleeve_fold", "dress_fold", "hoodie_fold",
                                               "coat_fold",   "cake_skirt_fold",  "dress_fling"};
   if (!std::getenv("GD_FULL_MATRIX") && kOpen.count(garment + "_" + task))
