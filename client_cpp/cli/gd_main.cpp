@@ -22,6 +22,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <nlohmann/json.hpp>
@@ -111,6 +112,10 @@ int main(int argc, char** argv) {
   run->add_option("--compression-ratio", cfg.scene.compression_ratio,
                   "compressive / tensile stretch stiffness (0, 1]; 1: no buckling model")
       ->capture_default_str();
+  double grip_force_limit = cfg.scene.grip_force_limit;
+  run->add_option("--grip-force-limit", grip_force_limit,
+                  "most a grip pulls on one held vertex, N (0: no limit)")
+      ->capture_default_str();
   run->add_flag("--icp", cfg.icp, "refine the capture's camera transform by ICP on the first frame");
   run->add_flag("--no-self-contact", no_self_contact, "turn cloth self-contact off (faster, may interpenetrate)");
   run->add_flag("--no-plots", no_plots, "do not draw the PNG plots");
@@ -156,7 +161,7 @@ int main(int argc, char** argv) {
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
                                      "--contact-hessian", "--no-plots", "--mesh-every",
-                                     "--compression-ratio"})
+                                     "--compression-ratio", "--grip-force-limit"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;
@@ -186,6 +191,7 @@ int main(int argc, char** argv) {
     if (*run) {
       if (no_self_contact) cfg.scene.self_contact = false;
       if (no_plots) cfg.plots = false;
+      cfg.scene.grip_force_limit = grip_force_limit == 0 ? INFINITY : grip_force_limit;  // < 0: validate() says
       if (shoulders.size() == 2) cfg.shoulder_vertices = {shoulders[0], shoulders[1]};
       if (contact_hessian == "projected") cfg.scene.contact_hessian = gd::sim::ContactHessianKind::kProjected;
       else if (contact_hessian != "gauss-newton")

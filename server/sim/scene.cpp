@@ -220,9 +220,9 @@ bool Scene::do_step(bool quasi_static) {
   time_ += options_.dt;
   if (stats_.untangled) ++untangle_runs_;
   gd::log().debug("step t={:.3f}: newton {} pcg {} min_alpha {:.3g} |dx|/dt {:.3g} contacts {} candidates {} "
-                  "intersecting {} (found {}){}",
+                  "min gap {:.3g} grip {:.3g} N intersecting {} (found {}){}",
                   time_, stats_.newton_iters, stats_.pcg_iters, stats_.min_alpha, stats_.step_norm, stats_.contacts,
-                  stats_.candidates, stats_.intersecting_pairs, stats_.intersecting_found, stats_.untangled ? " (untangled)" : "");
+                  stats_.candidates, stats_.min_self_distance, stats_.max_grip_force, stats_.intersecting_pairs, stats_.intersecting_found, stats_.untangled ? " (untangled)" : "");
   return true;
 }
 
@@ -282,6 +282,8 @@ void SceneOptions::validate() const {
   nonneg(bending_damping, "bending_damping");
   nonneg(mass_damping, "mass_damping");
   positive(grip_stiffness, "grip_stiffness");
+  if (!(grip_force_limit > 0))  // infinity allowed
+    throw InputError(fmt::format("option grip_force_limit must be > 0 N (infinity: no limit), got {}", grip_force_limit));
   if (!(compression_ratio > 0 && compression_ratio <= 1))
     throw InputError(fmt::format("option compression_ratio must be in (0, 1] (got {}); 1 resists compression "
                                  "as much as stretch", compression_ratio));

@@ -4,6 +4,9 @@
 #include <chrono>
 #include <cmath>
 
+#include <fmt/format.h>
+
+#include "sim/contact/ccd.h"
 #include "sim/log.h"
 #include "sim/mesh.h"
 #include "sim/scene.h"
@@ -402,6 +405,7 @@ std::vector<NamedCase> case_list(const sim::MaterialLibrary& lib) {
   cases.push_back({"self/fold/cotton", [cotton] { return fold_case(cotton); }});
   cases.push_back({"slope/cotton", [cotton] { return slope_case(cotton); }});
   cases.push_back({"pinch/cotton", [cotton] { return pinch_case(cotton); }});
+  cases.push_back({"self/press/cotton", [cotton] { return press_case(cotton); }});
   return cases;
 }
 
@@ -599,6 +603,71 @@ CaseResult pinch_case(const sim::Material& m) {
   r.rel_error = held;
   r.tolerance = 0.005;
   r.pass = std::isfinite(held) && std::isfinite(slipped) && held < 0.005 && slipped > 0.02;
+  return r;
+}
+
+}  // namespace gd::validation
+
+namespace gd::validation {
+
+CaseResult press_case(const sim::Material& m) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CaseResult r;
+  r.name = "self/press/" + m.name;
+  r.unit = "pairs";
+  // A gripper presses a 10 cm flap down into a 20 cm sheet lying on the table and drags it
+  // sideways, its target ending 3 cm below the table top (a trajectory that runs into the
+  // table). The cloth between grip and table cannot give way: the grip must stall at its force
+  // limit, and the barriers must hold the layers apart above the CCD floor (a pair pressed below
+  // it closes by half per Newton iteration until rounding decides the intersection test) and the
+  // sheet above the table, with no intersecting pair found in any step.
+  const double dhat = std::max(m.thickness, 1e-3);
+  SceneOptions o;
+  o.dt = 1.0 / 100;
+  o.self_contact = true;
+  Mesh lower = sim::make_rect(0.2, 0.2, 0.01);
+  for (Vec3& p : lower.x) p.z() = 0.5 * dhat;
+  Mesh flap = sim::make_rect(0.1, 0.1, 0.01);
+  for (Vec3& p : flap.x) p += Vec3(0.05, 0.05, 3.5 * dhat);
+  Mesh mesh = lower;
+  const int off = static_cast<int>(lower.x.size());
+  mesh.x.insert(mesh.x.end(), flap.x.begin(), flap.x.end());
+  mesh.uv.insert(mesh.uv.end(), flap.uv.begin(), flap.uv.end());
+  for (Eigen::Vector3i t : flap.tris) mesh.tris.push_back(t + Eigen::Vector3i::Constant(off));
+  auto scene = Scene::create(mesh, m, o);
+  std::vector<int> grip;
+  for (int i = off; i < static_cast<int>(mesh.x.size()); ++i)
+    if ((mesh.x[i] - Vec3(0.1, 0.1, 0)).head<2>().norm() <= 0.025) grip.push_back(i);
+  const double start = scene->time();
+  auto smooth = [](double s) { s = std::clamp(s, 0.0, 1.0); return s * s * (3 - 2 * s); };
+  scene->attach(grip, [=](double t) {
+    const double s = smooth((t - start) / 1.0);
+    return Eigen::Isometry3d(Eigen::Translation3d(Vec3(0.04 * s, 0, -(3.5 * dhat + 0.03) * s)));
+  });
+  int worst = 0, found = 0, steps = 0;
+  double min_z = 1e30, min_self = 1e30, max_grip = 0;
+  for (; steps < 150 && !scene->failed(); ++steps) {
+    scene->step();
+    worst = std::max(worst, scene->last_stats().intersecting_pairs);
+    found = std::max(found, scene->last_stats().intersecting_found);
+    for (const Vec3& p : scene->positions()) min_z = std::min(min_z, p.z());
+    min_self = std::min(min_self, scene->last_stats().min_self_distance);
+    max_grip = std::max(max_grip, scene->last_stats().max_grip_force);
+  }
+  r.expected = 0;
+  r.measured = scene->failed() ? NAN : found;
+  r.vertices = scene->vertex_count();
+  const double floor = sim::kCcdFloorFraction * dhat;
+  r.detail = fmt::format("{} steps, untangling ran in {} steps, closest self-contact pair {:.2g} m (CCD floor {:.2g}), "
+                         "lowest vertex {:.2g} m, largest grip pull {:.3g} N (limit {:.3g})",
+                         steps, scene->untangle_runs(), min_self, floor, min_z, max_grip, o.grip_force_limit) +
+             (scene->failed() ? ", FAILED: " + scene->failure() : "");
+  r.seconds = seconds_since(t0);
+  r.rel_error = r.measured;
+  r.tolerance = 0;
+  r.intersections = worst;
+  r.pass = !scene->failed() && found == 0 && min_z > 0 && min_self >= floor &&
+           max_grip <= o.grip_force_limit * (1 + 1e-9);
   return r;
 }
 

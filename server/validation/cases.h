@@ -65,6 +65,11 @@ CaseResult slope_case(const sim::Material& m);
 /// pinch: a strip squeezed between two box pads holds with friction 1.5 (< 5 mm fall in 0.5 s)
 /// and slips with 0.1 (> 2 cm).
 CaseResult pinch_case(const sim::Material& m);
+/// self/press: a grip drives a flap down into a sheet on the table and sideways, its target 3 cm
+/// below the table top; passes when the grip stalls at SceneOptions::grip_force_limit, no step
+/// finds an intersecting pair, no self-contact pair closes below the CCD floor and no vertex goes
+/// below the table.
+CaseResult press_case(const sim::Material& m);
 
 /// A case by name, run on demand.
 struct NamedCase {

@@ -46,6 +46,19 @@ TEST(SceneCreate, RejectsBadOptionsWithTheirName) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("grip_stiffness"), std::string::npos);
   }
+  for (Real bad : {0.0, -1.0, static_cast<Real>(NAN)}) {
+    o = SceneOptions();
+    o.grip_force_limit = bad;
+    try {
+      Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), o);
+      FAIL() << "grip_force_limit " << bad << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("grip_force_limit"), std::string::npos);
+    }
+  }
+  o = SceneOptions();
+  o.grip_force_limit = INFINITY;  // no limit
+  EXPECT_NO_THROW(Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), o));
   for (Real bad : {0.0, -0.1, 1.5, static_cast<Real>(NAN)}) {
     o = SceneOptions();
     o.compression_ratio = bad;

@@ -83,5 +83,9 @@ TEST(Slope, SlidingStartsAtTheFrictionAngle) { expect_pass(slope_case(library().
 // A strip pinched between two box pads holds its weight with enough friction, slips without.
 TEST(Pinch, HoldsWithFrictionSlipsWithout) { expect_pass(pinch_case(library().get("cotton"))); }
 
+// A grip whose target runs 3 cm into the table presses a flap into the sheet below: the grip
+// stalls at its force limit, the layers stay above the CCD floor, no pair intersects.
+TEST(SelfPress, GripStallsAndTheLayersStayApart) { expect_pass(press_case(library().get("cotton"))); }
+
 }  // namespace
 }  // namespace gd::validation

@@ -81,6 +81,11 @@ struct SceneOptions {
   /// squeezed gaps to 1e-8 m, stalled CCD and tangled the coat; at 30 the coat, hoodie and dress
   /// grasps run clean, docs/physics.md).
   Real grip_stiffness = 30;
+  /// N: the most a grip spring pulls on one held vertex; beyond it the pull stays constant (the
+  /// grip stalls rather than squeezing cloth into the table or through other cloth with a
+  /// thousand newtons). Infinity: no limit. The default is far above what holding a garment
+  /// takes (at most 10 N per held vertex in our 400-vertex tasks, bar one 63 N step; docs/physics.md).
+  Real grip_force_limit = 100;
 
   // --- air drag ---------------------------------------------------------------------------
   Real air_density = 1.2;         ///< kg/m^3

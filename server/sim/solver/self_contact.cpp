@@ -85,6 +85,13 @@ void SelfContact::select_active(const std::vector<double>& x, const std::vector<
   cand_ = std::move(kept);
 }
 
+void SelfContact::set_kappa_scale(Real s) {
+  const Real f = s / kappa_scale_;
+  for (double& k : cand_.kappa) k *= f;
+  for (double& k : active_.kappa) k *= f;
+  kappa_scale_ = s;
+}
+
 double SelfContact::min_active_distance(const std::vector<double>& x) const {
   double m = std::numeric_limits<double>::infinity();
   for (int c = 0; c < active_.size(); ++c) m = std::min(m, pair_distance(x, &active_.v[4 * c], active_.type[c]));

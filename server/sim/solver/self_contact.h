@@ -55,8 +55,9 @@ class SelfContact {
   /// Runs the untangling fail-safe on x (free vertices only); returns pairs left.
   int untangle(std::vector<double>* x, const std::vector<int>& fixed);
 
-  /// Multiplies the barrier stiffness of pairs found from now on (adaptive stiffness).
-  void set_kappa_scale(Real s) { kappa_scale_ = s; }
+  /// Sets the multiplier of the barrier stiffness (adaptive stiffness): the current candidate and
+  /// active pairs are rescaled at once, pairs found later get it too.
+  void set_kappa_scale(Real s);
   /// Smallest distance over the active pairs at x (infinity when none).
   double min_active_distance(const std::vector<double>& x) const;
 

@@ -4,6 +4,7 @@
 /// written once (solver_impl.h) over an execution policy; the CPU backend instantiates it with
 /// OpenMP loops, the CUDA backend with kernels. A Scene only sees SolverBase.
 
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -23,6 +24,12 @@ struct StepStats {
   bool converged = false;      ///< step_norm fell below newton_tol
   bool finite = true;          ///< false when the objective was not finite (the step is void)
   int contacts = 0;            ///< active self-contact pairs (closer than the contact distance)
+  /// Smallest distance over the active self-contact pairs at the end of the step, m (infinity
+  /// when none): how hard layers are pressed together.
+  double min_self_distance = std::numeric_limits<double>::infinity();
+  /// Largest pull of a grip spring on a held vertex at the end of the step, N (0 when nothing
+  /// is held by a spring; see SceneOptions::grip_force_limit).
+  double max_grip_force = 0;
   int candidates = 0;          ///< broad-phase candidate pairs
   int intersecting_pairs = 0;  ///< intersecting triangle pairs after the step (and untangling)
   int intersecting_found = 0;  ///< intersecting triangle pairs the solve left (before untangling)

@@ -18,6 +18,7 @@
 #include "sim/energy/damping.h"
 #include "sim/energy/drag.h"
 #include "sim/energy/gravity.h"
+#include "sim/energy/grip_spring.h"
 #include "sim/energy/inertia.h"
 #include "sim/energy/mass_damping.h"
 #include "sim/energy/psd_project.h"
@@ -62,6 +63,7 @@ struct Params {
   /// Smallest gap CCD lets a self-contact pair close to, m (kCcdFloorFraction * dhat_self).
   Real ccd_floor = 0;
   Real kin_stiffness = 30;  // SceneOptions::grip_stiffness
+  Real kin_force_max = INFINITY;  // N, SceneOptions::grip_force_limit
   Real membrane_ref = 0;  // N/m, the material's largest stretch stiffness
 };
 
@@ -136,7 +138,11 @@ GD_HD Vec3 inertia_target(const View& V, const Params& P, int i) {
   return P.quasi_static ? xt : Vec3(xt + P.h * load3(V.v_t, i));
 }
 
-/// Per-vertex terms: inertia, gravity, mass damping, table barrier and lagged friction.
+/// Stiffness of the grip spring of a held vertex of mass m, N/m: far stiffer than its inertia and
+/// the membrane (SceneOptions::grip_stiffness).
+GD_HD Real grip_stiffness(const Params& P, Real m) { return P.kin_stiffness * (m / (P.h * P.h) + P.membrane_ref); }
+
+/// Per-vertex terms: inertia, gravity, mass damping, table barrier, lagged friction and grip springs.
 GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Vec3* g, Mat3* H) {
   const Real m = V.mass[i];
   const Vec3 xt = load3(V.x_t, i);
@@ -154,11 +160,11 @@ GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Ve
   if (g) *g += gk;
   if (H) *H += hd * Mat3::Identity();
   if (V.kin[i]) {  // stiff spring to the kinematic target, far stiffer than inertia and membrane
-    const Real k = P.kin_stiffness * (m / (P.h * P.h) + P.membrane_ref);
-    const Vec3 d = x - load3(V.kin_target, i);
-    e += 0.5 * k * d.squaredNorm();
-    if (g) *g += k * d;
-    if (H) *H += k * Mat3::Identity();
+    Mat3 Hk;
+    e += grip_spring_energy(x, load3(V.kin_target, i), grip_stiffness(P, m), P.kin_force_max, g ? &gk : nullptr,
+                            H ? &Hk : nullptr);
+    if (g) *g += gk;
+    if (H) *H += Hk;
   }
   if (!V.fixed[i]) {  // kinematic colliders: barrier at the end pose, friction lagged
     for (int c = 0; c < V.n_col; ++c) {
@@ -315,6 +321,7 @@ class Solver final : public SolverBase {
                                                                                  : HessianKind::kProjected;
     P_.membrane_ref = d.stiffness_ref;
     P_.kin_stiffness = opt.grip_stiffness;
+    P_.kin_force_max = opt.grip_force_limit;
     P_.self_contact = opt.self_contact && d.triangles() > 1;
     if (P_.self_contact) {
       P_.dhat_self = P_.dhat;
@@ -355,7 +362,9 @@ class Solver final : public SolverBase {
     }
     end_step();                                        // v = (x - x_t)/h
     if (self_) Exec::download(host_x_, x_);            // host copy for the two checks below
-    adapt_barrier_stiffness();                         // stiffer barriers if gaps got tiny
+    if (self_) st.min_self_distance = self_->min_active_distance(host_x_);
+    st.max_grip_force = max_grip_force();
+    adapt_barrier_stiffness(st.min_self_distance);     // stiffer barriers if gaps got tiny
     check_intersections(&st);                          // exact count; untangle if any (fail-safe)
     if (self_) {
       st.contacts = self_->active().size();
@@ -561,6 +570,7 @@ class Solver final : public SolverBase {
     if (!self_) return;
     Exec::download(host_x_, x_);
     self_->select_active(host_x_, kin_fixed_host_);
+    stiffen_pressed_pairs();  // before the pairs go to the backend
     const ContactPairs& a = self_->active();
     act_.upload(a);
     Exec::resize(act_H_, 144 * static_cast<size_t>(act_.n));
@@ -599,11 +609,26 @@ class Solver final : public SolverBase {
   /// weight rests at dhat/2, but grippers and stacked layers press harder. When a pair's gap
   /// closes below a tenth of dhat the stiffness doubles (up to 1e4 x). (The table keeps its
   /// weight-calibrated stiffness: cloth rests on it under gravity alone.)
-  /// host_x_ holds the end-of-step positions.
-  void adapt_barrier_stiffness() {
+  /// min_distance: the closest active pair at the end of the step.
+  void adapt_barrier_stiffness(double min_distance) {
     if (!self_) return;
-    if (self_->min_active_distance(host_x_) < 0.1 * P_.dhat_self && kappa_scale_ < 1e4) {
-      kappa_scale_ *= 2;
+    if (min_distance < 0.1 * P_.dhat_self && kappa_scale_ < kKappaScaleMax) {
+      kappa_scale_ = std::min(2 * kappa_scale_, kKappaScaleMax);
+      self_->set_kappa_scale(kappa_scale_);
+    }
+  }
+
+  /// Within the step, before each Newton iteration: while a pair is closer than
+  /// kPressedGapFloors CCD floors (10 um at dhat = 1 mm) the barrier stiffness doubles (up to the
+  /// same 1e4 x). A grip or a stack pressing harder than the barrier can hold at that gap would
+  /// otherwise squeeze the pair towards the floor, where CCD lets it close by half per iteration,
+  /// until rounding decides the exact intersection test. Doubling per iteration rather than per
+  /// step lifts the equilibrium gap (kappa dhat^2 / force) before the pair gets there.
+  /// host_x_ holds the iterate.
+  void stiffen_pressed_pairs() {
+    if (kappa_scale_ >= kKappaScaleMax) return;
+    if (self_->min_active_distance(host_x_) < kPressedGapFloors * P_.ccd_floor) {
+      kappa_scale_ = std::min(2 * kappa_scale_, kKappaScaleMax);
       self_->set_kappa_scale(kappa_scale_);
     }
   }
@@ -985,6 +1010,18 @@ class Solver final : public SolverBase {
     return 0.0;
   }
 
+  /// Largest grip spring pull over the held vertices, N.
+  double max_grip_force() {
+    const detail::View V = view();
+    const detail::Params P = P_;
+    const double* x = Exec::ptr(x_);
+    return Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
+      return V.kin[i] ? grip_spring_force(detail::load3(x, i), detail::load3(V.kin_target, i),
+                                          detail::grip_stiffness(P, V.mass[i]), P.kin_force_max)
+                      : 0.0;
+    });
+  }
+
   void end_step() {
     const double inv_h = 1.0 / P_.h;
     const double* x = Exec::ptr(x_);
@@ -1039,6 +1076,8 @@ class Solver final : public SolverBase {
   // self-contact (host bookkeeping, device pair lists)
   std::unique_ptr<SelfContact> self_;
   double kappa_scale_ = 1;
+  static constexpr double kKappaScaleMax = 1e4;  // adaptive barrier stiffness: at most this x
+  static constexpr double kPressedGapFloors = 10;  // stiffen_pressed_pairs: gap in CCD floors
   // kinematic colliders (host objects owned by the Scene; packed copies on the backend)
   const std::vector<Collider>* colliders_ = nullptr;
   double col_t1_ = 0;
