@@ -94,6 +94,17 @@ GD_HD Real conservative_advancement(const GapFn& gap, Real g0, Real l, Real s, i
   return alpha;
 }
 
+/// The advancement of a pair whose distance at alpha is dist(alpha): the offset, raised by the
+/// CCD floor (ccd_floor_offset) when floor > 0, is subtracted from the distance, which is
+/// evaluated once at the start.
+template <class DistFn>
+GD_HD Real advance_pair(const DistFn& dist, Real offset, Real l, Real s, int max_iter, Real floor) {
+  const Real d0 = dist(Real(0));
+  if (floor > Real(0)) offset += ccd_floor_offset(d0 - offset, floor);
+  auto gap = [&](Real a) { return dist(a) - offset; };
+  return conservative_advancement(gap, d0 - offset, l, s, max_iter);
+}
+
 }  // namespace contact_detail
 
 /// Conservative CCD of a point p moving by dp against the triangle (t0, t1, t2) moving by
@@ -113,10 +124,7 @@ GD_HD Real point_triangle_ccd(const Vec3& p, const Vec3& t0, const Vec3& t1, con
   auto dist = [&](Real a) {
     return sqrt(point_triangle_distance2(p + a * up, t0 + a * u0, t1 + a * u1, t2 + a * u2, nullptr, nullptr));
   };
-  const Real d0 = dist(Real(0));
-  if (floor > Real(0)) offset += ccd_floor_offset(d0 - offset, floor);
-  auto gap = [&](Real a) { return dist(a) - offset; };
-  return contact_detail::conservative_advancement(gap, d0 - offset, l, s, max_iter);
+  return contact_detail::advance_pair(dist, offset, l, s, max_iter, floor);
 }
 
 /// Conservative CCD of the segment (a0, a1) moving by (da0, da1) against the segment (b0, b1) moving
@@ -133,10 +141,7 @@ GD_HD Real edge_edge_ccd(const Vec3& a0, const Vec3& a1, const Vec3& b0, const V
   auto dist = [&](Real a) {
     return sqrt(edge_edge_distance2(a0 + a * ua0, a1 + a * ua1, b0 + a * ub0, b1 + a * ub1, nullptr, nullptr));
   };
-  const Real d0 = dist(Real(0));
-  if (floor > Real(0)) offset += ccd_floor_offset(d0 - offset, floor);
-  auto gap = [&](Real a) { return dist(a) - offset; };
-  return contact_detail::conservative_advancement(gap, d0 - offset, l, s, max_iter);
+  return contact_detail::advance_pair(dist, offset, l, s, max_iter, floor);
 }
 
 }  // namespace gd::sim

@@ -611,11 +611,7 @@ class Solver final : public SolverBase {
   /// weight-calibrated stiffness: cloth rests on it under gravity alone.)
   /// min_distance: the closest active pair at the end of the step.
   void adapt_barrier_stiffness(double min_distance) {
-    if (!self_) return;
-    if (min_distance < 0.1 * P_.dhat_self && kappa_scale_ < kKappaScaleMax) {
-      kappa_scale_ = std::min(2 * kappa_scale_, kKappaScaleMax);
-      self_->set_kappa_scale(kappa_scale_);
-    }
+    if (self_ && min_distance < 0.1 * P_.dhat_self) double_barrier_stiffness();
   }
 
   /// Within the step, before each Newton iteration: while a pair is closer than
@@ -626,11 +622,16 @@ class Solver final : public SolverBase {
   /// step lifts the equilibrium gap (kappa dhat^2 / force) before the pair gets there.
   /// host_x_ holds the iterate.
   void stiffen_pressed_pairs() {
+    if (kappa_scale_ >= kKappaScaleMax) return;  // skip the distance pass when capped
+    if (self_->min_active_distance(host_x_) < kPressedGapFloors * P_.ccd_floor) double_barrier_stiffness();
+  }
+
+  /// Doubles the self-contact barrier stiffness, capped at kKappaScaleMax; the current candidate
+  /// and active pairs take the new stiffness at once.
+  void double_barrier_stiffness() {
     if (kappa_scale_ >= kKappaScaleMax) return;
-    if (self_->min_active_distance(host_x_) < kPressedGapFloors * P_.ccd_floor) {
-      kappa_scale_ = std::min(2 * kappa_scale_, kKappaScaleMax);
-      self_->set_kappa_scale(kappa_scale_);
-    }
+    kappa_scale_ = std::min(2 * kappa_scale_, kKappaScaleMax);
+    self_->set_kappa_scale(kappa_scale_);
   }
 
   /// Exact count of intersecting triangle pairs after the step (host_x_ holds the positions);
