@@ -24,9 +24,8 @@ TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
   const auto& [garment, task] = GetParam();
   // CI runs the 22 cases that pass at this resolution; the open ones (docs/validation.md) run with
   // GD_FULL_MATRIX=1: the folds of two-layer garments, whose folded stack stands 12-23 cm tall at
-  // ~400 vertices, and the dress fold, which lies low but ends at 0.78 of its length. At 2000
-  // vertices only the T-shirt passed, and a 0.35 time scale instead of 0.3 broke it
-  // (docs/validation.md, "The two-layer folds at 2000 vertices").
+  // ~400 vertices (held up by the coarse membrane), and the dress fold, which lies low but ends
+  // at 0.78 of its length (docs/validation.md, "The two-layer folds at 2000 vertices").
   static const std::set<std::string> kOpen = {"tshirt_fold", "long_sleeve_fold", "dress_fold", "hoodie_fold",
                                               "coat_fold"};
   if (!std::getenv("GD_FULL_MATRIX") && kOpen.count(garment + "_" + task))

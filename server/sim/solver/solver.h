@@ -30,6 +30,9 @@ struct StepStats {
   /// Largest pull of a grip spring on a held vertex at the end of the step, N (0 when nothing
   /// is held by a spring; see SceneOptions::grip_force_limit).
   double max_grip_force = 0;
+  /// Multiplier of the self-contact barrier stiffness in effect after the step (1 at the start;
+  /// doubled when layers get pressed together, up to 1e4; see docs/physics.md).
+  double barrier_scale = 1;
   int candidates = 0;          ///< broad-phase candidate pairs
   int intersecting_pairs = 0;  ///< intersecting triangle pairs after the step (and untangling)
   int intersecting_found = 0;  ///< intersecting triangle pairs the solve left (before untangling)

@@ -10,6 +10,7 @@
 /// removed from the solve. Included only by the backend translation units.
 
 #include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <type_traits>
@@ -365,6 +366,7 @@ class Solver final : public SolverBase {
     if (self_) st.min_self_distance = self_->min_active_distance(host_x_);
     st.max_grip_force = max_grip_force();
     adapt_barrier_stiffness(st.min_self_distance);     // stiffer barriers if gaps got tiny
+    st.barrier_scale = kappa_scale_;
     check_intersections(&st);                          // exact count; untangle if any (fail-safe)
     if (self_) {
       st.contacts = self_->active().size();
@@ -607,11 +609,20 @@ class Solver final : public SolverBase {
 
   /// IPC-style adaptive stiffness of the self-contact barrier: it starts so that a vertex's
   /// weight rests at dhat/2, but grippers and stacked layers press harder. When a pair's gap
-  /// closes below a tenth of dhat the stiffness doubles (up to 1e4 x). (The table keeps its
-  /// weight-calibrated stiffness: cloth rests on it under gravity alone.)
+  /// closes below a tenth of dhat the stiffness doubles (up to 1e4 x); when every active pair is
+  /// more than kRelaxGapFraction dhat apart again (nothing pressed; no pair at all counts too) it
+  /// halves, back down to 1 x. Kept stiff, the barrier made Newton stop at its iteration cap in
+  /// every later step, and the motion crept: a sleeve stood 33 cm tall for seconds after a fold,
+  /// then fell to 8 cm in 0.5 s once the stiffness was back at 1 x (docs/validation.md).
+  /// (The table keeps its weight-calibrated stiffness: cloth rests on it under gravity alone.)
   /// min_distance: the closest active pair at the end of the step.
   void adapt_barrier_stiffness(double min_distance) {
-    if (self_ && min_distance < 0.1 * P_.dhat_self) double_barrier_stiffness();
+    if (!self_) return;
+    if (min_distance < 0.1 * P_.dhat_self) {
+      scale_barrier_stiffness(2);
+    } else if (min_distance > kRelaxGapFraction * P_.dhat_self) {
+      scale_barrier_stiffness(0.5);
+    }
   }
 
   /// Within the step, before each Newton iteration: while a pair is closer than
@@ -623,14 +634,15 @@ class Solver final : public SolverBase {
   /// host_x_ holds the iterate.
   void stiffen_pressed_pairs() {
     if (kappa_scale_ >= kKappaScaleMax) return;  // skip the distance pass when capped
-    if (self_->min_active_distance(host_x_) < kPressedGapFloors * P_.ccd_floor) double_barrier_stiffness();
+    if (self_->min_active_distance(host_x_) < kPressedGapFloors * P_.ccd_floor) scale_barrier_stiffness(2);
   }
 
-  /// Doubles the self-contact barrier stiffness, capped at kKappaScaleMax; the current candidate
-  /// and active pairs take the new stiffness at once.
-  void double_barrier_stiffness() {
-    if (kappa_scale_ >= kKappaScaleMax) return;
-    kappa_scale_ = std::min(2 * kappa_scale_, kKappaScaleMax);
+  /// Multiplies the self-contact barrier stiffness by `factor`, kept within [1, kKappaScaleMax];
+  /// the current candidate and active pairs take the new stiffness at once.
+  void scale_barrier_stiffness(double factor) {
+    const double scale = std::clamp(kappa_scale_ * factor, 1.0, kKappaScaleMax);
+    if (scale == kappa_scale_) return;
+    kappa_scale_ = scale;
     self_->set_kappa_scale(kappa_scale_);
   }
 
@@ -1078,6 +1090,8 @@ class Solver final : public SolverBase {
   std::unique_ptr<SelfContact> self_;
   double kappa_scale_ = 1;
   static constexpr double kKappaScaleMax = 1e4;  // adaptive barrier stiffness: at most this x
+  /// adapt_barrier_stiffness halves the stiffness when every active pair is this far apart (x dhat).
+  static constexpr double kRelaxGapFraction = 0.5;
   static constexpr double kPressedGapFloors = 10;  // stiffen_pressed_pairs: gap in CCD floors
   // kinematic colliders (host objects owned by the Scene; packed copies on the backend)
   const std::vector<Collider>* colliders_ = nullptr;
