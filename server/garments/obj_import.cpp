@@ -1,11 +1,9 @@
 #include "garments/obj_import.h"
 
 #include <spdlog/fmt/fmt.h>
-#include <tiny_obj_loader.h>
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <map>
 
 #include "sim/demand.h"
@@ -21,10 +19,10 @@ std::pair<Real, Real> uv_fit(const sim::Mesh& m) {
   Real num = 0, den = 0;
   std::vector<std::pair<Real, Real>> lens;
   lens.reserve(3 * m.tris.size());
-  for (size_t t = 0; t < m.tris.size(); ++t)
+  for (int t = 0; t < int(m.tris.size()); ++t)
     for (int k = 0; k < 3; ++k) {
       const Real l3 = (m.x[m.tris[t][k]] - m.x[m.tris[t][(k + 1) % 3]]).norm();
-      const Real l2 = (m.uv[m.uv_tris[t][k]] - m.uv[m.uv_tris[t][(k + 1) % 3]]).norm();
+      const Real l2 = (sim::corner_uv(m, t, k) - sim::corner_uv(m, t, (k + 1) % 3)).norm();
       num += l2 * l3, den += l2 * l2;
       lens.emplace_back(l2, l3);
     }
@@ -48,51 +46,11 @@ const char* mode_name(UvMode m) {
 }  // namespace
 
 Garment load_garment_obj(const std::string& path, const ObjImportOptions& opt, UvReport* report) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw InputError(fmt::format("OBJ file '{}' does not exist", path));
-  if (!fs::is_regular_file(path, ec)) throw InputError(fmt::format("OBJ file '{}' is not a regular file", path));
-
-  tinyobj::ObjReaderConfig cfg;
-  cfg.triangulate = true;
-  cfg.vertex_color = false;
-  tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path, cfg)) {
-    std::string why = reader.Error();
-    while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
-    throw InputError(fmt::format("OBJ file '{}' could not be parsed: {}", path, why.empty() ? "unknown error" : why));
-  }
-  if (!reader.Warning().empty()) gd::log().debug("OBJ '{}': {}", path, reader.Warning());
-  const tinyobj::attrib_t& at = reader.GetAttrib();
-
   Garment g;
   g.type = "mesh";
   sim::Mesh& m = g.mesh;
-  const int nv = int(at.vertices.size() / 3), nt = int(at.texcoords.size() / 2);
-  m.x.reserve(nv);
-  for (int i = 0; i < nv; ++i) m.x.emplace_back(at.vertices[3 * i], at.vertices[3 * i + 1], at.vertices[3 * i + 2]);
-  bool all_uv = true;
-  for (const tinyobj::shape_t& sh : reader.GetShapes()) {
-    size_t off = 0;
-    for (size_t f = 0; f < sh.mesh.num_face_vertices.size(); ++f) {
-      const int n = sh.mesh.num_face_vertices[f];
-      if (n != 3)
-        throw InputError(fmt::format("OBJ file '{}': face {} of '{}' has {} corners after triangulation; faces need at least 3",
-                                     path, f, sh.name, n));
-      Eigen::Vector3i v, t;
-      for (int k = 0; k < 3; ++k) {
-        const tinyobj::index_t& idx = sh.mesh.indices[off + k];
-        if (idx.vertex_index < 0 || idx.vertex_index >= nv)
-          throw InputError(fmt::format("OBJ file '{}': a face references vertex {} of {}", path, idx.vertex_index + 1, nv));
-        v[k] = idx.vertex_index;
-        t[k] = idx.texcoord_index;
-        if (t[k] < 0 || t[k] >= nt) all_uv = false;
-      }
-      m.tris.push_back(v);
-      m.uv_tris.push_back(t);
-      off += n;
-    }
-  }
+  m = sim::read_obj(path);
+  const int nv = int(m.x.size());
   if (m.tris.empty()) {
     throw InputError(fmt::format("OBJ file '{}' has no faces ({} vertices); a garment needs triangles or polygons (f lines)",
                                  path, nv));
@@ -106,12 +64,7 @@ Garment load_garment_obj(const std::string& path, const ObjImportOptions& opt, U
                                  path, unused - used.begin() + 1));
 
   UvReport rep;
-  rep.present = all_uv && nt > 0;
-  if (rep.present) {
-    for (int i = 0; i < nt; ++i) m.uv.emplace_back(at.texcoords[2 * i], at.texcoords[2 * i + 1]);
-  } else {
-    m.uv_tris.clear();
-  }
+  rep.present = sim::has_uv(m);
   // Validate the geometry first (without uvs), so a broken mesh is reported as such.
   {
     sim::Mesh geo;

@@ -135,6 +135,7 @@ void check_pcd_size(const std::string& path) {
 
 Cloud load_obj_vertices(const std::string& path) {
   const sim::Mesh m = sim::read_obj(path);
+  if (m.x.empty()) throw InputError(fmt::format("OBJ file '{}' has no vertices (no 'v x y z' lines)", path));
   Cloud out;
   out.reserve(m.x.size());
   for (const sim::Vec3& v : m.x) out.push_back(v.cast<float>());

@@ -1,10 +1,11 @@
 #include "sim/mesh.h"
 
 #include <spdlog/fmt/fmt.h>
+#include <tiny_obj_loader.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <numbers>
 #include <string_view>
@@ -394,94 +395,67 @@ void write_obj(const Mesh& m, const std::vector<Vec3>& positions, const std::str
 }
 
 Mesh read_obj(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(fmt::format("cannot open OBJ file '{}'", path));
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw InputError(fmt::format("OBJ file '{}' does not exist", path));
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw InputError(fmt::format("OBJ file '{}' is not a regular file", path));
+  tinyobj::ObjReaderConfig cfg;
+  cfg.triangulate = false;  // fanned below, so triangles keep the file's corner order
+  cfg.vertex_color = false;
+  tinyobj::ObjReader reader;
+  if (!reader.ParseFromFile(path, cfg)) {
+    std::string why = reader.Error();
+    while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
+    throw InputError(fmt::format("OBJ file '{}' could not be parsed: {}", path, why.empty() ? "unknown error" : why));
+  }
+  if (!reader.Warning().empty()) gd::log().debug("OBJ '{}': {}", path, reader.Warning());
+  const tinyobj::attrib_t& at = reader.GetAttrib();
   Mesh m;
-  std::vector<Vec2> vts;
-  std::vector<int> vt_of;  // per vertex: its vt index, -1 if none seen yet
-  bool uv_ok = true, seams = false;
+  const int nv = int(at.vertices.size() / 3), nvt = int(at.texcoords.size() / 2);
+  m.x.reserve(nv);
+  for (int i = 0; i < nv; ++i) m.x.emplace_back(at.vertices[3 * i], at.vertices[3 * i + 1], at.vertices[3 * i + 2]);
   std::vector<Eigen::Vector3i> uv_tris;
-  std::string line;
-  int line_no = 0;
-  auto fail = [&](const std::string& what) {
-    return InputError(fmt::format("{}:{}: {} in \"{}\"", path, line_no, what, line));
-  };
-  auto number = [&](std::string_view s) {
-    Real v;
-    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    if (ec != std::errc() || end != s.data() + s.size())
-      throw fail(fmt::format("'{}' is not a number", s));
-    return v;
-  };
-  // Resolves a 1-based (or negative, relative) OBJ index into [0, count).
-  auto index = [&](std::string_view s, size_t count, const char* what) {
-    int i = 0;
-    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), i);
-    if (ec != std::errc() || end != s.data() + s.size() || i == 0)
-      throw fail(fmt::format("bad {} index '{}'", what, s));
-    const long r = i > 0 ? i - 1L : long(count) + i;
-    if (r < 0 || r >= long(count))
-      throw fail(fmt::format("{} index {} out of range (only {} defined so far)", what, i, count));
-    return int(r);
-  };
-
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::vector<std::string_view> tok;
-    const std::string_view body = std::string_view(line).substr(0, line.find('#'));
-    for (size_t i = 0; i < body.size();) {
-      const size_t b = body.find_first_not_of(" \t", i);
-      if (b == std::string_view::npos) break;
-      const size_t e = std::min(body.find_first_of(" \t", b), body.size());
-      tok.push_back(body.substr(b, e - b));
-      i = e;
-    }
-    if (tok.empty()) continue;
-    if (tok[0] == "v") {
-      if (tok.size() < 4) throw fail("expected 'v x y z'");
-      m.x.emplace_back(number(tok[1]), number(tok[2]), number(tok[3]));
-    } else if (tok[0] == "vt") {
-      if (tok.size() < 3) throw fail("expected 'vt u v'");
-      vts.emplace_back(number(tok[1]), number(tok[2]));
-    } else if (tok[0] == "f") {
-      if (tok.size() < 4) throw fail("a face needs at least 3 vertices");
-      vt_of.resize(m.x.size(), -1);
-      std::vector<int> face, face_vt;
-      for (size_t k = 1; k < tok.size(); ++k) {
-        const std::string_view t = tok[k];
-        const size_t s1 = t.find('/');
-        const int v = index(t.substr(0, s1), m.x.size(), "vertex");
-        face.push_back(v);
-        const std::string_view vt_part = s1 == std::string_view::npos
-                                             ? std::string_view()
-                                             : t.substr(s1 + 1, t.find('/', s1 + 1) - s1 - 1);
-        if (vt_part.empty()) {
-          uv_ok = false;
-          face_vt.push_back(-1);
+  std::vector<int> vt_of(nv, -1);  // per vertex: the vt its corners use, -1 if none seen yet
+  bool every_corner_uv = true, seams = false;
+  int face_no = 0;
+  for (const tinyobj::shape_t& sh : reader.GetShapes()) {
+    size_t off = 0;
+    for (const unsigned n : sh.mesh.num_face_vertices) {
+      ++face_no;
+      GD_DEMAND(n >= 3, "tinyobjloader keeps no face of fewer than 3 vertices");
+      std::vector<int> v(n), vt(n);
+      for (unsigned k = 0; k < n; ++k) {
+        const tinyobj::index_t& idx = sh.mesh.indices[off + k];
+        if (idx.vertex_index < 0 || idx.vertex_index >= nv)
+          throw InputError(fmt::format("OBJ file '{}': face {} uses vertex {}, out of range (the file has {} vertices)",
+                                       path, face_no, idx.vertex_index + 1, nv));
+        v[k] = idx.vertex_index;
+        vt[k] = idx.texcoord_index;
+        if (vt[k] < 0 || vt[k] >= nvt) {
+          every_corner_uv = false;
           continue;
         }
-        const int vt = index(vt_part, vts.size(), "texture");
-        face_vt.push_back(vt);
-        if (vt_of[v] < 0)
-          vt_of[v] = vt;
-        else if (vt_of[v] != vt && vts[vt_of[v]] != vts[vt])
+        int& seen = vt_of[v[k]];
+        if (seen < 0)
+          seen = vt[k];
+        else if (seen != vt[k] && (at.texcoords[2 * seen] != at.texcoords[2 * vt[k]] ||
+                                   at.texcoords[2 * seen + 1] != at.texcoords[2 * vt[k] + 1]))
           seams = true;  // this vertex has two different uvs: keep uvs per corner
       }
-      for (size_t k = 1; k + 1 < face.size(); ++k) {
-        m.tris.emplace_back(face[0], face[k], face[k + 1]);
-        uv_tris.emplace_back(face_vt[0], face_vt[k], face_vt[k + 1]);
+      off += n;
+      for (unsigned k = 1; k + 1 < n; ++k) {
+        m.tris.emplace_back(v[0], v[k], v[k + 1]);
+        uv_tris.emplace_back(vt[0], vt[k], vt[k + 1]);
       }
     }
   }
-  if (in.bad()) throw InputError(fmt::format("error reading OBJ file '{}'", path));
-  vt_of.resize(m.x.size(), -1);
-  if (uv_ok && seams) {
-    m.uv = std::move(vts);
+  if (!every_corner_uv || m.tris.empty()) return m;
+  auto vt_uv = [&](int t) { return Vec2(at.texcoords[2 * t], at.texcoords[2 * t + 1]); };
+  if (seams) {
+    for (int t = 0; t < nvt; ++t) m.uv.push_back(vt_uv(t));
     m.uv_tris = std::move(uv_tris);
-  } else if (uv_ok && std::none_of(vt_of.begin(), vt_of.end(), [](int t) { return t < 0; })) {
-    m.uv.resize(m.x.size());
-    for (size_t i = 0; i < m.x.size(); ++i) m.uv[i] = vts[vt_of[i]];
+  } else if (std::none_of(vt_of.begin(), vt_of.end(), [](int t) { return t < 0; })) {
+    for (int i = 0; i < nv; ++i) m.uv.push_back(vt_uv(vt_of[i]));
   }
   return m;
 }

@@ -102,10 +102,13 @@ Real mean_edge_length(const Mesh& m);
 /// be written.
 void write_obj(const Mesh& m, const std::vector<Vec3>& positions, const std::string& path);
 
-/// Minimal OBJ reader: v, vt and f lines (v, v/vt, v//vn, v/vt/vn; negative indices; polygons
-/// fan-triangulated); other statements are ignored. When every face corner has a vt, uv holds
-/// them: one per vertex if each vertex has a single value, else indexed by uv_tris (seams). Throws InputError with the line number on malformed
-/// input. The result is not validated; call validate_mesh.
+/// Reads a Wavefront OBJ with tinyobjloader: vertices in the file's `v` order (never merged or
+/// reordered), polygons fan-triangulated (v0, vk, vk+1), faces of every group. When every face
+/// corner has a vt, uv holds them: one per vertex if each vertex has a single value, else indexed
+/// by uv_tris (seams). Throws InputError naming the file for a missing file, a parse failure (a
+/// zero index) or an index out of range. Faces of fewer than 3 vertices are dropped (by
+/// tinyobjloader), and a file with no faces gives the vertices alone (a point cloud). Comments
+/// must start their line. The result is not validated; call validate_mesh.
 Mesh read_obj(const std::string& path);
 
 }  // namespace gd::sim

