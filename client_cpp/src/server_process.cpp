@@ -132,13 +132,21 @@ bool ServerProcess::running() {
   return false;
 }
 
+void ServerProcess::signal(int sig) {
+  if (running()) ::kill(pid_, sig);
+}
+
+int ServerProcess::wait(std::chrono::milliseconds timeout) {
+  const auto until = std::chrono::steady_clock::now() + timeout;
+  while (running() && std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  return running() ? -1 : exit_status_;
+}
+
 int ServerProcess::stop(std::chrono::milliseconds grace) {
-  if (pid_ > 0 && running()) {
-    ::kill(pid_, SIGTERM);
-    const auto until = std::chrono::steady_clock::now() + grace;
-    while (running() && std::chrono::steady_clock::now() < until)
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    if (running()) {
+  if (running()) {
+    signal(SIGTERM);
+    if (wait(grace) < 0) {
       ::kill(pid_, SIGKILL);
       int status = 0;
       if (::waitpid(pid_, &status, 0) == pid_) exit_status_ = decode_wait_status(status);

@@ -1,4 +1,6 @@
 // gd::ServerProcess: starts a real gd-server, reports why one does not come up, stops it cleanly.
+#include <signal.h>
+
 #include "client_cpp/server_fixture.h"
 
 namespace gd::client_test {
@@ -17,6 +19,19 @@ TEST(ServerProcess, StartsServesAndStopsGracefully) {
   EXPECT_EQ(server.stop(), 0);  // SIGTERM: drain, exit 0
   EXPECT_FALSE(server.running());
   EXPECT_FALSE(std::filesystem::exists(server.data_dir()));  // its temporary data directory is gone
+}
+
+TEST(ServerProcess, WaitReportsACrashAsItsSignal) {
+  ServerProcessOptions o;
+  o.binary = GD_SERVER_BINARY;
+  o.args = {"--threads", "1", "--log-level", "warn"};
+  ServerProcess server(o);
+  EXPECT_EQ(server.wait(std::chrono::milliseconds(100)), -1);  // still serving
+  server.signal(SIGKILL);
+  EXPECT_EQ(server.wait(std::chrono::seconds(10)), 128 + SIGKILL);
+  EXPECT_FALSE(server.running());
+  server.signal(SIGKILL);  // no-op once it has exited
+  EXPECT_EQ(server.stop(), 128 + SIGKILL);
 }
 
 TEST(ServerProcess, ServerThatExitsIsReportedWithItsLog) {

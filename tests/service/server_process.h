@@ -1,13 +1,11 @@
 #pragma once
 // Test helpers of the service's integration tests: a temporary directory, and a real gd-server
-// process (GD_SERVER_BIN) started on a free loopback port (--port 0 --port-file), killed in the
-// destructor.
+// process (GD_SERVER_BIN) started on a free loopback port by the client library's
+// gd::ServerProcess, stopped in the destructor.
 
-#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <grpcpp/grpcpp.h>
 #include <signal.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -18,10 +16,10 @@
 #include <memory>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "garmentdynamics/v1/garmentdynamics.grpc.pb.h"
+#include "gd/server_process.h"
 
 namespace gd::service::testing {
 
@@ -57,61 +55,18 @@ inline std::string server_binary() {
 #endif
 }
 
-/// A gd-server process on a free loopback port, with its data in `data_dir`.
+/// A gd-server process (the client library's gd::ServerProcess) on a free loopback port, with its
+/// data in `data_dir`, a debug log beside it, and a raw gRPC channel for the service's own stubs.
 class ServerProcess {
  public:
-  explicit ServerProcess(const std::string& data_dir, std::vector<std::string> extra = {}) : data_dir_(data_dir) {
-    fs::create_directories(data_dir);
-    port_file_ = data_dir + "/port";
-    log_file_ = data_dir + "/../" + fs::path(data_dir).filename().string() + "-server.log";
-    fs::remove(port_file_);
-    std::vector<std::string> args = {server_binary(), "--port",    "0",        "--port-file", port_file_,
-                                     "--data-dir",    data_dir,    "--threads", "2",           "--log-level",
-                                     "debug"};
-    args.insert(args.end(), extra.begin(), extra.end());
-    pid_ = fork();
-    if (pid_ == 0) {
-      const int fd = ::open(log_file_.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      if (fd >= 0) {
-        dup2(fd, 1);
-        dup2(fd, 2);
-      }
-      std::vector<char*> argv;
-      for (auto& a : args) argv.push_back(a.data());
-      argv.push_back(nullptr);
-      execv(argv[0], argv.data());
-      _exit(127);
-    }
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (std::chrono::steady_clock::now() < deadline) {
-      int status = 0;
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        throw std::runtime_error("gd-server (" + server_binary() + ") exited at startup with status " +
-                                 std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status)) +
-                                 "; its log:\n" + log());
-      }
-      std::ifstream f(port_file_);
-      if (f >> port_ && port_ > 0) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    if (port_ <= 0) throw std::runtime_error("gd-server did not write its port within 30 s; its log:\n" + log());
-    channel_ = grpc::CreateChannel(address(), grpc::InsecureChannelCredentials());
-    if (!channel_->WaitForConnected(std::chrono::system_clock::now() + std::chrono::seconds(10)))
-      throw std::runtime_error("cannot connect to gd-server at " + address());
-  }
-  ~ServerProcess() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-  }
-  ServerProcess(const ServerProcess&) = delete;
-  ServerProcess& operator=(const ServerProcess&) = delete;
+  explicit ServerProcess(const std::string& data_dir, std::vector<std::string> extra = {})
+      : log_file_(data_dir + "/../" + fs::path(data_dir).filename().string() + "-server.log"),
+        process_(options(data_dir, log_file_, std::move(extra))),
+        channel_(grpc::CreateChannel(process_.address(), grpc::InsecureChannelCredentials())) {}
 
-  int port() const { return port_; }
-  pid_t pid() const { return pid_; }
-  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  int port() const { return process_.port(); }
+  int pid() const { return process_.pid(); }
+  std::string address() const { return process_.address(); }
   std::shared_ptr<grpc::Channel> channel() const { return channel_; }
   std::unique_ptr<pb::GarmentDynamics::Stub> stub() const { return pb::GarmentDynamics::NewStub(channel_); }
   std::string log() const {
@@ -121,32 +76,33 @@ class ServerProcess {
     return ss.str();
   }
 
-  /// kill -9, waits for the process.
+  /// kill -9 (a crash), waits for the process.
   void kill9() {
-    ::kill(pid_, SIGKILL);
-    waitpid(pid_, nullptr, 0);
-    pid_ = -1;
+    process_.signal(SIGKILL);
+    process_.wait(std::chrono::seconds(30));
   }
-  /// Sends a signal and waits up to timeout_s for the exit. Returns the exit code (-1: killed by
-  /// a signal or did not exit in time).
+  /// Sends `sig` (0: none) and waits up to timeout_s for the exit. Returns the exit code (-1: did
+  /// not exit in time; 128 + signal: killed by one).
   int signal_and_wait(int sig, double timeout_s) {
-    ::kill(pid_, sig);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    int status = 0;
-    while (std::chrono::steady_clock::now() < deadline) {
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return -1;
+    if (sig != 0) process_.signal(sig);
+    return process_.wait(std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000)));
   }
 
  private:
-  std::string data_dir_, port_file_, log_file_;
-  pid_t pid_ = -1;
-  int port_ = 0;
+  static gd::ServerProcessOptions options(const std::string& data_dir, const std::string& log_file,
+                                          std::vector<std::string> extra) {
+    fs::create_directories(data_dir);
+    gd::ServerProcessOptions o;
+    o.binary = server_binary();
+    o.data_dir = data_dir;
+    o.log_file = log_file;
+    o.args = {"--threads", "2", "--log-level", "debug"};
+    o.args.insert(o.args.end(), extra.begin(), extra.end());
+    return o;
+  }
+
+  std::string log_file_;
+  gd::ServerProcess process_;
   std::shared_ptr<grpc::Channel> channel_;
 };
 

@@ -51,6 +51,12 @@ class ServerProcess {
   /// Sends SIGTERM, waits up to `grace`, then SIGKILL. Returns the exit status as a shell reports
   /// it (the exit code, or 128 + signal); -1 when it was already stopped.
   int stop(std::chrono::milliseconds grace = std::chrono::milliseconds(10'000));
+  /// Sends `sig` (SIGKILL to simulate a crash, SIGTERM or SIGINT to ask for a drain) and returns
+  /// at once; no-op once the process has exited.
+  void signal(int sig);
+  /// Waits up to `timeout` for the process to exit on its own. Returns its exit status as stop()
+  /// does, or -1 while it still runs. The scratch directory stays until stop() or the destructor.
+  int wait(std::chrono::milliseconds timeout);
 
   /// The server's data directory (the temporary one when none was given).
   const std::string& data_dir() const { return data_dir_; }
