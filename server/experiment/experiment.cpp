@@ -75,7 +75,7 @@ std::string shared_dir() {
 }
 
 /// The simulation of one experiment: scene, controller, bookkeeping of statistics and the
-/// time series. advance() is the only place that steps the scene.
+/// time series. advance() is the only place that steps the scene (through tasks::run_until).
 class Run {
  public:
   Run(std::unique_ptr<sim::Scene> scene, tasks::GripperController controller, double frame_interval,
@@ -99,22 +99,17 @@ class Run {
 
   /// Steps until the scene time reaches t (overshoot < 1 dt); false once the scene has failed.
   bool advance(double t) {
-    while (scene_->time() < t - 1e-12) {
-      if (scene_->failed()) return false;
-      controller_.update(*scene_, scene_->time() + scene_->options().dt);
-      const bool ok = scene_->step();
-      const sim::StepStats& s = scene_->last_stats();
+    return tasks::run_until(*scene_, controller_, t, [this](const sim::StepStats& s) {
       ++steps_;
       intersecting_max_ = std::max(intersecting_max_, s.intersecting_pairs);
       contacts_max_ = std::max(contacts_max_, s.contacts);
       newton_ += s.newton_iters;
       pcg_ += s.pcg_iters;
-      if (!ok) return false;
+      if (scene_->failed()) return;
       if (scene_->time() >= next_record_ - 1e-9) record();
       if (mesh_ && scene_->time() >= next_mesh_ - 1e-9) write_mesh();
       if (progress_) progress_(scene_->time(), end_time_, s);
-    }
-    return !scene_->failed();
+    });
   }
 
   sim::Scene& scene() { return *scene_; }

@@ -32,6 +32,7 @@
 ///   auto held = c.state(Arm::kLeft).held;
 
 #include <array>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -138,7 +139,9 @@ class GripperController {
 };
 
 /// Steps `scene` until its time reaches t_end (overshooting by less than one dt, like RGBench's
-/// step_to_time), calling controller.update before every step. Returns false if the scene failed.
-bool run_until(sim::Scene& scene, GripperController& controller, double t_end);
+/// step_to_time), calling controller.update before every step and `after_step` (when given) after
+/// it, also after a step that failed. Returns false if the scene failed.
+bool run_until(sim::Scene& scene, GripperController& controller, double t_end,
+               const std::function<void(const sim::StepStats&)>& after_step = {});
 
 }  // namespace gd::tasks
