@@ -22,19 +22,24 @@ class GarmentTask : public ::testing::TestWithParam<Case> {};
 
 TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
   const auto& [garment, task] = GetParam();
-  // CI runs the 22 cases that pass at this resolution; the open ones (docs/validation.md) run with
-  // GD_FULL_MATRIX=1: the folds of two-layer garments, whose folded stack stands 12-23 cm tall at
-  // ~400 vertices (held up by the coarse membrane), and the dress fold, which lies low but ends
-  // at 0.78 of its length (docs/validation.md, "The two-layer folds at 2000 vertices").
-  static const std::set<std::string> kOpen = {"tshirt_fold", "long_sleeve_fold", "dress_fold", "hoodie_fold",
+  // Two-layer garments fold at 2000 vertices (gd run's default): at ~400 the coarse membrane
+  // cannot crease across its edges and holds the folded stack 10-19 cm tall, a limit of the mesh,
+  // not of the motion (docs/validation.md, "The two-layer folds at 2000 vertices"). The other
+  // cases run at ~400 vertices. The hoodie and coat folds are open (their long sleeves, lying
+  // past the fold line, drag the folded half askew); GD_FULL_MATRIX=1 runs them.
+  static const std::set<std::string> kFine = {"tshirt_fold", "long_sleeve_fold", "dress_fold", "hoodie_fold",
                                               "coat_fold"};
-  if (!std::getenv("GD_FULL_MATRIX") && kOpen.count(garment + "_" + task))
+  static const std::set<std::string> kOpen = {"hoodie_fold", "coat_fold"};
+  const std::string name = garment + "_" + task;
+  if (!std::getenv("GD_FULL_MATRIX") && kOpen.count(name))
     GTEST_SKIP() << "an open case (docs/validation.md); run with GD_FULL_MATRIX=1";
   ExperimentConfig c;
   c.garment = garment;
   c.task = task;
-  // Coarse (this runs 27 times in CI); GD_TEST_VERTICES overrides for finer checks.
-  c.vertices = std::getenv("GD_TEST_VERTICES") ? std::atoi(std::getenv("GD_TEST_VERTICES")) : 400;
+  // GD_TEST_VERTICES overrides the resolution of every case.
+  c.vertices = std::getenv("GD_TEST_VERTICES") ? std::atoi(std::getenv("GD_TEST_VERTICES"))
+               : kFine.count(name)            ? 2000
+                                              : 400;
   c.scene.dt = 0.01;
   c.task_params.time_scale = 0.3;
   c.settle_after = 0.3;
