@@ -116,6 +116,9 @@ int main(int argc, char** argv) {
   run->add_option("--grip-force-limit", grip_force_limit,
                   "most a grip pulls on one held vertex, N (0: no limit)")
       ->capture_default_str();
+  run->add_option("--jaw-radius", cfg.grippers.jaw_radius,
+                  "pseudo mode: a closing gripper takes the vertices within this distance, m (at least the nearest)")
+      ->capture_default_str();
   run->add_flag("--icp", cfg.icp, "refine the capture's camera transform by ICP on the first frame");
   run->add_flag("--no-self-contact", no_self_contact, "turn cloth self-contact off (faster, may interpenetrate)");
   run->add_flag("--no-plots", no_plots, "do not draw the PNG plots");
@@ -161,7 +164,7 @@ int main(int argc, char** argv) {
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
                                      "--contact-hessian", "--no-plots", "--mesh-every",
-                                     "--compression-ratio", "--grip-force-limit"})
+                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

@@ -25,8 +25,8 @@ TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
   // Two-layer garments fold at 2000 vertices (gd run's default): at ~400 the coarse membrane
   // cannot crease across its edges and holds the folded stack 10-19 cm tall, a limit of the mesh,
   // not of the motion (docs/validation.md, "The two-layer folds at 2000 vertices"). The other
-  // cases run at ~400 vertices. The hoodie and coat folds are open (their long sleeves, lying
-  // past the fold line, drag the folded half askew); GD_FULL_MATRIX=1 runs them.
+  // cases run at ~400 vertices. The hoodie and coat folds are open (the folded half lands
+  // turned about z, cause not found); GD_FULL_MATRIX=1 runs them.
   static const std::set<std::string> kFine = {"tshirt_fold", "long_sleeve_fold", "dress_fold", "hoodie_fold",
                                               "coat_fold"};
   static const std::set<std::string> kOpen = {"hoodie_fold", "coat_fold"};

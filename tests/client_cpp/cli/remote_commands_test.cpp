@@ -7,6 +7,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "client_cpp/server_fixture.h"
 
 namespace gd::client_test {
@@ -120,6 +122,35 @@ TEST_F(CliTest, RunAsAJobWritesTheReportFiles) {
   r = gd(server_flag() + " report " + job + " --out " + (dir / "again").string());
   ASSERT_EQ(r.rc, 0) << r.err;
   EXPECT_EQ(slurp(dir / "again" / "summary.json"), slurp(dir / "out" / "summary.json"));
+}
+
+/// Vertices the grippers held in a local `gd run` towel grasp with these extra flags.
+int held_vertices(const std::filesystem::path& out) {
+  const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
+  int n = 0;
+  for (const auto& e : s.at("grasp_events"))
+    if (e.at("grasp").get<bool>()) n += e.at("vertices").get<int>();
+  return n;
+}
+
+TEST_F(CliTest, JawRadiusSetsHowMuchClothAGripperTakes) {
+  const auto dir = fresh_dir("cli_jaw");
+  const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
+                          "--no-self-contact --no-plots --quiet --threads 1 --out ";
+  CliRun r = gd(run + (dir / "default").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  r = gd(run + (dir / "wide").string() + " --jaw-radius 0.08");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const int narrow = held_vertices(dir / "default"), wide = held_vertices(dir / "wide");
+  EXPECT_GE(narrow, 2);  // at least the nearest vertex per arm
+  EXPECT_GT(wide, 2 * narrow) << narrow << " vertices held at 2 cm, " << wide << " at 8 cm";
+  // A local-only option: refused with --server (the server decides), and a negative radius.
+  r = gd(server_flag() + " run --garment towel --task grasp --jaw-radius 0.05 --out " + (dir / "remote").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--jaw-radius"), std::string::npos) << r.err;
+  r = gd(run + (dir / "negative").string() + " --jaw-radius -1");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("jaw_radius"), std::string::npos) << r.err;
 }
 
 TEST_F(CliTest, ExitCodes) {
