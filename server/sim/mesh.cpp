@@ -422,7 +422,10 @@ Mesh read_obj(const std::string& path) {
     size_t off = 0;
     for (const unsigned n : sh.mesh.num_face_vertices) {
       ++face_no;
-      GD_DEMAND(n >= 3, "tinyobjloader keeps no face of fewer than 3 vertices");
+      if (n < 3) {  // tinyobjloader drops these itself; skip them too should a version keep them
+        off += n;
+        continue;
+      }
       std::vector<int> v(n), vt(n);
       for (unsigned k = 0; k < n; ++k) {
         const tinyobj::index_t& idx = sh.mesh.indices[off + k];
