@@ -60,7 +60,7 @@ inline std::string server_binary() {
 class ServerProcess {
  public:
   explicit ServerProcess(const std::string& data_dir, std::vector<std::string> extra = {})
-      : log_file_(data_dir + "/../" + fs::path(data_dir).filename().string() + "-server.log"),
+      : log_file_(next_log_file(data_dir)),
         process_(options(data_dir, log_file_, std::move(extra))),
         channel_(grpc::CreateChannel(process_.address(), grpc::InsecureChannelCredentials())) {}
 
@@ -89,6 +89,12 @@ class ServerProcess {
   }
 
  private:
+  /// DIR/../<name>-server-<n>.log: one per start, so a restart on the same data directory does not
+  /// overwrite the log of the server before it (gd::ServerProcess truncates its log file).
+  static std::string next_log_file(const std::string& data_dir) {
+    static int starts = 0;
+    return data_dir + "/../" + fs::path(data_dir).filename().string() + "-server-" + std::to_string(++starts) + ".log";
+  }
   static gd::ServerProcessOptions options(const std::string& data_dir, const std::string& log_file,
                                           std::vector<std::string> extra) {
     fs::create_directories(data_dir);
