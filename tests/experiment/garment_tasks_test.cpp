@@ -25,11 +25,11 @@ TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
   // Two-layer garments fold at 2000 vertices (gd run's default): at ~400 the coarse membrane
   // cannot crease across its edges and holds the folded stack 10-19 cm tall, a limit of the mesh,
   // not of the motion (docs/validation.md, "The two-layer folds at 2000 vertices"). The other
-  // cases run at ~400 vertices. The hoodie and coat folds are open (the folded half lands
-  // turned about z, cause not found); GD_FULL_MATRIX=1 runs them.
+  // cases run at ~400 vertices. The hoodie fold is open (its body and hood land crumpled, 4 cm
+  // mean height); GD_FULL_MATRIX=1 runs it.
   static const std::set<std::string> kFine = {"tshirt_fold", "long_sleeve_fold", "dress_fold", "hoodie_fold",
                                               "coat_fold"};
-  static const std::set<std::string> kOpen = {"hoodie_fold", "coat_fold"};
+  static const std::set<std::string> kOpen = {"hoodie_fold"};
   const std::string name = garment + "_" + task;
   if (!std::getenv("GD_FULL_MATRIX") && kOpen.count(name))
     GTEST_SKIP() << "an open case (docs/validation.md); run with GD_FULL_MATRIX=1";
@@ -42,6 +42,10 @@ TEST_P(GarmentTask, SurvivesWithItsPhysicalOutcome) {
                                               : 400;
   c.scene.dt = 0.01;
   c.task_params.time_scale = 0.3;
+  // The page turn itself takes 2 s (3.5 s at time scale 1): turned over in 1 s, at up to 1.7 m/s,
+  // the coat's folded half landed askew in 4 of 5 runs that differed by a centimetre of grasp or
+  // 15% of speed; in 2 s it folded flat in all 3 (docs/validation.md).
+  c.task_params.fold_duration = 2.0 / c.task_params.time_scale;
   c.settle_after = 0.3;
   c.plots = false;
   const testing::TempDir tmp("garment_task_" + garment + "_" + task);
