@@ -377,7 +377,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     if (fs::exists(base)) {
       const std::string g = extra["garment"];
       metrics::write_comparison(out, g, config.task, config.mode, "garmentdynamics (ours)", sum.mean, 1,
-                                metrics::load_paper_baselines(base, g, config.task));
+                                metrics::load_paper_baselines(base, metrics::paper_garment(g), config.task));
     }
   } else {
     run.advance(end_time);

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "sim/demand.h"
@@ -136,6 +137,14 @@ void write_summary_json(const std::string& path, const std::vector<FrameRow>& ro
   if (!f) throw InputError(fmt::format("error while writing '{}'", path));
 }
 
+std::string paper_garment(const std::string& garment) {
+  static const std::map<std::string, std::string> kPaper = {
+      {"tshirt", "green_tshirt"},         {"dress", "blue_dress"},       {"pleat_skirt", "grey_pleat_skirt"},
+      {"cake_skirt", "white_cakeskirt"}, {"hoodie", "beige_hoodie"}, {"coat", "brown_coat"}};
+  const auto it = kPaper.find(garment);
+  return it == kPaper.end() ? garment : it->second;
+}
+
 std::vector<BaselineRow> load_paper_baselines(const std::string& csv_path,
                                               const std::string& garment,
                                               const std::string& action, const std::string& mode) {
@@ -225,6 +234,8 @@ void write_comparison(const std::string& dir, const std::string& garment,
          "Garment Benchmark (RGBench)\", AAAI 2026 (github.com/hwk0809/RGBench, "
          "results/paper_baselines.csv; code MIT, data CC-BY-4.0).\n";
     if (baselines.empty()) f << "\nThe paper has no row for this garment/action.\n";
+    else if (baselines.front().garment != garment)
+      f << fmt::format("\nThe paper's rows are for its {}, the real garment of this type.\n", baselines.front().garment);
   }
 }
 

@@ -49,6 +49,13 @@ struct BaselineRow {
   Metrics m;
 };
 
+/// The RGBench paper's name for the real garment of one of our generated types: tshirt ->
+/// green_tshirt, dress -> blue_dress, pleat_skirt -> grey_pleat_skirt, cake_skirt ->
+/// white_cakeskirt, hoodie -> beige_hoodie, coat -> brown_coat (the paper's seventh garment,
+/// white_shirt, has no generated counterpart). Any other name (a capture's own, such as
+/// green_tshirt) comes back unchanged.
+std::string paper_garment(const std::string& garment);
+
 /// The rows for `garment` and `action` (all when both are empty; an empty `mode` matches all
 /// modes), in file order. Throws InputError naming the file if it is missing or malformed.
 std::vector<BaselineRow> load_paper_baselines(const std::string& csv_path,

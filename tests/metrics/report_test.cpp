@@ -133,6 +133,27 @@ TEST(Report, PaperBaselinesAndComparison) {
   testing::expect_input_error([&] { load_paper_baselines(d + "/nope.csv", "a", "b"); }, "nope.csv");
 }
 
+TEST(Report, AGeneratedGarmentIsComparedWithThePapersGarmentOfItsType) {
+  EXPECT_EQ(paper_garment("tshirt"), "green_tshirt");
+  EXPECT_EQ(paper_garment("cake_skirt"), "white_cakeskirt");
+  EXPECT_EQ(paper_garment("green_tshirt"), "green_tshirt");  // a capture's own name
+  EXPECT_EQ(paper_garment("towel"), "towel");                // no paper garment: no rows
+  const std::string data = testing::rgbench_data_dir();
+  if (data.empty()) GTEST_SKIP() << "GD_SHARED_DIR/data/rgbench not available";
+  // Every mapped name is one the paper's table has, for all three actions.
+  for (const char* type : {"tshirt", "dress", "pleat_skirt", "cake_skirt", "hoodie", "coat"})
+    for (const char* action : {"grasp", "fold", "fling"})
+      EXPECT_FALSE(load_paper_baselines(data + "/paper_baselines.csv", paper_garment(type), action).empty())
+          << type << " " << action;
+  const auto rows = load_paper_baselines(data + "/paper_baselines.csv", paper_garment("tshirt"), "fold");
+  const std::string d = temp_dir("cmp_type");
+  write_comparison(d, "tshirt", "fold", "pseudo", "garmentdynamics", Metrics{}, 1, rows);
+  std::string all;
+  for (const auto& l : read_lines(d + "/comparison.md")) all += l + "\n";
+  EXPECT_NE(all.find("The paper's rows are for its green_tshirt"), std::string::npos) << all;
+  EXPECT_EQ(all.find("no row"), std::string::npos) << all;
+}
+
 TEST(Report, FramesForPlots) {
   const std::string d = temp_dir("frames");
   std::vector<FramePair> kept = {{0, 0.1, testing::random_cloud(50, 1), testing::random_cloud(60, 2)},
