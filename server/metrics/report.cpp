@@ -235,7 +235,8 @@ void write_comparison(const std::string& dir, const std::string& garment,
          "results/paper_baselines.csv; code MIT, data CC-BY-4.0).\n";
     if (baselines.empty()) f << "\nThe paper has no row for this garment/action.\n";
     else if (baselines.front().garment != garment)
-      f << fmt::format("\nThe paper's rows are for its {}, the real garment of this type.\n", baselines.front().garment);
+      f << fmt::format("\nThe paper's rows are for its {}, the real garment of this type.\n",
+                       baselines.front().garment);
   }
 }
 
