@@ -95,12 +95,18 @@ int main(int argc, char** argv) {
   run->add_option("--task", cfg.task, "grasp | fold | fling")->capture_default_str();
   run->add_option("--mode", cfg.mode, "pseudo (jaw-radius grasp) | fixed_point (RGBench's)")->capture_default_str();
   run->add_option("--vertices", cfg.vertices, "target vertex count of a generated garment")->capture_default_str();
+  std::vector<std::string> garment_params;
+  run->add_option("--garment-param", garment_params,
+                  "a size of a generated garment, NAME=VALUE (repeatable; e.g. hood_length=0.25; names in docs/garments.md)");
   run->add_option("--capture", cfg.capture_dir, "RGBench capture directory to compare with");
   run->add_option("--experiment-library", cfg.experiment_library, "RGBench experiment_library.yaml (capture timing)");
   run->add_option("--trajectory", cfg.trajectory_file, "end-effector trajectory (CSV or JSON, docs/tasks.md)");
   run->add_option("--out", cfg.out_dir, "output directory")->required();
   run->add_option("--dt", cfg.scene.dt, "time step, s")->capture_default_str();
   run->add_option("--time-scale", cfg.task_params.time_scale, "speed factor of generated tasks' slow parts")
+      ->capture_default_str();
+  run->add_option("--fold-duration", cfg.task_params.fold_duration,
+                  "s of a generated fold's page turn, before --time-scale")
       ->capture_default_str();
   run->add_option("--settle", cfg.settle_after, "seconds simulated after the trajectory ends")->capture_default_str();
   run->add_option("--shoulder-index", shoulders, "fixed-point fling pins: LEFT RIGHT vertex indices")->expected(2);
@@ -161,10 +167,11 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     gd::log();  // the logger reads GD_LOG_LEVEL
+    for (const std::string& kv : garment_params) cfg.garment_params.insert(gd::cli::parse_garment_param(kv));
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
                                      "--contact-hessian", "--no-plots", "--mesh-every",
-                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
+                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--fold-duration"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;
@@ -174,6 +181,7 @@ int main(int argc, char** argv) {
       r.job.task = cfg.task;
       r.job.mode = cfg.mode;
       r.job.vertices = cfg.vertices;
+      r.job.garment_params = cfg.garment_params;
       r.job.capture = cfg.capture_dir;
       r.job.icp = cfg.icp;
       r.job.label = label;

@@ -112,6 +112,23 @@ int run_remote(const std::string& server, const RemoteRun& run) {
   return kExitOk;
 }
 
+std::pair<std::string, double> parse_garment_param(const std::string& name_value) {
+  const size_t eq = name_value.find('=');
+  const std::string name = name_value.substr(0, eq);
+  const std::string value = eq == std::string::npos ? "" : name_value.substr(eq + 1);
+  size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (name.empty() || value.empty() || used != value.size())
+    throw sim::InputError("--garment-param takes NAME=VALUE with a number, e.g. hood_length=0.25 (got '" +
+                          name_value + "')");
+  return {name, v};
+}
+
 RemoteCommands::RemoteCommands(CLI::App& app) {
   info_ = app.add_subcommand("info", "server version, backend, limits, load and health (needs --server)");
   garments_ = app.add_subcommand("garments", "garment types and uploaded meshes of the server (needs --server)");
@@ -129,6 +146,8 @@ RemoteCommands::RemoteCommands(CLI::App& app) {
   create_->add_option("--yaw-deg", spec_.yaw_deg, "seeded yaw randomisation, degrees");
   create_->add_option("--offset", spec_.offset_m, "seeded x/y offset randomisation, m");
   create_->add_flag("--no-self-contact", no_self_contact_, "turn cloth self-contact off");
+  create_->add_option("--garment-param", garment_params_,
+                      "a size of a generated garment, NAME=VALUE (repeatable; names in docs/garments.md)");
 
   step_ = app.add_subcommand("step", "step scenes in one batched call (needs --server)");
   step_->add_option("--ids", ids_, "scene ids, comma-separated")->delimiter(',')->required();
@@ -201,6 +220,7 @@ int RemoteCommands::do_create(Client& c) {
     throw sim::InputError("create: give exactly one of --garment TYPE or --mesh ID");
   if (create_->count("--dt") > 0) spec_.settings.dt = dt_;
   if (no_self_contact_) spec_.settings.self_contact = false;
+  for (const std::string& kv : garment_params_) spec_.garment_params.insert(parse_garment_param(kv));
   const CreatedScenes s = c.create_scenes(spec_);
   std::fprintf(stderr, "created %zu scene(s): %d vertices, %zu triangles, dt %g s, backend %s\n", s.ids.size(),
                s.info.vertex_count, s.info.triangles.size() / 3, s.info.dt, s.info.backend.c_str());

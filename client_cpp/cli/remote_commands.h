@@ -6,11 +6,16 @@
 
 #include <CLI/CLI.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gd/client.h"
 
 namespace gd::cli {
+
+/// "NAME=VALUE" of --garment-param as (name, value). Throws sim::InputError when it is not a
+/// name, '=' and a number; the name itself is checked by the garment generator.
+std::pair<std::string, double> parse_garment_param(const std::string& name_value);
 
 /// Exit codes of the command line.
 enum ExitCode : int { kExitOk = 0, kExitFailed = 1, kExitBadInput = 2, kExitRpcError = 3 };
@@ -54,6 +59,7 @@ class RemoteCommands {
   CLI::App* upload_ = nullptr;
 
   SceneSpec spec_;
+  std::vector<std::string> garment_params_;  ///< --garment-param NAME=VALUE
   bool no_self_contact_ = false;
   double dt_ = 0;
   std::vector<std::string> ids_;

@@ -82,6 +82,7 @@ void to_proto(const SceneSpec& in, pb::CreateScenesRequest* out) {
     out->mutable_randomization()->set_yaw_deg(in.yaw_deg);
     out->mutable_randomization()->set_offset_m(in.offset_m);
   }
+  out->mutable_garment_params()->insert(in.garment_params.begin(), in.garment_params.end());
 }
 
 void to_proto(const SceneAction& in, pb::SceneAction* out, const char* rpc) {
@@ -130,6 +131,7 @@ void to_proto(const JobSpec& in, pb::SubmitJobRequest* out) {
   if (in.self_contact) out->set_self_contact(*in.self_contact);
   out->set_icp(in.icp);
   out->set_label(in.label);
+  out->mutable_garment_params()->insert(in.garment_params.begin(), in.garment_params.end());
 }
 
 SceneState from_proto(const pb::SceneState& in, const char* rpc) {

@@ -187,7 +187,8 @@ class Client:
                       count: int = 1, seed: int = 0, mesh_id: Optional[str] = None, mode: str = "pseudo",
                       dt: Optional[float] = None, self_contact: Optional[bool] = None,
                       jaw_radius: Optional[float] = None, grab_time: Optional[float] = None,
-                      yaw_deg: float = 0.0, offset_m: float = 0.0) -> List[str]:
+                      yaw_deg: float = 0.0, offset_m: float = 0.0,
+                      garment_params: Optional[Dict[str, float]] = None) -> List[str]:
         """Creates `count` identical scenes and returns their ids.
 
         Args:
@@ -202,6 +203,8 @@ class Client:
             dt, self_contact, jaw_radius, grab_time: scene settings (None = server default).
             yaw_deg, offset_m: randomisation ranges: yaw uniform in [-yaw_deg, yaw_deg] about z,
                 offset uniform in [-offset_m, offset_m] along x and y (seeds other than 0).
+            garment_params: sizes of a generated garment by name, e.g. {"length": 0.9,
+                "hood_length": 0.25} (docs/garments.md lists the names and defaults).
 
         What the scenes share (triangles, rest positions, dt, ...) is available from
         scene_info(id) afterwards.
@@ -219,7 +222,8 @@ class Client:
             settings.grab_time = float(grab_time)
         req = pb.CreateScenesRequest(material=material, vertices=int(vertices), mode=mode, seed=int(seed),
                                      count=int(count), settings=settings,
-                                     randomization=pb.Randomization(yaw_deg=yaw_deg, offset_m=offset_m))
+                                     randomization=pb.Randomization(yaw_deg=yaw_deg, offset_m=offset_m),
+                                     garment_params={str(k): float(v) for k, v in (garment_params or {}).items()})
         if garment is not None:
             req.garment = garment
         else:
@@ -335,17 +339,19 @@ class Client:
                    trajectory: Union[None, str, bytes, Path] = None, trajectory_format: Optional[str] = None,
                    capture: str = "", dt: Optional[float] = None, time_scale: Optional[float] = None,
                    settle: Optional[float] = None, self_contact: Optional[bool] = None, icp: bool = False,
-                   label: str = "") -> str:
+                   label: str = "", garment_params: Optional[Dict[str, float]] = None) -> str:
         """Submits a whole rollout (garment + task) to run on the server; returns the job id.
 
         trajectory: a path to our trajectory CSV/JSON file (docs/tasks.md), or its text/bytes;
         trajectory_format "csv" | "json" (guessed from a path's suffix). capture: an RGBench
-        capture directory under the server's capture root. The other arguments mirror `gd run`.
+        capture directory under the server's capture root. garment_params: sizes of a generated
+        garment by name, as in create_scenes. The other arguments mirror `gd run`.
         """
         if (garment is None) == (mesh_id is None):
             raise ValueError("give exactly one of garment= and mesh_id=")
         req = pb.SubmitJobRequest(material=material, task=task, mode=mode, vertices=int(vertices),
-                                  capture=capture, icp=icp, label=label)
+                                  capture=capture, icp=icp, label=label,
+                                  garment_params={str(k): float(v) for k, v in (garment_params or {}).items()})
         if garment is not None:
             req.garment = garment
         else:

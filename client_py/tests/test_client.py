@@ -120,6 +120,26 @@ def test_job_with_its_report(client):
     assert client.count_reports() >= 1
 
 
+def test_garment_params_size_scenes_and_jobs(client):
+    ids = client.create_scenes(garment="towel", vertices=TOWEL_VERTICES, garment_params={"length": 0.4, "width": 0.3})
+    try:
+        rest = client.scene_info(ids[0])["rest_positions"]
+        extent = rest.max(axis=0) - rest.min(axis=0)
+        assert extent[0] == pytest.approx(0.4, abs=1e-4) and extent[1] == pytest.approx(0.3, abs=1e-4)
+    finally:
+        client.destroy(ids)
+    job = client.submit_job(garment="towel", task="grasp", vertices=200, dt=0.02, time_scale=4.0, settle=0.1,
+                            self_contact=False, garment_params={"length": 0.4})
+    report = client.wait_report(job, progress=False)
+    assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+    assert report["summary"]["garment_length"] == pytest.approx(0.4, abs=1e-6)
+    assert report["summary"]["garment_params"] == {"length": 0.4}
+    expect_code(grpc.StatusCode.INVALID_ARGUMENT, client.create_scenes, garment="towel", vertices=TOWEL_VERTICES,
+                garment_params={"lenght": 0.4})
+    expect_code(grpc.StatusCode.INVALID_ARGUMENT, client.submit_job, garment="towel", task="grasp",
+                garment_params={"length": float("nan")})
+
+
 def test_upload_mesh_and_create_scene_from_it(client, towel, tmp_path):
     info = client.scene_info(towel)
     rest = info["rest_positions"] - np.array([0.1, 0.0, 0.01], dtype=np.float32)

@@ -180,13 +180,20 @@ void ExperimentConfig::validate() const {
   if (keep_frames < 0) throw InputError("keep_frames must be >= 0");
   if (!(mesh_interval >= 0) || !std::isfinite(mesh_interval))
     throw InputError(fmt::format("mesh_interval must be >= 0 s (got {})", mesh_interval));
+  if (!garment_params.empty() && ends_with(garment, ".obj"))
+    throw InputError("garment_params size a generated garment; an .obj mesh takes none");
+  garments::GarmentParams sizes;
+  for (const auto& [name, value] : garment_params) garments::set_garment_param(sizes, name, value);
+  if (!garment_params.empty()) garments::make_pattern(garment, sizes);  // throws for sizes that make no garment
   scene.validate();
   task_params.validate();
 }
 
 garments::Garment make_experiment_garment(const ExperimentConfig& c) {
   if (ends_with(c.garment, ".obj")) return garments::load_garment_obj(c.garment);
-  return garments::make_garment(c.garment, c.vertices);
+  garments::GarmentParams sizes;
+  for (const auto& [name, value] : c.garment_params) garments::set_garment_param(sizes, name, value);
+  return garments::make_garment(c.garment, c.vertices, sizes);
 }
 
 namespace {
@@ -393,6 +400,8 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
   s["garment"] = garment.type;
   s["garment_source"] = config.garment;
+  s["garment_params"] = nlohmann::json::object();
+  for (const auto& [name, value] : config.garment_params) s["garment_params"][name] = value;
   s["material"] = config.material;
   s["task"] = config.task;
   s["mode"] = config.mode;

@@ -19,6 +19,7 @@
 #include <array>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -39,6 +40,9 @@ struct ExperimentConfig {
   std::string task = "fold";             ///< grasp | fold | fling
   std::string mode = "pseudo";           ///< pseudo (jaw-radius grasp) | fixed_point (RGBench's)
   int vertices = 2000;                   ///< target vertex count of a generated garment
+  /// Sizes of a generated garment by GarmentParams field name (e.g. {"hood_length", 0.25});
+  /// absent ones take the type's defaults (docs/garments.md).
+  std::map<std::string, double> garment_params;
   /// An RGBench capture directory (optional): its joints CSVs drive the arms (unless
   /// trajectory_file is given) and its point clouds are compared with the simulation.
   std::string capture_dir;

@@ -344,6 +344,63 @@ int nearest_of(const sim::Mesh& m, const std::vector<char>& allowed, const Vec3&
 
 }  // namespace
 
+namespace {
+
+/// GarmentParams' fields by name (integer fields have a null `real`).
+struct ParamField {
+  const char* name;
+  Real GarmentParams::*real;
+  int GarmentParams::*integer;
+};
+
+constexpr ParamField kParamFields[] = {
+    {"length", &GarmentParams::length, nullptr},
+    {"width", &GarmentParams::width, nullptr},
+    {"waist_width", &GarmentParams::waist_width, nullptr},
+    {"neck_width", &GarmentParams::neck_width, nullptr},
+    {"front_neck_depth", &GarmentParams::front_neck_depth, nullptr},
+    {"back_neck_depth", &GarmentParams::back_neck_depth, nullptr},
+    {"shoulder_width", &GarmentParams::shoulder_width, nullptr},
+    {"shoulder_drop", &GarmentParams::shoulder_drop, nullptr},
+    {"armhole_depth", &GarmentParams::armhole_depth, nullptr},
+    {"sleeve_length", &GarmentParams::sleeve_length, nullptr},
+    {"sleeve_opening", &GarmentParams::sleeve_opening, nullptr},
+    {"sleeve_angle_deg", &GarmentParams::sleeve_angle_deg, nullptr},
+    {"hood_length", &GarmentParams::hood_length, nullptr},
+    {"hood_width", &GarmentParams::hood_width, nullptr},
+    {"front_gap", &GarmentParams::front_gap, nullptr},
+    {"tiers", nullptr, &GarmentParams::tiers},
+    {"pleats", nullptr, &GarmentParams::pleats},
+    {"fold_bend_scale", &GarmentParams::fold_bend_scale, nullptr},
+    {"elastic_ratio", &GarmentParams::elastic_ratio, nullptr},
+    {"layer_gap", &GarmentParams::layer_gap, nullptr},
+};
+
+}  // namespace
+
+std::vector<std::string> garment_param_names() {
+  std::vector<std::string> names;
+  for (const ParamField& f : kParamFields) names.emplace_back(f.name);
+  return names;
+}
+
+void set_garment_param(GarmentParams& params, const std::string& name, double value) {
+  for (const ParamField& f : kParamFields) {
+    if (name != f.name) continue;
+    if (!std::isfinite(value))
+      throw InputError(fmt::format("garment parameter '{}' is {}; give a finite number", name, value));
+    if (f.real) {
+      params.*f.real = value;
+    } else {
+      if (value != std::round(value) || std::abs(value) > 1e6)
+        throw InputError(fmt::format("garment parameter '{}' counts something; give a whole number (got {})", name, value));
+      params.*f.integer = static_cast<int>(value);
+    }
+    return;
+  }
+  throw InputError(fmt::format("unknown garment parameter '{}'; known: {}", name, fmt::join(garment_param_names(), ", ")));
+}
+
 std::vector<std::string> garment_types() {
   return {"towel", "tshirt", "long_sleeve", "dress", "skirt", "pleat_skirt", "cake_skirt", "hoodie", "coat"};
 }

@@ -39,6 +39,15 @@ struct GarmentParams {
                               ///< the vertex spacing, at least 0.002)
 };
 
+/// Sets the size called `name` (a GarmentParams field name, e.g. "hood_length") to `value`; an
+/// integer field (tiers, pleats) takes a whole number. Throws sim::InputError for an unknown name
+/// (the message lists the known ones), a non-finite value or a fraction for an integer field.
+/// Whether the value makes a valid garment is checked by make_garment.
+void set_garment_param(GarmentParams& params, const std::string& name, double value);
+
+/// The names set_garment_param knows, in GarmentParams order.
+std::vector<std::string> garment_param_names();
+
 /// The garment types make_garment knows, in a fixed order: towel, tshirt, long_sleeve, dress,
 /// skirt, pleat_skirt, cake_skirt, hoodie, coat.
 std::vector<std::string> garment_types();

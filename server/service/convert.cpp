@@ -103,6 +103,7 @@ Status to_scene_spec(const pb::CreateScenesRequest& r, SceneSpec* out) {
   if (s.has_grab_time()) out->grab_time = s.grab_time();
   out->yaw_deg = r.randomization().yaw_deg();
   out->offset_m = r.randomization().offset_m();
+  out->garment_params.insert(r.garment_params().begin(), r.garment_params().end());
   return Status::Ok();
 }
 
@@ -160,6 +161,7 @@ Status to_job_spec(const pb::SubmitJobRequest& r, JobSpec* out) {
   if (r.has_self_contact()) out->self_contact = r.self_contact();
   out->icp = r.icp();
   out->label = r.label();
+  out->garment_params.insert(r.garment_params().begin(), r.garment_params().end());
   return Status::Ok();
 }
 

@@ -110,6 +110,9 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   cfg->scene.backend = options_.backend;
   cfg->icp = spec.icp;
   cfg->plots = options_.plots;
+  if (!spec.garment_params.empty() && spec.garment.empty())
+    return Status::InvalidArgument("garment_params size a generated garment; an uploaded mesh (mesh_id) takes none");
+  cfg->garment_params = spec.garment_params;
   if (spec.label.size() > 1024) return Status::InvalidArgument("label is longer than 1024 characters");
 
   std::optional<tasks::DualArmTrajectory> traj;

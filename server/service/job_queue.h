@@ -51,6 +51,7 @@ struct JobSpec {
   std::optional<bool> self_contact;
   bool icp = false;
   std::string label;
+  std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
 };
 
 struct JobQueueOptions {

@@ -270,6 +270,8 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
       return Status::InvalidArgument(fmt::format("unknown garment '{}'; use one of: {}", spec.garment,
                                                  fmt::join(types, ", ")));
   }
+  if (!spec.mesh_path.empty() && !spec.garment_params.empty())
+    return Status::InvalidArgument("garment_params size a generated garment; an uploaded mesh (mesh_id) takes none");
   const std::string material = spec.material.empty() ? "cotton" : spec.material;
   auto bad_number = [](const std::optional<double>& v) { return v && !std::isfinite(*v); };
   if (bad_number(spec.dt) || (spec.dt && *spec.dt <= 0))
@@ -310,6 +312,7 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     experiment::ExperimentConfig cfg;
     cfg.garment = spec.mesh_path.empty() ? spec.garment : spec.mesh_path;
     cfg.vertices = vertices;
+    cfg.garment_params = spec.garment_params;
     const garments::Garment garment = experiment::make_experiment_garment(cfg);
     if (static_cast<int>(garment.mesh.x.size()) > options_.max_vertices)
       return Status::ResourceExhausted(fmt::format("the garment has {} vertices, over this server's limit of {} per "

@@ -76,6 +76,7 @@ struct SceneSpec {
   std::optional<double> grab_time;   ///< s, fixed point (default 0)
   double yaw_deg = 0;            ///< randomisation: yaw uniform in [-yaw_deg, yaw_deg]
   double offset_m = 0;           ///< randomisation: x/y offsets uniform in [-offset_m, offset_m]
+  std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
 };
 
 /// One arm's command for the end of a step.

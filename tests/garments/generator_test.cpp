@@ -209,6 +209,43 @@ TEST(Generator, BadInputIsRejectedWithAClearMessage) {
   EXPECT_THROW(make_garment("tshirt", 1000, narrow), sim::InputError);
 }
 
+TEST(GarmentParamsByName, EveryNameSetsItsSizeAndTheGarmentFollows) {
+  GarmentParams p;
+  set_garment_param(p, "length", 0.9);
+  set_garment_param(p, "hood_length", 0.2);
+  set_garment_param(p, "tiers", 2);
+  EXPECT_DOUBLE_EQ(p.length, 0.9);
+  EXPECT_DOUBLE_EQ(p.hood_length, 0.2);
+  EXPECT_EQ(p.tiers, 2);
+  // Every listed name is settable, and each sets a different field.
+  for (const std::string& name : garment_param_names()) {
+    GarmentParams q;
+    ASSERT_NO_THROW(set_garment_param(q, name, 3)) << name;
+  }
+  EXPECT_EQ(garment_param_names().size(), 20u);
+  // A longer T-shirt is generated longer; the default is RGBench's 0.77 m.
+  GarmentParams longer;
+  set_garment_param(longer, "length", 0.9);
+  EXPECT_NEAR(make_garment("tshirt", 600, longer).length, 0.9 + 0.01, 0.02);
+  EXPECT_NEAR(make_garment("tshirt", 600).length, 0.77, 0.03);
+}
+
+TEST(GarmentParamsByName, BadNamesAndValuesSayWhatToFix) {
+  GarmentParams p;
+  try {
+    set_garment_param(p, "sleeve_lenght", 0.5);
+    FAIL() << "no error";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("sleeve_lenght"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("sleeve_length"), std::string::npos);  // the known names
+  }
+  EXPECT_THROW(set_garment_param(p, "length", std::nan("")), sim::InputError);
+  EXPECT_THROW(set_garment_param(p, "width", INFINITY), sim::InputError);
+  EXPECT_THROW(set_garment_param(p, "pleats", 2.5), sim::InputError);
+  EXPECT_EQ(p.pleats, 0);  // untouched by the refused values
+  EXPECT_DOUBLE_EQ(p.length, 0);
+}
+
 }  // namespace
 }  // namespace gd::garments
 

@@ -23,6 +23,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -137,6 +138,8 @@ struct SceneSpec {
   SceneSettings settings;
   double yaw_deg = 0;                  ///< randomisation: yaw uniform in [-yaw_deg, yaw_deg]
   double offset_m = 0;                 ///< randomisation: x, y offset uniform in [-offset_m, offset_m]
+  /// Sizes of a generated garment by name (e.g. {"hood_length", 0.25}); docs/garments.md lists them.
+  std::map<std::string, double> garment_params;
 };
 
 /// What the scenes of one create_scenes call share.
@@ -218,6 +221,7 @@ struct JobSpec {
   std::optional<bool> self_contact;
   bool icp = false;
   std::string label;                   ///< free text kept with the report
+  std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
 };
 
 enum class JobStatus : int {

@@ -153,6 +153,40 @@ TEST_F(CliTest, JawRadiusSetsHowMuchClothAGripperTakes) {
   EXPECT_NE(r.err.find("jaw_radius"), std::string::npos) << r.err;
 }
 
+TEST_F(CliTest, GarmentParamSizesTheGarmentLocallyAndAsAJob) {
+  const auto dir = fresh_dir("cli_sizes");
+  const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
+                          "--no-self-contact --quiet --garment-param length=0.45 --garment-param width=0.3 --out ";
+  CliRun r = gd(run + (dir / "local").string() + " --no-plots --threads 1");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  auto s = nlohmann::json::parse(slurp(dir / "local" / "summary.json"));
+  EXPECT_NEAR(s.at("garment_length").get<double>(), 0.45, 1e-6);
+  EXPECT_NEAR(s.at("garment_width").get<double>(), 0.30, 1e-6);
+  EXPECT_DOUBLE_EQ(s.at("garment_params").at("length").get<double>(), 0.45);
+  // The same sizes travel with a job to the server.
+  r = gd(server_flag() + run + (dir / "remote").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  s = nlohmann::json::parse(slurp(dir / "remote" / "summary.json"));
+  EXPECT_NEAR(s.at("garment_length").get<double>(), 0.45, 1e-6);
+  EXPECT_DOUBLE_EQ(s.at("garment_params").at("width").get<double>(), 0.3);
+  // And to scenes.
+  r = gd(server_flag() + " create --garment towel --vertices 200 --garment-param length=0.45 --no-self-contact");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  // Not NAME=VALUE, an unknown name (locally and on the server), a size that makes no garment: 2.
+  r = gd(run + (dir / "bad1").string() + " --garment-param length");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("NAME=VALUE"), std::string::npos) << r.err;
+  r = gd(run + (dir / "bad2").string() + " --garment-param lenght=0.5");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("lenght"), std::string::npos) << r.err;
+  r = gd(server_flag() + run + (dir / "bad3").string() + " --garment-param lenght=0.5");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("lenght"), std::string::npos) << r.err;
+  r = gd(server_flag() + " create --garment towel --vertices 200 --garment-param length=-1");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("length"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, ExitCodes) {
   // Bad input refused by the server: 2, with its message.
   CliRun r = gd(server_flag() + " create --garment sock");
