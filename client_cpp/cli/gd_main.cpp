@@ -25,6 +25,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -105,9 +106,9 @@ int main(int argc, char** argv) {
   run->add_option("--dt", cfg.scene.dt, "time step, s")->capture_default_str();
   run->add_option("--time-scale", cfg.task_params.time_scale, "speed factor of generated tasks' slow parts")
       ->capture_default_str();
-  run->add_option("--fold-duration", cfg.task_params.fold_duration,
-                  "s of a generated fold's page turn, before --time-scale")
-      ->capture_default_str();
+  std::vector<std::string> task_params;
+  run->add_option("--task-param", task_params,
+                  "a parameter of the generated task, NAME=VALUE (repeatable; e.g. fold_duration=5; names in docs/tasks.md)");
   run->add_option("--settle", cfg.settle_after, "seconds simulated after the trajectory ends")->capture_default_str();
   run->add_option("--shoulder-index", shoulders, "fixed-point fling pins: LEFT RIGHT vertex indices")->expected(2);
   run->add_option("--backend", backend, "cpu | cuda | auto")->capture_default_str();
@@ -167,11 +168,17 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     gd::log();  // the logger reads GD_LOG_LEVEL
-    for (const std::string& kv : garment_params) cfg.garment_params.insert(gd::cli::parse_garment_param(kv));
+    for (const std::string& kv : garment_params) cfg.garment_params.insert(gd::cli::parse_name_value(kv, "--garment-param"));
+    std::map<std::string, double> task_param_values;
+    for (const std::string& kv : task_params) {
+      const auto [name, value] = gd::cli::parse_name_value(kv, "--task-param");
+      gd::tasks::set_task_param(cfg.task_params, name, value);  // an unknown name is refused here
+      task_param_values[name] = value;
+    }
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
                                      "--contact-hessian", "--no-plots", "--mesh-every",
-                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--fold-duration"})
+                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;
@@ -182,6 +189,7 @@ int main(int argc, char** argv) {
       r.job.mode = cfg.mode;
       r.job.vertices = cfg.vertices;
       r.job.garment_params = cfg.garment_params;
+      r.job.task_params = task_param_values;
       r.job.capture = cfg.capture_dir;
       r.job.icp = cfg.icp;
       r.job.label = label;

@@ -112,7 +112,7 @@ int run_remote(const std::string& server, const RemoteRun& run) {
   return kExitOk;
 }
 
-std::pair<std::string, double> parse_garment_param(const std::string& name_value) {
+std::pair<std::string, double> parse_name_value(const std::string& name_value, const std::string& flag) {
   const size_t eq = name_value.find('=');
   const std::string name = name_value.substr(0, eq);
   const std::string value = eq == std::string::npos ? "" : name_value.substr(eq + 1);
@@ -124,8 +124,8 @@ std::pair<std::string, double> parse_garment_param(const std::string& name_value
     used = 0;
   }
   if (name.empty() || value.empty() || used != value.size())
-    throw sim::InputError("--garment-param takes NAME=VALUE with a number, e.g. hood_length=0.25 (got '" +
-                          name_value + "')");
+    throw sim::InputError(flag + " takes NAME=VALUE with a number, e.g. " + flag + " length=0.5 (got '" + name_value +
+                          "')");
   return {name, v};
 }
 
@@ -220,7 +220,7 @@ int RemoteCommands::do_create(Client& c) {
     throw sim::InputError("create: give exactly one of --garment TYPE or --mesh ID");
   if (create_->count("--dt") > 0) spec_.settings.dt = dt_;
   if (no_self_contact_) spec_.settings.self_contact = false;
-  for (const std::string& kv : garment_params_) spec_.garment_params.insert(parse_garment_param(kv));
+  for (const std::string& kv : garment_params_) spec_.garment_params.insert(parse_name_value(kv, "--garment-param"));
   const CreatedScenes s = c.create_scenes(spec_);
   std::fprintf(stderr, "created %zu scene(s): %d vertices, %zu triangles, dt %g s, backend %s\n", s.ids.size(),
                s.info.vertex_count, s.info.triangles.size() / 3, s.info.dt, s.info.backend.c_str());

@@ -13,9 +13,9 @@
 
 namespace gd::cli {
 
-/// "NAME=VALUE" of --garment-param as (name, value). Throws sim::InputError when it is not a
-/// name, '=' and a number; the name itself is checked by the garment generator.
-std::pair<std::string, double> parse_garment_param(const std::string& name_value);
+/// "NAME=VALUE" of --garment-param or --task-param (`flag`) as (name, value). Throws
+/// sim::InputError when it is not a name, '=' and a number; the name is checked by its user.
+std::pair<std::string, double> parse_name_value(const std::string& name_value, const std::string& flag);
 
 /// Exit codes of the command line.
 enum ExitCode : int { kExitOk = 0, kExitFailed = 1, kExitBadInput = 2, kExitRpcError = 3 };

@@ -140,6 +140,19 @@ def test_garment_params_size_scenes_and_jobs(client):
                 garment_params={"length": float("nan")})
 
 
+def test_task_params_change_a_jobs_task(client):
+    seconds = []
+    for params in ({}, {"hold_duration": 5.0}):
+        job = client.submit_job(garment="towel", task="grasp", vertices=200, dt=0.02, time_scale=0.5, settle=0.1,
+                                self_contact=False, task_params=params)
+        report = client.wait_report(job, progress=False)
+        assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+        seconds.append(report["summary"]["sim_seconds"])
+    assert seconds[1] - seconds[0] == pytest.approx(1.0, abs=0.021)  # (5 - 3) s of hold x time scale 0.5
+    expect_code(grpc.StatusCode.INVALID_ARGUMENT, client.submit_job, garment="towel", task="grasp",
+                task_params={"hold_time": 5.0})
+
+
 def test_upload_mesh_and_create_scene_from_it(client, towel, tmp_path):
     info = client.scene_info(towel)
     rest = info["rest_positions"] - np.array([0.1, 0.0, 0.01], dtype=np.float32)

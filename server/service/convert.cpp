@@ -162,6 +162,7 @@ Status to_job_spec(const pb::SubmitJobRequest& r, JobSpec* out) {
   out->icp = r.icp();
   out->label = r.label();
   out->garment_params.insert(r.garment_params().begin(), r.garment_params().end());
+  out->task_params.insert(r.task_params().begin(), r.task_params().end());
   return Status::Ok();
 }
 

@@ -16,6 +16,7 @@
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
+#include "tasks/generators.h"
 #include "tasks/grippers.h"
 #include "tasks/trajectory.h"
 
@@ -103,6 +104,11 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   GD_RETURN_IF_ERROR(check_number(spec.dt, "dt", false));
   GD_RETURN_IF_ERROR(check_number(spec.time_scale, "time_scale", false));
   GD_RETURN_IF_ERROR(check_number(spec.settle, "settle", true));
+  try {
+    for (const auto& [name, value] : spec.task_params) tasks::set_task_param(cfg->task_params, name, value);
+  } catch (const InputError& e) {
+    return Status::InvalidArgument(e.what());
+  }
   if (spec.dt) cfg->scene.dt = *spec.dt;
   if (spec.time_scale) cfg->task_params.time_scale = *spec.time_scale;
   if (spec.settle) cfg->settle_after = *spec.settle;

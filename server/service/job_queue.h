@@ -52,6 +52,7 @@ struct JobSpec {
   bool icp = false;
   std::string label;
   std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
+  std::map<std::string, double> task_params;     ///< TaskParams by name
 };
 
 struct JobQueueOptions {

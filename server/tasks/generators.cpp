@@ -51,6 +51,58 @@ void TaskParams::validate() const {
 
 namespace {
 
+struct TaskParamField {
+  const char* name;
+  double TaskParams::*field;
+};
+
+constexpr TaskParamField kTaskParamFields[] = {
+    {"time_scale", &TaskParams::time_scale},
+    {"sample_dt", &TaskParams::sample_dt},
+    {"start_delay", &TaskParams::start_delay},
+    {"approach_height", &TaskParams::approach_height},
+    {"approach_duration", &TaskParams::approach_duration},
+    {"close_duration", &TaskParams::close_duration},
+    {"grasp_inset", &TaskParams::grasp_inset},
+    {"lift_height", &TaskParams::lift_height},
+    {"lift_duration", &TaskParams::lift_duration},
+    {"hold_duration", &TaskParams::hold_duration},
+    {"fling_height", &TaskParams::fling_height},
+    {"fling_pause", &TaskParams::fling_pause},
+    {"fling_distance", &TaskParams::fling_distance},
+    {"fling_peak_speed", &TaskParams::fling_peak_speed},
+    {"fling_spread", &TaskParams::fling_spread},
+    {"fold_lift", &TaskParams::fold_lift},
+    {"fold_lift_duration", &TaskParams::fold_lift_duration},
+    {"fold_margin", &TaskParams::fold_margin},
+    {"fold_duration", &TaskParams::fold_duration},
+    {"fold_arc", &TaskParams::fold_arc},
+    {"place_height", &TaskParams::place_height},
+    {"lower_duration", &TaskParams::lower_duration},
+    {"retreat_height", &TaskParams::retreat_height},
+    {"retreat_duration", &TaskParams::retreat_duration},
+    {"settle_duration", &TaskParams::settle_duration},
+};
+
+}  // namespace
+
+std::vector<std::string> task_param_names() {
+  std::vector<std::string> names;
+  for (const TaskParamField& f : kTaskParamFields) names.emplace_back(f.name);
+  return names;
+}
+
+void set_task_param(TaskParams& params, const std::string& name, double value) {
+  for (const TaskParamField& f : kTaskParamFields)
+    if (name == f.name) {
+      params.*f.field = value;
+      return;
+    }
+  throw InputError(fmt::format("unknown task parameter '{}'; known: {}", name, fmt::join(task_param_names(), ", ")));
+}
+
+namespace {
+
 /// Minimum-jerk profile: 0 -> 1 with zero velocity and acceleration at both ends.
 double min_jerk(double u) { return u * u * u * (10.0 + u * (-15.0 + 6.0 * u)); }
 

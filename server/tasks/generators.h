@@ -20,6 +20,7 @@
 
 #include <Eigen/Geometry>
 #include <string>
+#include <vector>
 
 #include "garments/garment.h"
 #include "tasks/trajectory.h"
@@ -76,6 +77,13 @@ struct TaskParams {
   /// Throws InputError naming a bad value (non-finite, non-positive durations, ...).
   void validate() const;
 };
+
+/// Sets the TaskParams field called `name` (e.g. "fold_duration") to `value`. Throws InputError
+/// for an unknown name (the message lists the known ones); the value is checked by validate().
+void set_task_param(TaskParams& params, const std::string& name, double value);
+
+/// The names set_task_param knows, in TaskParams order.
+std::vector<std::string> task_param_names();
 
 /// Grasp: approach, close on the shoulders, lift by lift_height, hold.
 DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 
 #include "sim/demand.h"
 #include "tasks/grippers.h"
@@ -130,6 +131,36 @@ TEST(Generators, TimeScaleShortensTheQuasiStaticParts) {
   const double full = make_fold(g, default_garment_pose(), p).end_time();
   p.time_scale = 0.5;
   EXPECT_NEAR(make_fold(g, default_garment_pose(), p).end_time(), 0.5 * full, 1e-9);
+}
+
+TEST(Generators, TaskParamsSetByNameChangeTheTask) {
+  const garments::Garment g = small_garment();
+  TaskParams p;
+  const double full = make_fold(g, default_garment_pose(), p).end_time();
+  set_task_param(p, "fold_duration", p.fold_duration + 2.0);
+  EXPECT_NEAR(make_fold(g, default_garment_pose(), p).end_time(), full + 2.0, 1e-9);
+  // Every listed name is a field: setting each to 7 leaves a different struct each time.
+  ASSERT_EQ(task_param_names().size(), 25u);
+  for (const std::string& name : task_param_names()) {
+    TaskParams q;
+    set_task_param(q, name, 7.0);
+    int changed = 0;
+    for (const std::string& other : task_param_names()) {
+      TaskParams r;
+      set_task_param(r, other, 7.0);
+      changed += std::memcmp(&q, &r, sizeof(TaskParams)) == 0;
+    }
+    EXPECT_EQ(changed, 1) << name;
+  }
+  try {
+    set_task_param(p, "fold_speed", 1.0);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("fold_speed"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("fold_duration"), std::string::npos);  // the known names
+  }
+  set_task_param(p, "lift_duration", -1);  // the value is checked where the task is made
+  EXPECT_THROW(make_grasp(g, default_garment_pose(), p), InputError);
 }
 
 TEST(Generators, BadInputIsAnInputError) {

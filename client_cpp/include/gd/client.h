@@ -222,6 +222,8 @@ struct JobSpec {
   bool icp = false;
   std::string label;                   ///< free text kept with the report
   std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
+  /// Parameters of the generated task by TaskParams name (e.g. {"fold_duration", 5}); docs/tasks.md.
+  std::map<std::string, double> task_params;
 };
 
 enum class JobStatus : int {

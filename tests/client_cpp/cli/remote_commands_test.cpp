@@ -187,6 +187,31 @@ TEST_F(CliTest, GarmentParamSizesTheGarmentLocallyAndAsAJob) {
   EXPECT_NE(r.err.find("length"), std::string::npos) << r.err;
 }
 
+TEST_F(CliTest, TaskParamChangesTheGeneratedTaskLocallyAndAsAJob) {
+  const auto dir = fresh_dir("cli_task_params");
+  const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.5 --settle 0.1 "
+                          "--no-self-contact --quiet --out ";
+  auto sim_seconds = [&](const std::string& name) {
+    return nlohmann::json::parse(slurp(dir / name / "summary.json")).at("sim_seconds").get<double>();
+  };
+  CliRun r = gd(run + (dir / "plain").string() + " --no-plots --threads 1");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  // A hold 2 s longer (scaled by --time-scale 0.5: 1 s more simulated), locally and as a job.
+  r = gd(run + (dir / "local").string() + " --no-plots --threads 1 --task-param hold_duration=5");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NEAR(sim_seconds("local") - sim_seconds("plain"), 1.0, 0.011);
+  r = gd(server_flag() + run + (dir / "remote").string() + " --task-param hold_duration=5");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NEAR(sim_seconds("remote") - sim_seconds("plain"), 1.0, 0.011);
+  // An unknown name, or a bad value, locally and on the server: 2, naming it.
+  r = gd(run + (dir / "bad1").string() + " --task-param hold_time=5");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("hold_time"), std::string::npos) << r.err;
+  r = gd(server_flag() + run + (dir / "bad2").string() + " --task-param lift_duration=-1");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("lift_duration"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, ExitCodes) {
   // Bad input refused by the server: 2, with its message.
   CliRun r = gd(server_flag() + " create --garment sock");
