@@ -167,6 +167,17 @@ sim::SceneOptions ExperimentConfig::default_scene_options() {
   return o;
 }
 
+namespace {
+
+/// The config's garment_params as GarmentParams (InputError for an unknown name or bad value).
+garments::GarmentParams garment_sizes(const ExperimentConfig& c) {
+  garments::GarmentParams sizes;
+  for (const auto& [name, value] : c.garment_params) garments::set_garment_param(sizes, name, value);
+  return sizes;
+}
+
+}  // namespace
+
 void ExperimentConfig::validate() const {
   tasks::task_kind_from_name(task);  // throws with the known names
   if (mode != "pseudo" && mode != "fixed_point")
@@ -182,18 +193,14 @@ void ExperimentConfig::validate() const {
     throw InputError(fmt::format("mesh_interval must be >= 0 s (got {})", mesh_interval));
   if (!garment_params.empty() && ends_with(garment, ".obj"))
     throw InputError("garment_params size a generated garment; an .obj mesh takes none");
-  garments::GarmentParams sizes;
-  for (const auto& [name, value] : garment_params) garments::set_garment_param(sizes, name, value);
-  if (!garment_params.empty()) garments::make_pattern(garment, sizes);  // throws for sizes that make no garment
+  if (!garment_params.empty()) garments::make_pattern(garment, garment_sizes(*this));  // sizes that make no garment
   scene.validate();
   task_params.validate();
 }
 
 garments::Garment make_experiment_garment(const ExperimentConfig& c) {
   if (ends_with(c.garment, ".obj")) return garments::load_garment_obj(c.garment);
-  garments::GarmentParams sizes;
-  for (const auto& [name, value] : c.garment_params) garments::set_garment_param(sizes, name, value);
-  return garments::make_garment(c.garment, c.vertices, sizes);
+  return garments::make_garment(c.garment, c.vertices, garment_sizes(c));
 }
 
 namespace {
