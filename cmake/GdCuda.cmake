@@ -18,8 +18,8 @@ endif()
 if(GD_WITH_CUDA)
   # Hopper (H100/H200) is the deployment target: sm_90 machine code and compute_90 PTX, one
   # device pass (a second architecture costs the 2-core CI build about 150 s more). Set before
-  # enable_language(CUDA), which otherwise fills in nvcc's own default (sm_75 with CUDA 13:
-  # Hopper then ran JIT-compiled sm_75 code). For an A100 configure with
+  # enable_language(CUDA), which otherwise fills in nvcc's own default (sm_75 with CUDA 13: on
+  # Hopper the driver then JIT-compiled compute_75 PTX). For an A100 configure with
   # -DCMAKE_CUDA_ARCHITECTURES=80 (or set the CUDAARCHS environment variable).
   if(NOT DEFINED CMAKE_CUDA_ARCHITECTURES AND NOT DEFINED ENV{CUDAARCHS})
     set(CMAKE_CUDA_ARCHITECTURES 90)

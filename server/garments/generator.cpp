@@ -342,10 +342,6 @@ int nearest_of(const sim::Mesh& m, const std::vector<char>& allowed, const Vec3&
   return best;
 }
 
-}  // namespace
-
-namespace {
-
 /// GarmentParams' fields by name (integer fields have a null `real`).
 struct ParamField {
   const char* name;
