@@ -413,6 +413,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["task"] = config.task;
   s["mode"] = config.mode;
   s["trajectory"] = traj_source;
+  // The generated task's parameters (defaults included); none for a trajectory file or capture.
+  s["task_params"] = nlohmann::json::object();
+  if (config.trajectory_file.empty() && !capture)
+    for (const auto& [name, value] : tasks::task_param_values(config.task_params)) s["task_params"][name] = value;
   s["vertices"] = sc.vertex_count();
   s["triangles"] = mesh.tris.size();
   s["steps"] = run.steps();

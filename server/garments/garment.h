@@ -34,6 +34,13 @@ struct Landmarks {
   Vec3 right_hem = Vec3::Zero();       ///< -y corner of the far end
   int left_shoulder_vertex = -1;       ///< mesh vertex nearest left_shoulder
   int right_shoulder_vertex = -1;      ///< mesh vertex nearest right_shoulder
+  /// Hooded garments: the hood lies flat beyond the collar (x < hood_fold_x). Its face-opening
+  /// corners (where the side seams end, on both layers) are where a fold grasps it to lay it over
+  /// onto the body first (tasks/generators.h); hood_fold_x is where the hood meets the neck.
+  bool has_hood = false;
+  Vec3 left_hood = Vec3::Zero();       ///< +y face-opening corner
+  Vec3 right_hood = Vec3::Zero();      ///< -y face-opening corner
+  Real hood_fold_x = 0;
 };
 
 /// One pattern piece of a generated garment.

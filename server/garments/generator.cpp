@@ -23,6 +23,9 @@ struct Layout {
   Pattern pattern;
   Vec2 left_grasp, right_grasp;  ///< where a robot grasps (shoulders, waist or towel corners)
   Vec2 left_hem, right_hem;
+  bool hood = false;             ///< hoodie: the hood's face corners and fold line below are set
+  Vec2 left_hood, right_hood;
+  Real hood_fold_x = 0;
 };
 
 Vec2 mirror(const Vec2& p) { return {p.x(), -p.y()}; }
@@ -149,9 +152,15 @@ Layout top(const std::string& type, const Sizes& s) {
   const bool elastic_cuffs = type == "long_sleeve" || type == "hoodie";
   const Real L = s.length;
   const Vec2 N(0, 0.5 * s.neck), S(s.drop, 0.5 * s.shoulder), A(s.armhole, 0.5 * s.width);
-  const Real hem_half = type == "dress" ? 0.5 * std::max(s.width + 0.30, s.width)
-                        : coat          ? 0.5 * s.width + 0.03
-                                        : 0.5 * s.width;
+  // The hoodie's ribbed hem band lies at its relaxed width, elastic_ratio times the chest width:
+  // the body tapers into it (kHoodieTaper above the band of kHoodieBand), as a hoodie laid flat
+  // does. (A full-width hem row with a 0.8 rest-length ratio buckles the bottom layer into 4 cm
+  // ruffles at 2000 vertices before anything touches it; docs/validation.md.)
+  constexpr Real kHoodieBand = 0.06, kHoodieTaper = 0.09;
+  const Real hem_half = type == "dress"    ? 0.5 * std::max(s.width + 0.30, s.width)
+                        : coat             ? 0.5 * s.width + 0.03
+                        : type == "hoodie" ? 0.5 * s.width * std::min<Real>(1, s.elastic)
+                                           : 0.5 * s.width;
   const Vec2 H(L, hem_half);
   require(0.5 * s.neck < 0.5 * s.shoulder - 0.02, "neck_width must be smaller than shoulder_width - 0.04");
   require(s.shoulder <= s.width + 0.1, "shoulder_width must not exceed the chest width by more than 0.1");
@@ -164,6 +173,11 @@ Layout top(const std::string& type, const Sizes& s) {
     if (type == "dress") {
       require(s.waist <= s.width && s.armhole + 0.1 < 0.4 * L, "dress: waist_width must not exceed width, armhole_depth < 0.4 length - 0.1");
       pts.emplace_back(0.4 * L, 0.5 * s.waist);
+    }
+    if (type == "hoodie" && hem_half < A.y() - 1e-3) {
+      require(s.armhole < L - kHoodieBand - kHoodieTaper - 0.02, "hoodie: armhole_depth must be below length - 0.17");
+      pts.emplace_back(L - kHoodieBand - kHoodieTaper, A.y());
+      pts.emplace_back(L - kHoodieBand, hem_half);
     }
     pts.push_back(H);
     return left ? pts : mirror(pts);
@@ -201,7 +215,6 @@ Layout top(const std::string& type, const Sizes& s) {
     const int neck_f = pat.add_curve(hood ? "hood_front_neck" : "neck_front", neck_arc(N.y(), s.front_neck, 0, kPi));
     const int hem_f = pat.add_curve("hem_front", {H, mirror(H)});
     pat.add_panel("body_front", Layer::kFront, chain(pat, {neck_f, shoulder_r, arm_fr, side_r, hem_f, side_l, arm_fl, shoulder_l}));
-    if (type == "hoodie") pat.elastic.push_back({hem_f, s.elastic});
     if (hood) {
       // The hood lies beyond the collar (toward -x) as a flattened two-layer piece: its upper
       // layer continues the front neckline, its lower layer the back neckline; the face
@@ -215,10 +228,12 @@ Layout top(const std::string& type, const Sizes& s) {
       const int face_b = pat.add_curve("face_back", {{-hl, hw - 0.03}, {-hl, -(hw - 0.03)}});
       pat.add_panel("hood_front", Layer::kFront, chain(pat, {neck_f, hs_r, face_f, hs_l}));
       pat.add_panel("hood_back", Layer::kBack, chain(pat, {neck_b, hs_r, face_b, hs_l}));
+      l.hood = true;
+      l.left_hood = {-hl, hw - 0.03}, l.right_hood = mirror(l.left_hood);
+      l.hood_fold_x = 0;  // the neck points
     }
   }
   pat.add_panel("body_back", Layer::kBack, chain(pat, {neck_b, shoulder_r, arm_br, side_r, hem_b, side_l, arm_bl, shoulder_l}));
-  if (type == "hoodie") pat.elastic.push_back({hem_b, s.elastic});
 
   if (sleeves) {
     const Real th = s.angle * kPi / 180;
@@ -455,6 +470,12 @@ Garment make_garment(const std::string& type, int target_vertices, const Garment
   lm.right_shoulder = g.mesh.x[lm.right_shoulder_vertex];
   lm.left_hem = g.mesh.x[nearest_of(g.mesh, any, at(l.left_hem, 0))];
   lm.right_hem = g.mesh.x[nearest_of(g.mesh, any, at(l.right_hem, 0))];
+  if (l.hood) {
+    lm.has_hood = true;
+    lm.left_hood = g.mesh.x[nearest_of(g.mesh, on_front, at(l.left_hood, z_top))];
+    lm.right_hood = g.mesh.x[nearest_of(g.mesh, on_front, at(l.right_hood, z_top))];
+    lm.hood_fold_x = l.hood_fold_x - shift.x();
+  }
   Vec3 lo = g.mesh.x[0], hi = lo;
   for (const Vec3& p : g.mesh.x) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
   g.length = hi.x() - lo.x();

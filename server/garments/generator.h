@@ -34,7 +34,8 @@ struct GarmentParams {
   int tiers = 0;              ///< cake_skirt: number of tiers (3)
   int pleats = 0;             ///< pleat_skirt: fold lines per layer (8)
   Real fold_bend_scale = 0;   ///< bending scale on fold lines (0.1)
-  Real elastic_ratio = 0;     ///< rest-length ratio of elastic edges (0.8)
+  Real elastic_ratio = 0;     ///< rest-length ratio of elastic edges (0.8); the hoodie's hem
+                              ///< band lies at this fraction of the chest width (at most 1)
   Real layer_gap = 0;         ///< z gap between the front and back layers (0.005; at most half
                               ///< the vertex spacing, at least 0.002)
 };

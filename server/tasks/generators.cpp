@@ -47,6 +47,7 @@ void TaskParams::validate() const {
   nonneg(retreat_height, "retreat_height");
   positive(retreat_duration, "retreat_duration");
   nonneg(settle_duration, "settle_duration");
+  if (tuck_hood != 0 && tuck_hood != 1) throw InputError("task parameter tuck_hood must be 0 or 1");
 }
 
 namespace {
@@ -82,6 +83,7 @@ constexpr TaskParamField kTaskParamFields[] = {
     {"retreat_height", &TaskParams::retreat_height},
     {"retreat_duration", &TaskParams::retreat_duration},
     {"settle_duration", &TaskParams::settle_duration},
+    {"tuck_hood", &TaskParams::tuck_hood},
 };
 
 }  // namespace
@@ -90,6 +92,12 @@ std::vector<std::string> task_param_names() {
   std::vector<std::string> names;
   for (const TaskParamField& f : kTaskParamFields) names.emplace_back(f.name);
   return names;
+}
+
+std::vector<std::pair<std::string, double>> task_param_values(const TaskParams& params) {
+  std::vector<std::pair<std::string, double>> values;
+  for (const TaskParamField& f : kTaskParamFields) values.emplace_back(f.name, params.*f.field);
+  return values;
 }
 
 void set_task_param(TaskParams& params, const std::string& name, double value) {
@@ -195,6 +203,10 @@ struct Setup {
   double shoulder_distance = 0;
   double hem_x = 0;           ///< garment-frame x of the hem (far) end
   std::array<Vec3, 2> grasp_local;  ///< grasp points in the garment frame
+  bool hood = false;          ///< the garment has a hood (its landmarks below are set)
+  std::array<Vec3, 2> hood_grasp;   ///< [left, right] face corners of the hood, world
+  std::array<Vec3, 2> hood_local;   ///< the same in the garment frame
+  double hood_fold_x = 0;     ///< garment-frame x of the line the hood folds about
 };
 
 Setup setup(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
@@ -223,6 +235,16 @@ Setup setup(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskPa
   // The hem: its landmarks when set (beyond the shoulders), else the garment's length.
   const double hem = 0.5 * (lm.left_hem.x() + lm.right_hem.x());
   s.hem_x = hem > 0.5 * (lm.left_shoulder.x() + lm.right_shoulder.x()) ? hem : g.length;
+  if (lm.has_hood) {
+    if (!lm.left_hood.allFinite() || !lm.right_hood.allFinite() || !std::isfinite(lm.hood_fold_x))
+      throw InputError("task generator: the garment's hood landmarks must be finite");
+    if (lm.hood_fold_x <= 0.5 * (lm.left_hood.x() + lm.right_hood.x()))
+      throw InputError(fmt::format("task generator: the hood's fold line (x={}) must lie beyond its face corners", lm.hood_fold_x));
+    s.hood = true;
+    s.hood_local = {lm.left_hood, lm.right_hood};
+    for (int a = 0; a < 2; ++a) s.hood_grasp[a] = T * s.hood_local[a];
+    s.hood_fold_x = lm.hood_fold_x;
+  }
   return s;
 }
 
@@ -245,6 +267,44 @@ Builder approach_and_close(const Setup& s, const TaskParams& p) {
   b.move(at(s.grasp, kGripperOpen), p.approach_duration * k);
   b.gripper(0.0, p.close_duration * k);
   return b;
+}
+
+/// Where grippers holding `from` (garment frame: from_local) put the flap down: each moved along
+/// the garment's +x to garment-frame x `to_x[a]`. Throws when that is no forward motion.
+std::array<Vec3, 2> put_down_at(const Setup& s, const std::array<Vec3, 2>& from, const std::array<Vec3, 2>& from_local,
+                                const std::array<double, 2>& to_x, double margin, const char* what) {
+  std::array<Vec3, 2> over;
+  for (int a = 0; a < 2; ++a) {
+    const double dx = to_x[a] - from_local[a].x();
+    if (dx <= 0)
+      throw InputError(fmt::format("fold: fold_margin {} m leaves no forward motion for the {} (grasp at x={} m, put "
+                                   "down at x={} m)", margin, what, from_local[a].x(), to_x[a]));
+    over[a] = from[a] + dx * s.forward;
+  }
+  return over;
+}
+
+/// The page turn shared by the hood and the body: lift by fold_lift, turn over to `over` (see
+/// TaskParams::fold_arc) in `duration` (unscaled), pause, open, retreat upwards.
+void turn_over_and_let_go(Builder& b, const std::array<Vec3, 2>& from, const std::array<Vec3, 2>& over,
+                          double duration, const TaskParams& p) {
+  const double k = p.time_scale;
+  b.move(at(raised(from, p.fold_lift), 0.0), p.fold_lift_duration * k);
+  if (p.fold_arc == 0) {  // the paper's level translation, then lower
+    b.move(at(raised(over, p.fold_lift), 0.0), duration * k);
+    b.move(at(raised(over, p.place_height), 0.0), p.lower_duration * k);
+  } else {
+    // Turn the flap over like a page about the fold line (midway between the grasp points and
+    // where they are put down), ending just above the table; then a pause before opening.
+    // Auto: a circle about the fold line at grasp height (the chord's midpoint is
+    // (fold_lift + place_height) / 2 above it).
+    const double half = 0.5 * (over[0] - from[0]).norm();
+    const double rise = p.fold_arc > 0 ? p.fold_arc : std::max(0.0, half - 0.5 * (p.fold_lift + p.place_height));
+    b.turn_page(at(raised(over, p.place_height), 0.0), rise, duration * k);
+    b.hold(p.lower_duration * k);
+  }
+  b.gripper(kGripperOpen, p.close_duration * k);
+  b.move(at(raised(over, p.place_height + p.retreat_height), kGripperOpen), p.retreat_duration * k);
 }
 
 }  // namespace
@@ -287,32 +347,29 @@ DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d
 DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
   const Setup s = setup(g, T, p);
   const double k = p.time_scale;
-  Builder b = approach_and_close(s, p);
-  b.move(at(raised(s.grasp, p.fold_lift), 0.0), p.fold_lift_duration * k);
-  // Forward (garment +x) to the hem minus the margin, at the lift height.
-  std::array<Vec3, 2> over;
-  for (int a = 0; a < 2; ++a) {
-    const double dx = s.hem_x - p.fold_margin - s.grasp_local[a].x();
-    if (dx <= 0)
-      throw InputError(fmt::format("fold: fold_margin {} m leaves no forward motion (hem at x={} m, grasp at x={} m)",
-                                   p.fold_margin, s.hem_x, s.grasp_local[a].x()));
-    over[a] = s.grasp[a] + dx * s.forward;
-  }
-  if (p.fold_arc == 0) {  // the paper's level translation, then lower
-    b.move(at(raised(over, p.fold_lift), 0.0), p.fold_duration * k);
-    b.move(at(raised(over, p.place_height), 0.0), p.lower_duration * k);
-  } else {
-    // Turn the top half over like a page about the fold line (midway between the grasp points and
-    // where they are put down), ending just above the table; then a pause before opening.
-    // Auto: a circle about the fold line at grasp height (the chord's midpoint is
-    // (fold_lift + place_height) / 2 above it).
-    const double half = 0.5 * (over[0] - s.grasp[0]).norm();
-    const double rise = p.fold_arc > 0 ? p.fold_arc : std::max(0.0, half - 0.5 * (p.fold_lift + p.place_height));
-    b.turn_page(at(raised(over, p.place_height), 0.0), rise, p.fold_duration * k);
-    b.hold(p.lower_duration * k);
-  }
-  b.gripper(kGripperOpen, p.close_duration * k);
-  b.move(at(raised(over, p.place_height + p.retreat_height), kGripperOpen), p.retreat_duration * k);
+  // The shoulders go to the hem minus the margin.
+  const double hem_put = s.hem_x - p.fold_margin;
+  const std::array<Vec3, 2> over = put_down_at(s, s.grasp, s.grasp_local, {hem_put, hem_put}, p.fold_margin, "body");
+  const double body_chord = (over[0] - s.grasp[0]).norm();
+  Builder b = [&] {
+    if (!(s.hood && p.tuck_hood == 1)) return approach_and_close(s, p);
+    // The hood first: over its neck line onto the back, at the body turn's pace (its duration
+    // scales with the chord), then over to the shoulders, down and close.
+    Setup hs = s;
+    hs.grasp = s.hood_grasp;
+    Builder hb = approach_and_close(hs, p);
+    // The face corners go to their mirror image about the neck line, the margin short of it.
+    std::array<double, 2> to_x;
+    for (int a = 0; a < 2; ++a) to_x[a] = 2 * s.hood_fold_x - s.hood_local[a].x() - p.fold_margin;
+    const std::array<Vec3, 2> hood_over = put_down_at(s, s.hood_grasp, s.hood_local, to_x, p.fold_margin, "hood");
+    const double chord = (hood_over[0] - s.hood_grasp[0]).norm();
+    turn_over_and_let_go(hb, s.hood_grasp, hood_over, p.fold_duration * chord / body_chord, p);
+    hb.move(at(raised(s.grasp, p.approach_height), kGripperOpen), p.approach_duration * k);
+    hb.move(at(s.grasp, kGripperOpen), p.approach_duration * k);
+    hb.gripper(0.0, p.close_duration * k);
+    return hb;
+  }();
+  turn_over_and_let_go(b, s.grasp, over, p.fold_duration, p);
   b.hold(p.settle_duration * k);
   return b.finish();
 }

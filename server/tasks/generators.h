@@ -9,7 +9,8 @@
 ///   backward sweep (+x, then back) that makes it flutter; it ends held in the air with the arms
 ///   apart at about the shoulder distance, so the garment hangs spread.
 /// * Fold: grasp the shoulders, lift slightly, turn the top half over onto the bottom half like a
-///   page (half circles about the fold line) to just short of the hem, open, retreat upwards.
+///   page (half circles about the fold line) to just short of the hem, open, retreat upwards. A
+///   hood is first laid over onto the body the same way.
 ///
 /// The garment lies as RGBench's T-shirt mesh does (garments/garment.h): length along +x away
 /// from the robots, shoulders at the small-x end. Grasp points are the shoulder landmarks mapped
@@ -20,6 +21,7 @@
 
 #include <Eigen/Geometry>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "garments/garment.h"
@@ -73,6 +75,11 @@ struct TaskParams {
   double retreat_height = 0.1;        ///< m lifted after opening
   double retreat_duration = 1.0;      ///< s
   double settle_duration = 2.0;       ///< s of stillness at the end of a fold
+  /// Hooded garments (Landmarks::has_hood): 1 (default) lays the hood over onto the body before
+  /// the fold, as people fold a hoodie: both arms take the hood's face corners, turn it over the
+  /// neck line like a page onto the back, let go and go on to the shoulders; the fold then lays
+  /// the hood between the two halves. 0: the hood trails the shoulders and lands on top.
+  double tuck_hood = 1;
 
   /// Throws InputError naming a bad value (non-finite, non-positive durations, ...).
   void validate() const;
@@ -85,6 +92,9 @@ void set_task_param(TaskParams& params, const std::string& name, double value);
 /// The names set_task_param knows, in TaskParams order.
 std::vector<std::string> task_param_names();
 
+/// Every parameter of `params` as (name, value), in TaskParams order (e.g. for a run's summary).
+std::vector<std::pair<std::string, double>> task_param_values(const TaskParams& params);
+
 /// Grasp: approach, close on the shoulders, lift by lift_height, hold.
 DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
                              const TaskParams& p = {});
@@ -93,7 +103,10 @@ DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d
 DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
                              const TaskParams& p = {});
 /// Fold: approach, close, lift by fold_lift, turn over to the hem minus fold_margin (see
-/// TaskParams::fold_arc), open, retreat, settle.
+/// TaskParams::fold_arc), open, retreat, settle. A hooded garment first has its hood laid over
+/// onto the body (TaskParams::tuck_hood) with the same motions: approach its face corners, close,
+/// lift, turn it over the neck line to fold_margin short of its mirror image, open, retreat, then
+/// move over the shoulders and go on as above.
 DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
                             const TaskParams& p = {});
 /// "grasp" | "fold" | "fling"; InputError otherwise.

@@ -179,6 +179,42 @@ TEST(Generator, PleatFoldsAreCreasesAndWarpFollowsTheGrain) {
   }
 }
 
+TEST(Generator, HoodieHasHoodLandmarksAndAHemBandAtItsRelaxedWidth) {
+  GarmentParams p;
+  p.hood_length = 0.30;
+  const Garment g = make_garment("hoodie", 1500, p);
+  const Landmarks& lm = g.landmarks;
+  ASSERT_TRUE(lm.has_hood);
+  // The face corners are the small-x end; the hood meets the neck 0.30 m further along +x.
+  EXPECT_LT(lm.left_hood.x(), 0.02);
+  EXPECT_NEAR(lm.left_hood.y(), 0.12, 0.02);
+  EXPECT_NEAR(lm.right_hood.y(), -0.12, 0.02);
+  EXPECT_NEAR(lm.hood_fold_x, 0.30, 1e-9);
+  EXPECT_GT(lm.left_shoulder.x(), lm.hood_fold_x);
+  // The hem band lies at 0.8 of the 0.60 m chest; the side runs full width to 0.15 m above the
+  // hem, then tapers into the 6 cm band.
+  EXPECT_NEAR(lm.left_hem.y(), 0.24, 1e-6);
+  EXPECT_NEAR(lm.right_hem.y(), -0.24, 1e-6);
+  const Pattern pat = make_pattern("hoodie", p);
+  bool found = false;
+  for (const auto& c : pat.curves)
+    if (c.name == "left_side") {
+      found = true;
+      ASSERT_EQ(c.points.size(), 4u);  // armpit, taper start, band top, hem corner
+      EXPECT_NEAR(c.points[1].y(), 0.30, 1e-12);
+      EXPECT_NEAR(c.points[2].y(), 0.24, 1e-12);
+      EXPECT_NEAR(c.points[3].x() - c.points[2].x(), 0.06, 1e-12);
+      EXPECT_NEAR(c.points[2].x() - c.points[1].x(), 0.09, 1e-12);
+    }
+  EXPECT_TRUE(found);
+  const double hem_x = g.length;
+  // Its elastic edges are the cuffs only: none lies near the hem.
+  ASSERT_FALSE(g.mesh.elastic_edges.empty());
+  for (const auto& e : g.mesh.elastic_edges) EXPECT_LT(g.mesh.x[e.a].x(), hem_x - 0.1);
+  // Other tops have no hood.
+  EXPECT_FALSE(make_garment("tshirt", 500).landmarks.has_hood);
+}
+
 TEST(Generator, CoatFrontPanelsHaveAGap) {
   GarmentParams p;
   p.front_gap = 0.04;

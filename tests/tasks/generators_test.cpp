@@ -125,6 +125,56 @@ TEST(Generators, FoldCarriesTheShouldersToTheHemAndLetsGo) {
   }
 }
 
+/// Gripper closings and openings of one arm: (time, position) at each change.
+std::vector<std::pair<bool, Vec3>> gripper_changes(const ArmTrajectory& arm) {
+  std::vector<std::pair<bool, Vec3>> out;
+  bool closed = false;
+  for (const auto& s : arm.samples())
+    if ((s.gripper < 0.01) != closed) {
+      closed = !closed;
+      out.emplace_back(closed, s.position);
+    }
+  return out;
+}
+
+TEST(Generators, FoldLaysAHoodOverOntoTheBodyFirst) {
+  // The small garment with a hood: its face corners at x = 0, the neck line at x = 0.12, the
+  // shoulders beyond it.
+  garments::Garment g = small_garment();
+  auto& lm = g.landmarks;
+  lm.has_hood = true;
+  lm.left_hood = Vec3(0, 0.08, lm.left_shoulder.z());
+  lm.right_hood = Vec3(0, -0.08, lm.left_shoulder.z());
+  lm.hood_fold_x = 0.12;
+  lm.left_shoulder.x() = lm.right_shoulder.x() = 0.14;
+  const Eigen::Isometry3d T = default_garment_pose();
+  const DualArmTrajectory t = make_fold(g, T);
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    const Vec3 hood = T * (a == Arm::kLeft ? lm.left_hood : lm.right_hood);
+    const Vec3 shoulder = T * (a == Arm::kLeft ? lm.left_shoulder : lm.right_shoulder);
+    const auto changes = gripper_changes(t.arm(a));
+    ASSERT_EQ(changes.size(), 4u);  // close on the hood, open, close on the shoulder, open
+    EXPECT_LT((changes[0].second - hood).norm(), 1e-9);
+    // The face corner is put down at its mirror image about the neck line, the margin short.
+    EXPECT_NEAR(changes[1].second.x(), hood.x() + 2 * 0.12 - 0.03, 1e-9);
+    EXPECT_NEAR(changes[1].second.z(), hood.z() + 0.01, 1e-9);
+    EXPECT_LT((changes[2].second - shoulder).norm(), 1e-9);
+    EXPECT_NEAR(changes[3].second.x(), T.translation().x() + g.length - 0.03, 1e-9);
+    EXPECT_LT(max_speed(t.arm(a)), 0.4);
+  }
+  // tuck_hood = 0: straight to the shoulders.
+  TaskParams p;
+  set_task_param(p, "tuck_hood", 0);
+  const auto changes = gripper_changes(make_fold(g, T, p).left);
+  ASSERT_EQ(changes.size(), 2u);
+  EXPECT_LT((changes[0].second - T * lm.left_shoulder).norm(), 1e-9);
+  set_task_param(p, "tuck_hood", 0.5);
+  EXPECT_THROW(make_fold(g, T, p), InputError);
+  // A fold line that is not beyond the face corners is refused.
+  lm.hood_fold_x = -0.1;
+  EXPECT_THROW(make_fold(g, T), InputError);
+}
+
 TEST(Generators, TimeScaleShortensTheQuasiStaticParts) {
   const garments::Garment g = small_garment();
   TaskParams p;
@@ -140,7 +190,7 @@ TEST(Generators, TaskParamsSetByNameChangeTheTask) {
   set_task_param(p, "fold_duration", p.fold_duration + 2.0);
   EXPECT_NEAR(make_fold(g, default_garment_pose(), p).end_time(), full + 2.0, 1e-9);
   // Every listed name is a field: setting each to 7 leaves a different struct each time.
-  ASSERT_EQ(task_param_names().size(), 25u);
+  ASSERT_EQ(task_param_names().size(), 26u);
   for (const std::string& name : task_param_names()) {
     TaskParams q;
     set_task_param(q, name, 7.0);
@@ -152,6 +202,13 @@ TEST(Generators, TaskParamsSetByNameChangeTheTask) {
     }
     EXPECT_EQ(changed, 1) << name;
   }
+  // task_param_values lists every field by name with its value.
+  const auto values = task_param_values(p);
+  ASSERT_EQ(values.size(), task_param_names().size());
+  for (size_t k = 0; k < values.size(); ++k) EXPECT_EQ(values[k].first, task_param_names()[k]);
+  EXPECT_EQ(std::find(values.begin(), values.end(), std::make_pair(std::string("fold_duration"), p.fold_duration)) -
+                values.begin(),
+            18);
   try {
     set_task_param(p, "fold_speed", 1.0);
     FAIL() << "no error";

@@ -203,6 +203,13 @@ TEST_F(CliTest, TaskParamChangesTheGeneratedTaskLocallyAndAsAJob) {
   r = gd(server_flag() + run + (dir / "remote").string() + " --task-param hold_duration=5");
   ASSERT_EQ(r.rc, 0) << r.err;
   EXPECT_NEAR(sim_seconds("remote") - sim_seconds("plain"), 1.0, 0.011);
+  // The summaries record the generated task's parameters.
+  for (const char* name : {"local", "remote"}) {
+    const auto tp = nlohmann::json::parse(slurp(dir / name / "summary.json")).at("task_params");
+    EXPECT_DOUBLE_EQ(tp.at("hold_duration").get<double>(), 5.0) << name;
+    EXPECT_DOUBLE_EQ(tp.at("time_scale").get<double>(), 0.5) << name;
+    EXPECT_EQ(tp.size(), 26u) << name;
+  }
   // An unknown name, or a bad value, locally and on the server: 2, naming it.
   r = gd(run + (dir / "bad1").string() + " --task-param hold_time=5");
   EXPECT_EQ(r.rc, 2) << r.err;
