@@ -909,17 +909,12 @@ class Solver final : public SolverBase {
     Exec::for_each(count, [=] GD_HD_LAMBDA(int c) {
       const int* vs = vs_all + 4 * c;
       const double* Hc = Hs + 144 * c;
-      // Gather the pair's 12 unknowns once, then 12 contiguous rows (this loop is most of a PCG
-      // iteration when the layers of a garment touch; contiguous rows let the compiler vectorise).
-      double xl[12];
-      for (int b = 0; b < 4; ++b)
-        for (int k = 0; k < 3; ++k) xl[3 * b + k] = x[3 * vs[b] + k];
       for (int a = 0; a < 4; ++a) {
         if (V.fixed[vs[a]]) continue;
         for (int r = 0; r < 3; ++r) {
-          const double* row = Hc + 12 * (3 * a + r);
           double acc = 0;
-          for (int j = 0; j < 12; ++j) acc += row[j] * xl[j];
+          for (int b = 0; b < 4; ++b)
+            for (int k = 0; k < 3; ++k) acc += Hc[36 * a + 12 * r + 3 * b + k] * x[3 * vs[b] + k];
           Exec::add(y + 3 * vs[a] + r, acc);
         }
       }
