@@ -203,6 +203,8 @@ struct Setup {
   double shoulder_distance = 0;
   double hem_x = 0;           ///< garment-frame x of the hem (far) end
   std::array<Vec3, 2> grasp_local;  ///< grasp points in the garment frame
+  std::array<Vec3, 2> hem_local;    ///< [left, right] hem grasp points (corners, grasp_inset in), garment frame
+  std::array<Vec3, 2> hem_grasp;    ///< the same in the world
   bool hood = false;          ///< the garment has a hood (its landmarks below are set)
   std::array<Vec3, 2> hood_grasp;   ///< [left, right] face corners of the hood, world
   std::array<Vec3, 2> hood_local;   ///< the same in the garment frame
@@ -235,6 +237,8 @@ Setup setup(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskPa
   // The hem: its landmarks when set (beyond the shoulders), else the garment's length.
   const double hem = 0.5 * (lm.left_hem.x() + lm.right_hem.x());
   s.hem_x = hem > 0.5 * (lm.left_shoulder.x() + lm.right_shoulder.x()) ? hem : g.length;
+  s.hem_local = {lm.left_hem - p.grasp_inset * Vec3::UnitX(), lm.right_hem - p.grasp_inset * Vec3::UnitX()};
+  for (int a = 0; a < 2; ++a) s.hem_grasp[a] = T * s.hem_local[a];
   if (lm.has_hood) {
     if (!lm.left_hood.allFinite() || !lm.right_hood.allFinite() || !std::isfinite(lm.hood_fold_x))
       throw InputError("task generator: the garment's hood landmarks must be finite");
@@ -270,15 +274,17 @@ Builder approach_and_close(const Setup& s, const TaskParams& p) {
 }
 
 /// Where grippers holding `from` (garment frame: from_local) put the flap down: each moved along
-/// the garment's +x to garment-frame x `to_x[a]`. Throws when that is no forward motion.
+/// the garment's x to garment-frame x `to_x[a]`, forward (+x, `dir` = 1) or back (`dir` = -1).
+/// Throws when that is no motion in that direction.
 std::array<Vec3, 2> put_down_at(const Setup& s, const std::array<Vec3, 2>& from, const std::array<Vec3, 2>& from_local,
-                                const std::array<double, 2>& to_x, double margin, const char* what) {
+                                const std::array<double, 2>& to_x, double margin, const char* what, int dir = 1) {
   std::array<Vec3, 2> over;
   for (int a = 0; a < 2; ++a) {
     const double dx = to_x[a] - from_local[a].x();
-    if (dx <= 0)
-      throw InputError(fmt::format("fold: fold_margin {} m leaves no forward motion for the {} (grasp at x={} m, put "
-                                   "down at x={} m)", margin, what, from_local[a].x(), to_x[a]));
+    if (dx * dir <= 0)
+      throw InputError(fmt::format("fold: fold_margin {} m leaves no {} motion for the {} (grasp at x={} m, put "
+                                   "down at x={} m)", margin, dir > 0 ? "forward" : "backward", what,
+                                   from_local[a].x(), to_x[a]));
     over[a] = from[a] + dx * s.forward;
   }
   return over;
@@ -344,33 +350,50 @@ DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d
   return b.finish();
 }
 
+namespace {
+
+/// A hooded garment (TaskParams::tuck_hood), as people fold a hoodie: the hood is laid over onto
+/// the back first, then the hem is brought up to the shoulders. The hood ends between the two
+/// halves and never rides on a moving flap: carried on the shoulders' flap, it hangs off once the
+/// flap passes vertical and heaps at the neck (docs/validation.md, "The hoodie fold").
+DualArmTrajectory fold_hooded(const Setup& s, const TaskParams& p) {
+  const double k = p.time_scale;
+  // The body: the hem grasp points go to the shoulders' grasp x plus the margin, the mirror of
+  // the shoulders-to-hem fold.
+  std::array<double, 2> body_to;
+  for (int a = 0; a < 2; ++a) body_to[a] = s.grasp_local[a].x() + p.fold_margin;
+  const std::array<Vec3, 2> body_over = put_down_at(s, s.hem_grasp, s.hem_local, body_to, p.fold_margin, "hem", -1);
+  const double body_chord = (body_over[0] - s.hem_grasp[0]).norm();
+  // The hood: its face corners go to their mirror image about the neck line, the margin short of
+  // it, at the body turn's pace (the duration scales with the chord).
+  std::array<double, 2> hood_to;
+  for (int a = 0; a < 2; ++a) hood_to[a] = 2 * s.hood_fold_x - s.hood_local[a].x() - p.fold_margin;
+  const std::array<Vec3, 2> hood_over = put_down_at(s, s.hood_grasp, s.hood_local, hood_to, p.fold_margin, "hood");
+  const double hood_chord = (hood_over[0] - s.hood_grasp[0]).norm();
+
+  Setup hs = s;
+  hs.grasp = s.hood_grasp;
+  Builder b = approach_and_close(hs, p);                                           // take the hood
+  turn_over_and_let_go(b, s.hood_grasp, hood_over, p.fold_duration * hood_chord / body_chord, p);  // onto the back
+  b.move(at(raised(s.hem_grasp, p.approach_height), kGripperOpen), p.approach_duration * k);  // over the hem
+  b.move(at(s.hem_grasp, kGripperOpen), p.approach_duration * k);                 // down
+  b.gripper(0.0, p.close_duration * k);                                             // take the hem
+  turn_over_and_let_go(b, s.hem_grasp, body_over, p.fold_duration, p);             // up onto the shoulders
+  b.hold(p.settle_duration * k);
+  return b.finish();
+}
+
+}  // namespace
+
 DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
   const Setup s = setup(g, T, p);
-  const double k = p.time_scale;
+  if (s.hood && p.tuck_hood == 1) return fold_hooded(s, p);
   // The shoulders go to the hem minus the margin.
   const double hem_put = s.hem_x - p.fold_margin;
   const std::array<Vec3, 2> over = put_down_at(s, s.grasp, s.grasp_local, {hem_put, hem_put}, p.fold_margin, "body");
-  const double body_chord = (over[0] - s.grasp[0]).norm();
-  Builder b = [&] {
-    if (!(s.hood && p.tuck_hood == 1)) return approach_and_close(s, p);
-    // The hood first: over its neck line onto the back, at the body turn's pace (its duration
-    // scales with the chord), then over to the shoulders, down and close.
-    Setup hs = s;
-    hs.grasp = s.hood_grasp;
-    Builder hb = approach_and_close(hs, p);
-    // The face corners go to their mirror image about the neck line, the margin short of it.
-    std::array<double, 2> to_x;
-    for (int a = 0; a < 2; ++a) to_x[a] = 2 * s.hood_fold_x - s.hood_local[a].x() - p.fold_margin;
-    const std::array<Vec3, 2> hood_over = put_down_at(s, s.hood_grasp, s.hood_local, to_x, p.fold_margin, "hood");
-    const double chord = (hood_over[0] - s.hood_grasp[0]).norm();
-    turn_over_and_let_go(hb, s.hood_grasp, hood_over, p.fold_duration * chord / body_chord, p);
-    hb.move(at(raised(s.grasp, p.approach_height), kGripperOpen), p.approach_duration * k);
-    hb.move(at(s.grasp, kGripperOpen), p.approach_duration * k);
-    hb.gripper(0.0, p.close_duration * k);
-    return hb;
-  }();
+  Builder b = approach_and_close(s, p);
   turn_over_and_let_go(b, s.grasp, over, p.fold_duration, p);
-  b.hold(p.settle_duration * k);
+  b.hold(p.settle_duration * p.time_scale);
   return b.finish();
 }
 

@@ -75,10 +75,11 @@ struct TaskParams {
   double retreat_height = 0.1;        ///< m lifted after opening
   double retreat_duration = 1.0;      ///< s
   double settle_duration = 2.0;       ///< s of stillness at the end of a fold
-  /// Hooded garments (Landmarks::has_hood): 1 (default) lays the hood over onto the body before
-  /// the fold, as people fold a hoodie: both arms take the hood's face corners, turn it over the
-  /// neck line like a page onto the back, let go and go on to the shoulders; the fold then lays
-  /// the hood between the two halves. 0: the hood trails the shoulders and lands on top.
+  /// Hooded garments (Landmarks::has_hood): 1 (default) folds them as people fold a hoodie: both
+  /// arms take the hood's face corners and turn it over the neck line like a page onto the back,
+  /// let go, then take the hem corners and turn the bottom half up onto the top half, so that the
+  /// hood ends between the halves without riding on a moving flap. 0: the ordinary fold, the hood
+  /// trailing the shoulders and landing on top.
   double tuck_hood = 1;
 
   /// Throws InputError naming a bad value (non-finite, non-positive durations, ...).
@@ -103,10 +104,11 @@ DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d
 DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
                              const TaskParams& p = {});
 /// Fold: approach, close, lift by fold_lift, turn over to the hem minus fold_margin (see
-/// TaskParams::fold_arc), open, retreat, settle. A hooded garment first has its hood laid over
-/// onto the body (TaskParams::tuck_hood) with the same motions: approach its face corners, close,
-/// lift, turn it over the neck line to fold_margin short of its mirror image, open, retreat, then
-/// move over the shoulders and go on as above.
+/// TaskParams::fold_arc), open, retreat, settle. A hooded garment (TaskParams::tuck_hood) is folded
+/// the other way round after its hood is laid over: approach the hood's face corners, close, lift,
+/// turn it over the neck line to fold_margin short of its mirror image, open, retreat; then
+/// approach the hem corners, close, turn the bottom half over to fold_margin beyond the
+/// shoulders' grasp points, open, retreat, settle.
 DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
                             const TaskParams& p = {});
 /// "grasp" | "fold" | "fling"; InputError otherwise.
