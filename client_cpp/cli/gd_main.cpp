@@ -213,7 +213,8 @@ int main(int argc, char** argv) {
       cfg.scene.grip_force_limit = grip_force_limit == 0 ? INFINITY : grip_force_limit;  // < 0: validate() says
       if (shoulders.size() == 2) cfg.shoulder_vertices = {shoulders[0], shoulders[1]};
       if (contact_hessian == "projected") cfg.scene.contact_hessian = gd::sim::ContactHessianKind::kProjected;
-      else if (contact_hessian != "gauss-newton")
+      else if (contact_hessian == "gauss-newton") cfg.scene.contact_hessian = gd::sim::ContactHessianKind::kGaussNewton;
+      else
         throw gd::sim::InputError("unknown --contact-hessian '" + contact_hessian + "'; use gauss-newton or projected");
       if (backend == "cpu") cfg.scene.backend = gd::sim::BackendKind::kCpu;
       else if (backend == "cuda") cfg.scene.backend = gd::sim::BackendKind::kCuda;

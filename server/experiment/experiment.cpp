@@ -429,6 +429,8 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["pcg_per_step"] = run.steps() > 0 ? double(run.pcg()) / run.steps() : 0.0;
   s["self_contact"] = config.scene.self_contact;
   s["compression_ratio"] = config.scene.compression_ratio;
+  s["contact_hessian"] =
+      config.scene.contact_hessian == sim::ContactHessianKind::kGaussNewton ? "gauss-newton" : "projected";
   s["contacts_max"] = run.contacts_max();
   s["intersecting_pairs_max"] = run.intersecting_max();
   s["untangle_runs"] = sc.untangle_runs();

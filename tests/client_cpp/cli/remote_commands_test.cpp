@@ -153,6 +153,25 @@ TEST_F(CliTest, JawRadiusSetsHowMuchClothAGripperTakes) {
   EXPECT_NE(r.err.find("jaw_radius"), std::string::npos) << r.err;
 }
 
+TEST_F(CliTest, ContactHessianReachesTheSceneAndTheSummary) {
+  // --contact-hessian gauss-newton was once parsed and then dropped (the run stayed projected).
+  const auto dir = fresh_dir("cli_contact_hessian");
+  const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
+                          "--no-plots --quiet --threads 1 --out ";
+  auto kind = [&](const std::string& name) {
+    return nlohmann::json::parse(slurp(dir / name / "summary.json")).at("contact_hessian").get<std::string>();
+  };
+  CliRun r = gd(run + (dir / "default").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_EQ(kind("default"), "projected");
+  r = gd(run + (dir / "gn").string() + " --contact-hessian gauss-newton");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_EQ(kind("gn"), "gauss-newton");
+  r = gd(run + (dir / "bad").string() + " --contact-hessian exact");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--contact-hessian"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, GarmentParamSizesTheGarmentLocallyAndAsAJob) {
   const auto dir = fresh_dir("cli_sizes");
   const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
