@@ -175,6 +175,16 @@ TEST(Generators, FoldLaysAHoodOverOntoTheBodyThenBringsTheHemUpToTheShoulders) {
   EXPECT_LT((changes[0].second - T * lm.left_shoulder).norm(), 1e-9);
   set_task_param(p, "tuck_hood", 0.5);
   EXPECT_THROW(make_fold(g, T, p), InputError);
+  // A margin that puts the hem down beyond where it starts leaves no backward motion: refused,
+  // naming the hem.
+  TaskParams wide;
+  set_task_param(wide, "fold_margin", 0.3);
+  try {
+    make_fold(g, T, wide);
+    ADD_FAILURE() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("backward motion for the hem"), std::string::npos) << e.what();
+  }
   // A fold line that is not beyond the face corners is refused.
   lm.hood_fold_x = -0.1;
   EXPECT_THROW(make_fold(g, T), InputError);
