@@ -22,6 +22,11 @@
 /// The gRPC service against its in-process core: the same batch of scenes stepped through a
 /// gd-server child process on loopback and through gd::service::ScenePool in this process,
 /// interleaved; prints ms per batched step of each and their ratio (service_case.h).
+///
+///   gd-bench export --case drape/5000|fold/5000 --out DIR [--side 0.5] [--material cotton] [--simulate K]
+///
+/// Writes the case's exact scene (mesh.obj, rest.obj, scene.json; scene_export.h) for the peer
+/// benchmark (bench/peers); --simulate K also steps ours K steps on one thread (ours_state.json).
 
 #include <CLI/CLI.hpp>
 #include <chrono>
@@ -34,6 +39,7 @@
 #include <string>
 #include <vector>
 
+#include "scene_export.h"
 #include "service_case.h"
 #include "sim/demand.h"
 #include "sim/log.h"
@@ -65,27 +71,11 @@ struct CaseResult {
   bool contact = false;        ///< a self-contact case (fold/<N>)
   double contacts = 0;         ///< mean active self-contact pairs per timed step
   double broad_phase_share = 0;  ///< fraction of the step time spent in the broad phase
+  double energy_evals = 0;     ///< mean objective evaluations per timed step
+  gd::sim::StageTimes stage;   ///< mean seconds per timed step in each solver stage
 };
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-/// A side × side make_rect square with about `target` vertices (one spacing correction pass).
-Mesh square_with_about(Real side, int target) {
-  // make_rect: about side/dx columns and side/(dx √3/2) rows, so N ≈ side² · 2/(√3 dx²).
-  Real dx = side * std::sqrt(2.0 / (std::sqrt(3.0) * target));
-  Mesh m = gd::sim::make_rect(side, side, dx);
-  const double ratio = static_cast<double>(m.x.size()) / target;
-  if (std::abs(ratio - 1.0) > 0.02) m = gd::sim::make_rect(side, side, dx * std::sqrt(ratio));
-  return m;
-}
-
-std::vector<int> corner_vertices(const Mesh& m, Real side, Real radius) {
-  const Vec3 a(0, side, 0), b(side, side, 0);
-  return gd::sim::vertices_where(m, [&](const Vec3& p) {
-    const Vec3 q(p.x(), p.y(), 0);
-    return (q - a).norm() <= radius + 1e-12 || (q - b).norm() <= radius + 1e-12;
-  });
-}
 
 /// drape/<N>: a square hanging from two pinned corners. fold/<N> (contact): the square folded in
 /// half (the flap 4 mm above the base), 1 cm above the table, let fall with self-contact on.
@@ -94,22 +84,14 @@ CaseResult run_case(int target, Real side, int warmup, int steps, double max_sec
   CaseResult r;
   r.contact = contact;
   r.name = (contact ? "fold/" : "drape/") + std::to_string(target);
-  Mesh mesh = square_with_about(side, target);
-  for (auto& p : mesh.x) {
-    if (!contact) {
-      p.z() = 0.6;
-    } else if (p.x() > 0.5 * side) {
-      p = Vec3(side - p.x(), p.y(), 0.014);
-    } else {
-      p.z() = 0.01;
-    }
-  }
+  const gd::bench::BenchScene bench_scene = gd::bench::make_bench_scene(target, side, contact);
+  const Mesh& mesh = bench_scene.mesh;
   r.vertices = static_cast<int>(mesh.x.size());
   opt.self_contact = contact;
 
   const auto t_setup = Clock::now();
   auto scene = Scene::create(mesh, mat, opt);
-  if (!contact) scene->pin(corner_vertices(mesh, side, 0.01));
+  if (!bench_scene.pins.empty()) scene->pin(bench_scene.pins);
   r.backend = scene->backend();
   r.bytes_per_vertex = scene->bytes_per_vertex();
   std::fprintf(stderr, "[gd-bench] %s: %d vertices on %s (setup %.2f s); %d warm-up + %d timed steps\n",
@@ -130,7 +112,8 @@ CaseResult run_case(int target, Real side, int warmup, int steps, double max_sec
     }
   }
 
-  double total_s = 0, bp_s = 0, contacts = 0;
+  double total_s = 0, bp_s = 0, contacts = 0, evals = 0;
+  gd::sim::StageTimes stage;
   long newton = 0, pcg = 0, converged = 0;
   int done = 0;
   double last_report = seconds_since(t_case);
@@ -148,6 +131,8 @@ CaseResult run_case(int target, Real side, int warmup, int steps, double max_sec
     converged += st.converged ? 1 : 0;
     contacts += st.contacts;
     bp_s += st.broad_phase_seconds;
+    evals += st.energy_evals;
+    stage += st.stage;
     ++done;
     const double elapsed = seconds_since(t_case);
     if (elapsed - last_report >= 10.0 && done < steps) {
@@ -169,6 +154,9 @@ CaseResult run_case(int target, Real side, int warmup, int steps, double max_sec
     r.converged = static_cast<double>(converged) / done;
     r.contacts = contacts / done;
     r.broad_phase_share = total_s > 0 ? bp_s / total_s : 0;
+    r.energy_evals = evals / done;
+    r.stage = stage;
+    r.stage *= 1.0 / done;
   }
   std::fprintf(stderr,
                "[gd-bench] %s: %.2f ms/step, %.2f Newton and %.1f PCG iterations per step, %.0f%% converged%s\n",
@@ -198,6 +186,13 @@ std::vector<int> parse_sizes(const std::string& s) {
   return out;
 }
 
+/// Per-stage milliseconds (StageTimes, s) as a JSON object.
+nlohmann::json stage_json(const gd::sim::StageTimes& t) {
+  nlohmann::json j = nlohmann::json::object();
+  t.for_each_ms([&](const char* name, double ms) { j[name] = ms; });
+  return j;
+}
+
 nlohmann::json to_json(const CaseResult& r) {
   nlohmann::json j = {{"case", r.name},
                       {"vertices", r.vertices},
@@ -213,6 +208,10 @@ nlohmann::json to_json(const CaseResult& r) {
     j["contacts"] = r.contacts;
     j["broad_phase_share"] = r.broad_phase_share;
   }
+  if (r.steps > 0) {
+    j["energy_evals"] = r.energy_evals;
+    j["stage_ms"] = stage_json(r.stage);
+  }
   if (!r.error.empty()) j["error"] = r.error;
   return j;
 }
@@ -227,7 +226,15 @@ void print_table(const std::vector<CaseResult>& rs) {
                 r.error.empty() ? "" : ("  FAILED: " + r.error).c_str());
   }
   std::printf("(ms/step: mean wall time of a step; newton, pcg: mean iterations per step, PCG summed over "
-              "Newton iterations; converged: steps whose Newton solve met newton_tol)\n");
+              "Newton iterations; converged: steps whose Newton solve stopped before its cap)\n");
+  std::printf("\nms per step by stage:\n%-14s %9s %9s %9s %9s %9s %9s %9s %9s %9s %7s\n", "case", "predictor",
+              "contacts", "assembly", "precond", "pcg", "ccd", "linesrch", "intersect", "untangle", "evals");
+  for (const auto& r : rs) {
+    const gd::sim::StageTimes& t = r.stage;
+    std::printf("%-14s %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f %7.2f\n", r.name.c_str(),
+                1e3 * t.predictor, 1e3 * t.contacts, 1e3 * t.assembly, 1e3 * t.precond, 1e3 * t.pcg, 1e3 * t.ccd,
+                1e3 * t.line_search, 1e3 * t.intersections, 1e3 * t.untangle, r.energy_evals);
+  }
 }
 
 }  // namespace
@@ -245,6 +252,11 @@ int main(int argc, char** argv) {
   std::string backend_arg = "auto";
   std::string material_name = "cotton";
   std::string kinds = "drape,fold";
+  std::string precond_arg = "default";
+  int newton_max = 0, pcg_max = 0, mas_domain = 0;
+  double newton_rtol = -1, newton_atol = -1;
+  std::string contact_hessian_arg = "default";
+  std::string bending_hessian_arg = "default";
   app.add_flag("--json", json, "Print one JSON array of results on stdout (and nothing else)");
   app.add_option("--steps", steps, "Timed steps per case")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--warmup", warmup, "Untimed warm-up steps per case")
@@ -265,6 +277,22 @@ int main(int argc, char** argv) {
   app.add_option("--max-seconds", max_seconds,
                  "Time budget per case, s, warm-up included: a case stops early, reporting the steps it timed (0: no limit)")
       ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--preconditioner", precond_arg, "PCG preconditioner (default: SceneOptions' default)")
+      ->check(CLI::IsMember({"default", "auto", "block-jacobi", "mas"}))
+      ->capture_default_str();
+  app.add_option("--mas-domain", mas_domain, "MAS nodes per domain (0: SceneOptions' default)")
+      ->check(CLI::Range(0, 64));
+  app.add_option("--newton-max", newton_max, "Newton iteration cap per step (0: SceneOptions' default)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--pcg-max", pcg_max, "PCG iteration cap per Newton iteration (0: default)")->check(CLI::NonNegativeNumber);
+  app.add_option("--newton-rtol", newton_rtol, "Residual stopping rule, relative (negative: default)");
+  app.add_option("--newton-atol", newton_atol, "Residual stopping rule, absolute, m/s (negative: default)");
+  app.add_option("--contact-hessian", contact_hessian_arg, "Self-contact barrier Hessian")
+      ->check(CLI::IsMember({"default", "projected", "gauss-newton"}))
+      ->capture_default_str();
+  app.add_option("--bending-hessian", bending_hessian_arg, "Bending Hessian")
+      ->check(CLI::IsMember({"default", "gauss-newton", "projected-exact"}))
       ->capture_default_str();
   gd::bench::ServiceCaseOptions svc_opt;
   bool svc_json = false, svc_no_self_contact = false;
@@ -289,7 +317,30 @@ int main(int argc, char** argv) {
   svc->add_flag("--no-self-contact", svc_no_self_contact, "Scenes without cloth self-contact");
   svc->add_option("--server-binary", svc_opt.server_binary, "gd-server to start (default: the one beside gd-bench)");
 
+  gd::bench::ExportOptions exp_opt;
+  auto* export_cmd =
+      app.add_subcommand("export", "Write a case's scene (mesh.obj, rest.obj, scene.json) for bench/peers");
+  export_cmd->add_option("--case", exp_opt.case_name, "drape/<N> or fold/<N>")->capture_default_str();
+  export_cmd->add_option("--out", exp_opt.out_dir, "Output directory")->required();
+  export_cmd->add_option("--side", exp_opt.side, "Side of the square, m")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  export_cmd->add_option("--material", exp_opt.material, "Material name from the library")->capture_default_str();
+  export_cmd
+      ->add_option("--simulate", exp_opt.simulate_steps, "Also step ours this many steps (1 thread): ours_state.json")
+      ->check(CLI::NonNegativeNumber);
+
   CLI11_PARSE(app, argc, argv);
+
+  if (*export_cmd) {
+    try {
+      gd::bench::export_case(exp_opt);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "gd-bench export: %s\n", e.what());
+      return 2;
+    }
+    return 0;
+  }
 
   if (*svc) {
     svc_opt.self_contact = !svc_no_self_contact;
@@ -310,6 +361,19 @@ int main(int argc, char** argv) {
                   : backend_arg == "cuda" ? gd::sim::BackendKind::kCuda
                                           : gd::sim::BackendKind::kAuto;
     opt.threads = threads;
+    if (precond_arg == "mas") opt.preconditioner = gd::sim::PreconditionerKind::kMas;
+    if (precond_arg == "block-jacobi") opt.preconditioner = gd::sim::PreconditionerKind::kBlockJacobi;
+    if (precond_arg == "auto") opt.preconditioner = gd::sim::PreconditionerKind::kAuto;
+    if (mas_domain > 0) opt.mas_domain_size = mas_domain;
+    if (newton_max > 0) opt.newton_max_iters = newton_max;
+    if (pcg_max > 0) opt.pcg_max_iters = pcg_max;
+    if (newton_rtol >= 0) opt.newton_rtol = newton_rtol;
+    if (newton_atol >= 0) opt.newton_atol = newton_atol;
+    if (contact_hessian_arg == "projected") opt.contact_hessian = gd::sim::ContactHessianKind::kProjected;
+    if (contact_hessian_arg == "gauss-newton") opt.contact_hessian = gd::sim::ContactHessianKind::kGaussNewton;
+    if (bending_hessian_arg == "gauss-newton") opt.bending_hessian = gd::sim::BendingHessianKind::kGaussNewton;
+    if (bending_hessian_arg == "projected-exact") opt.bending_hessian = gd::sim::BendingHessianKind::kProjectedExact;
+    opt.validate();
     const auto lib = gd::sim::MaterialLibrary::load_default();
     const auto& mat = lib.get(material_name);
     const auto t_all = Clock::now();

@@ -116,6 +116,10 @@ int main(int argc, char** argv) {
   std::string contact_hessian = "projected";
   run->add_option("--contact-hessian", contact_hessian, "self-contact Hessian: gauss-newton | projected")
       ->capture_default_str();
+  std::string preconditioner = "auto";
+  run->add_option("--preconditioner", preconditioner,
+                  "PCG preconditioner: auto (MAS without self-contact, block-Jacobi with it) | mas | block-jacobi")
+      ->capture_default_str();
   run->add_option("--compression-ratio", cfg.scene.compression_ratio,
                   "compressive / tensile stretch stiffness (0, 1]; 1: no buckling model")
       ->capture_default_str();
@@ -177,7 +181,7 @@ int main(int argc, char** argv) {
     }
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
-                                     "--contact-hessian", "--no-plots", "--mesh-every",
+                                     "--contact-hessian", "--preconditioner", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
@@ -216,6 +220,10 @@ int main(int argc, char** argv) {
       else if (contact_hessian == "gauss-newton") cfg.scene.contact_hessian = gd::sim::ContactHessianKind::kGaussNewton;
       else
         throw gd::sim::InputError("unknown --contact-hessian '" + contact_hessian + "'; use gauss-newton or projected");
+      if (preconditioner == "mas") cfg.scene.preconditioner = gd::sim::PreconditionerKind::kMas;
+      else if (preconditioner == "block-jacobi") cfg.scene.preconditioner = gd::sim::PreconditionerKind::kBlockJacobi;
+      else if (preconditioner == "auto") cfg.scene.preconditioner = gd::sim::PreconditionerKind::kAuto;
+      else throw gd::sim::InputError("unknown --preconditioner '" + preconditioner + "'; use auto, mas or block-jacobi");
       if (backend == "cpu") cfg.scene.backend = gd::sim::BackendKind::kCpu;
       else if (backend == "cuda") cfg.scene.backend = gd::sim::BackendKind::kCuda;
       else if (backend == "auto") cfg.scene.backend = gd::sim::BackendKind::kAuto;

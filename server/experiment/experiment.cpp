@@ -105,6 +105,8 @@ class Run {
       contacts_max_ = std::max(contacts_max_, s.contacts);
       newton_ += s.newton_iters;
       pcg_ += s.pcg_iters;
+      converged_ += s.converged ? 1 : 0;
+      stage_ += s.stage;
       if (scene_->failed()) return;
       if (scene_->time() >= next_record_ - 1e-9) record();
       if (mesh_ && scene_->time() >= next_mesh_ - 1e-9) write_mesh();
@@ -119,6 +121,9 @@ class Run {
   int contacts_max() const { return contacts_max_; }
   long newton() const { return newton_; }
   long pcg() const { return pcg_; }
+  long converged() const { return converged_; }
+  /// Seconds spent in each solver stage, summed over the steps.
+  const sim::StageTimes& stage_seconds() const { return stage_; }
 
   void write_timeseries(const std::string& path) const {
     std::ofstream f(path);
@@ -155,7 +160,8 @@ class Run {
   double end_time_;
   double next_record_ = 0;
   int steps_ = 0, intersecting_max_ = 0, contacts_max_ = 0;
-  long newton_ = 0, pcg_ = 0;
+  long newton_ = 0, pcg_ = 0, converged_ = 0;
+  sim::StageTimes stage_;
   std::vector<std::string> rows_;
 };
 
@@ -427,6 +433,12 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["ms_per_step"] = run.steps() > 0 ? 1e3 * wall / run.steps() : 0.0;
   s["newton_per_step"] = run.steps() > 0 ? double(run.newton()) / run.steps() : 0.0;
   s["pcg_per_step"] = run.steps() > 0 ? double(run.pcg()) / run.steps() : 0.0;
+  s["converged_fraction"] = run.steps() > 0 ? double(run.converged()) / run.steps() : 0.0;
+  // Where the steps' time went: mean milliseconds per step in each solver stage.
+  s["stage_ms_per_step"] = nlohmann::json::object();
+  if (run.steps() > 0)
+    run.stage_seconds().for_each_ms([&](const char* name, double ms) { s["stage_ms_per_step"][name] = ms / run.steps(); });
+  s["preconditioner"] = sim::preconditioner_name(config.scene);
   s["self_contact"] = config.scene.self_contact;
   s["compression_ratio"] = config.scene.compression_ratio;
   s["contact_hessian"] =

@@ -268,7 +268,12 @@ void SceneOptions::validate() const {
   if (newton_max_iters < 1 || newton_max_iters > 1000) throw InputError("option newton_max_iters must be in [1, 1000]");
   if (pcg_max_iters < 1 || pcg_max_iters > 100000) throw InputError("option pcg_max_iters must be in [1, 100000]");
   positive(newton_tol, "newton_tol");
+  nonneg(newton_rtol, "newton_rtol");
+  nonneg(newton_atol, "newton_atol");
+  if (newton_rtol >= 1) throw InputError(fmt::format("option newton_rtol must be below 1 (got {})", newton_rtol));
   positive(pcg_tol, "pcg_tol");
+  if (mas_domain_size < 2 || mas_domain_size > 64)
+    throw InputError(fmt::format("option mas_domain_size must be in [2, 64] (got {})", mas_domain_size));
   if (threads < 0) throw InputError("option threads must be >= 0");
   if (!std::isfinite(table_height)) throw InputError("option table_height must be finite");
   nonneg(table_friction, "table_friction");

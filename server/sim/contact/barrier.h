@@ -15,12 +15,15 @@
 ///   ∇E = b'(g) ∇D,     ∇²E = b''(g) ∇D ∇Dᵀ + b'(g) ∇²D.
 /// The distance Hessian is that of the closest feature's formula (distance.h); across feature
 /// boundaries E is C¹. Since b' < 0, the b' ∇²D term makes the exact Hessian indefinite in
-/// general; HessianKind::kProjected returns project_psd of the full 12x12.
+/// general; HessianKind::kProjected returns its PSD projection, computed in the at most 5-dimensional
+/// subspace where it lives (barrier_hessian.h) rather than by a 12x12 eigen-decomposition (the
+/// mollified edge-edge pairs of near-parallel edges, whose Hessian has more terms, keep that).
 
 #include <cmath>
 
 #include <Eigen/Geometry>
 
+#include "sim/contact/barrier_hessian.h"
 #include "sim/contact/distance.h"
 #include "sim/energy/log_barrier.h"
 #include "sim/energy/psd_project.h"
@@ -141,11 +144,17 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
   }
   VecN<12> g2;
   MatN<12> H2;
-  const bool exact_h2 = want_hess && kind != HessianKind::kGaussNewton;
+  const bool closed_form = want_hess && kind == HessianKind::kProjected;
+  const bool exact_h2 = want_hess && kind == HessianKind::kExact;
   point_triangle_distance2(p, t0, t1, t2, region, &g2, exact_h2 ? &H2 : nullptr);
-  const Real E = contact_detail::barrier_of_distance2(d2, g2, exact_h2 ? &H2 : nullptr, offset, dhat,
-                                                      kappa, grad, want_hess ? hess : nullptr);
-  if (want_hess && kind == HessianKind::kProjected) project_psd<12>(hess);
+  const Real E = contact_detail::barrier_of_distance2(d2, g2, exact_h2 ? &H2 : nullptr, offset, dhat, kappa, grad,
+                                                      want_hess && !closed_form ? hess : nullptr);
+  if (closed_form) {
+    Real db, d2b;
+    contact_barrier(sqrt(d2) - offset, dhat, kappa, &db, &d2b);
+    const Vec3 x[4] = {p, t0, t1, t2};
+    projected_barrier_hessian(x, vf_region_param(region), db, d2b, hess);
+  }
   return E;
 }
 
@@ -178,13 +187,20 @@ GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, con
   MatN<12> H2, HB;
   // Gauss-Newton only where the mollifier is inactive (m = 1, zero derivatives); near-parallel
   // edges keep the projected full Hessian.
-  const bool gauss_newton = kind == HessianKind::kGaussNewton && m == Real(1) && gm.isZero(0);
-  const bool exact_h2 = want_hess && !gauss_newton;
+  const bool unmollified = m == Real(1) && gm.isZero(0);
+  const bool gauss_newton = kind == HessianKind::kGaussNewton && unmollified;
+  const bool closed_form = want_hess && kind == HessianKind::kProjected && unmollified;
+  const bool exact_h2 = want_hess && !gauss_newton && !closed_form;
   edge_edge_distance2(a0, a1, b0, b1, region, &g2, exact_h2 ? &H2 : nullptr);
   const Real B = contact_detail::barrier_of_distance2(d2, g2, exact_h2 ? &H2 : nullptr, offset, dhat,
-                                                      kappa, &gB, want_hess ? &HB : nullptr);
+                                                      kappa, &gB, want_hess && !closed_form ? &HB : nullptr);
   if (grad) *grad = m * gB + B * gm;
-  if (want_hess && gauss_newton) {
+  if (closed_form) {
+    Real db, d2b;
+    contact_barrier(sqrt(d2) - offset, dhat, kappa, &db, &d2b);
+    const Vec3 x[4] = {a0, a1, b0, b1};
+    projected_barrier_hessian(x, ee_region_param(region), db, d2b, hess);
+  } else if (want_hess && gauss_newton) {
     *hess = HB;
   } else if (want_hess) {
     const MatN<12> cross = gm * gB.transpose();

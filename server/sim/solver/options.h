@@ -14,7 +14,11 @@ enum class LinearSolverKind {
   kPcg,     ///< preconditioned conjugate gradients (both backends; the production path)
   kDirect,  ///< sparse LDLT (CPU only): for small scenes and static validation solves
 };
-enum class PreconditionerKind { kBlockJacobi };
+enum class PreconditionerKind {
+  kAuto,         ///< MAS without self-contact, block-Jacobi with it (docs/physics.md, "Solver")
+  kBlockJacobi,  ///< inverse 3x3 diagonal blocks: cheapest per iteration, weakest
+  kMas,          ///< multilevel additive Schwarz (Wu et al. 2022; mas_preconditioner.h)
+};
 /// How the bending Hessian is made positive semi-definite for Newton.
 enum class BendingHessianKind {
   kGaussNewton,    ///< E''(theta) grad(theta) grad(theta)^T: cheap, the default for dynamics
@@ -35,10 +39,20 @@ struct SceneOptions {
   Vec3 gravity = Vec3(0, 0, -kGravity);  ///< m/s^2
   int newton_max_iters = 6;       ///< inexact Newton iterations per step (at most)
   Real newton_tol = 1e-4;         ///< stop when max |dx|/dt (m/s) falls below this
+  /// Residual stopping rule (docs/physics.md, "Solver"), in velocity units: Newton stops once the
+  /// correction still to come is at most max(newton_atol, newton_rtol x the first Newton step),
+  /// each measured as a mass-weighted RMS velocity over the free vertices, |d|_M / (h sqrt(M)):
+  /// after an iteration, the step it took; before one, an upper bound of the step the gradient
+  /// asks for (h |g|_M⁻¹ / sqrt(M)). A step whose predictor is already within newton_atol takes
+  /// no Newton iteration. Both 0: off (only newton_tol stops Newton). Dynamic steps only:
+  /// quasi-static steps (Scene::relax) always run to newton_tol.
+  Real newton_rtol = 0.1;
+  Real newton_atol = 1e-3;        ///< m/s
   int pcg_max_iters = 100;        ///< PCG iteration cap per Newton iteration
   Real pcg_tol = 1e-2;            ///< PCG relative residual tolerance (inexact Newton)
   LinearSolverKind linear_solver = LinearSolverKind::kPcg;
-  PreconditionerKind preconditioner = PreconditionerKind::kBlockJacobi;
+  PreconditionerKind preconditioner = PreconditionerKind::kAuto;
+  int mas_domain_size = 16;       ///< MAS: nodes per domain (2..64)
   BendingHessianKind bending_hessian = BendingHessianKind::kGaussNewton;
   BackendKind backend = BackendKind::kCpu;
   int threads = 0;                ///< CPU threads (0: OpenMP default)
@@ -101,5 +115,16 @@ struct SceneOptions {
   /// Throws InputError naming the offending option.
   void validate() const;
 };
+
+/// The preconditioner a scene with these options uses (kAuto resolved).
+inline PreconditionerKind effective_preconditioner(const SceneOptions& o) {
+  if (o.preconditioner != PreconditionerKind::kAuto) return o.preconditioner;
+  return o.self_contact ? PreconditionerKind::kBlockJacobi : PreconditionerKind::kMas;
+}
+
+/// "mas" or "block-jacobi": the preconditioner these options give (summary.json, logs).
+inline const char* preconditioner_name(const SceneOptions& o) {
+  return effective_preconditioner(o) == PreconditionerKind::kMas ? "mas" : "block-jacobi";
+}
 
 }  // namespace gd::sim

@@ -1,8 +1,8 @@
 #pragma once
 /// \file
-/// Preconditioners of the PCG solve, behind one interface. Block-Jacobi (the inverse of each
-/// vertex's 3x3 diagonal block) is what exists; the multilevel additive Schwarz preconditioner
-/// (Wu et al. 2022) plugs in here. Written over the execution policy like the solver.
+/// Preconditioners of the PCG solve, behind one interface: block-Jacobi (the inverse of each
+/// vertex's 3x3 diagonal block) and the multilevel additive Schwarz preconditioner of Wu et al.
+/// 2022 (mas_preconditioner.h). Written over the execution policy like the solver.
 
 #include <memory>
 
@@ -12,15 +12,21 @@
 
 namespace gd::sim {
 
-/// What a preconditioner sees of the system: the 3x3-block matrix (row_ptr/cols/diag/vals,
-/// device or host pointers) and the Dirichlet flags (identity rows).
+/// What a preconditioner sees of the system (device or host pointers): the 3x3-block matrix of
+/// the mesh pattern (row_ptr/cols/diag/vals), the contact couplings outside that pattern as a
+/// second block CSR (cpl_*; null without self-contact), the Dirichlet flags (identity rows) and
+/// the current positions (3n).
 struct BlockMatrixView {
   int n = 0;
-  const int* row_ptr;
-  const int* cols;
-  const int* diag;
-  const double* vals;
-  const int* fixed;
+  const int* row_ptr = nullptr;
+  const int* cols = nullptr;
+  const int* diag = nullptr;
+  const double* vals = nullptr;
+  const int* fixed = nullptr;
+  const int* cpl_row_ptr = nullptr;
+  const int* cpl_cols = nullptr;
+  const double* cpl_vals = nullptr;
+  const double* x = nullptr;
 };
 
 template <class Exec>
@@ -31,6 +37,10 @@ class Preconditioner {
   virtual void setup(const BlockMatrixView& A) = 0;
   /// z = M^-1 r (3n flat vectors).
   virtual void apply(const double* r, double* z) = 0;
+  /// Whether M^-1 r estimates H^-1 r for smooth residuals too (a coarse level, as MAS has), so
+  /// that the Newton stopping rule may use it to predict the next correction. Block-Jacobi
+  /// underestimates a uniform force by the stiffness ratio and does not.
+  virtual bool estimates_smooth_modes() const { return false; }
 };
 
 template <class Exec>
@@ -69,12 +79,21 @@ class BlockJacobi final : public Preconditioner<Exec> {
   typename Exec::template Vector<double> inv_;
 };
 
+}  // namespace gd::sim
+
+#include "sim/solver/mas_preconditioner.h"
+
+namespace gd::sim {
+
 /// The preconditioner named by the options.
 template <class Exec>
-std::unique_ptr<Preconditioner<Exec>> make_preconditioner(PreconditionerKind kind, int n) {
-  switch (kind) {
+std::unique_ptr<Preconditioner<Exec>> make_preconditioner(const SceneOptions& opt, int n) {
+  switch (effective_preconditioner(opt)) {
+    case PreconditionerKind::kAuto:
     case PreconditionerKind::kBlockJacobi:
       return std::make_unique<BlockJacobi<Exec>>(n);
+    case PreconditionerKind::kMas:
+      return std::make_unique<MultilevelAdditiveSchwarz<Exec>>(n, opt.mas_domain_size);
   }
   GD_DEMAND(false, "unknown preconditioner kind");
   return nullptr;

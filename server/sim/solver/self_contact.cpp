@@ -71,10 +71,18 @@ void SelfContact::select_active(const std::vector<double>& x, const std::vector<
   active_.clear();
   ContactPairs kept;
   dropped_ = 0;
-  for (int c = 0; c < cand_.size(); ++c) {
+  // The distances in parallel (the costly part), then the lists in candidate order.
+  const int n = cand_.size();
+  dist_.resize(n);
+#pragma omp parallel for schedule(static) if (n >= 4096)
+  for (int c = 0; c < n; ++c) {
+    const int* v = &cand_.v[4 * c];
+    dist_[c] = fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]] ? -1.0 : pair_distance(x, v, cand_.type[c]);
+  }
+  for (int c = 0; c < n; ++c) {
     const int* v = &cand_.v[4 * c];
     if (fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]]) continue;  // nothing to solve
-    const double dist = pair_distance(x, v, cand_.type[c]);
+    const double dist = dist_[c];
     if (!(dist > 0)) {
       ++dropped_;
       continue;
@@ -94,7 +102,9 @@ void SelfContact::set_kappa_scale(Real s) {
 
 double SelfContact::min_active_distance(const std::vector<double>& x) const {
   double m = std::numeric_limits<double>::infinity();
-  for (int c = 0; c < active_.size(); ++c) m = std::min(m, pair_distance(x, &active_.v[4 * c], active_.type[c]));
+  const int n = active_.size();
+#pragma omp parallel for schedule(static) reduction(min : m) if (n >= 4096)
+  for (int c = 0; c < n; ++c) m = std::min(m, pair_distance(x, &active_.v[4 * c], active_.type[c]));
   return m;
 }
 

@@ -77,6 +77,7 @@ class SelfContact {
   std::vector<double> edge_len2_;  ///< rest squared edge lengths (mollifier)
   ContactCandidates raw_;
   ContactPairs cand_, active_;
+  std::vector<double> dist_;  ///< select_active's per-candidate distances
   FrictionPairs friction_;
   int dropped_ = 0;
   double bp_seconds_ = 0;

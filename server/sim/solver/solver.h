@@ -15,13 +15,50 @@
 
 namespace gd::sim {
 
+/// Wall time of each stage of a step, s, summed over its Newton iterations: where a step goes.
+struct StageTimes {
+  double predictor = 0;      ///< lagged friction frames, Dirichlet targets, predictor and its CCD
+  double contacts = 0;       ///< active-pair selection and the candidate search along each Newton step
+  double assembly = 0;       ///< gradient and PSD Hessian (and the gradients of the residual checks)
+  double precond = 0;        ///< merging the contact couplings and the preconditioner setup
+  double pcg = 0;            ///< PCG iterations
+  double ccd = 0;            ///< step bound: CCD against cloth, table and colliders
+  double line_search = 0;    ///< energy evaluations of the backtracking line search
+  double intersections = 0;  ///< exact intersecting-pair count after the step
+  double untangle = 0;       ///< untangling fail-safe
+  double total() const {
+    return predictor + contacts + assembly + precond + pcg + ccd + line_search + intersections + untangle;
+  }
+  StageTimes& operator+=(const StageTimes& o) {
+    predictor += o.predictor, contacts += o.contacts, assembly += o.assembly, precond += o.precond, pcg += o.pcg;
+    ccd += o.ccd, line_search += o.line_search, intersections += o.intersections, untangle += o.untangle;
+    return *this;
+  }
+  StageTimes& operator*=(double f) {
+    predictor *= f, contacts *= f, assembly *= f, precond *= f, pcg *= f;
+    ccd *= f, line_search *= f, intersections *= f, untangle *= f;
+    return *this;
+  }
+  /// Each stage in milliseconds, by name (the keys of gd-bench --json and summary.json).
+  template <class F>
+  void for_each_ms(F&& f) const {
+    f("predictor", 1e3 * predictor), f("contacts", 1e3 * contacts), f("assembly", 1e3 * assembly);
+    f("precond", 1e3 * precond), f("pcg", 1e3 * pcg), f("ccd", 1e3 * ccd), f("line_search", 1e3 * line_search);
+    f("intersections", 1e3 * intersections), f("untangle", 1e3 * untangle);
+  }
+};
+
 /// What one step did.
 struct StepStats {
   int newton_iters = 0;        ///< Newton iterations taken
   int pcg_iters = 0;           ///< PCG iterations summed over the Newton iterations
   double step_norm = 0;        ///< max |dx|/dt of the last Newton iteration, m/s
   double min_alpha = 1;        ///< smallest accepted line-search step
-  bool converged = false;      ///< step_norm fell below newton_tol
+  bool converged = false;      ///< the residual rule or newton_tol stopped Newton before its cap
+  /// Velocity correction the gradient asks for (SceneOptions::newton_rtol) at the first iterate and
+  /// at the last one checked, m/s.
+  double residual0 = 0, residual = 0;
+  int energy_evals = 0;        ///< evaluations of the objective (line search)
   bool finite = true;          ///< false when the objective was not finite (the step is void)
   int contacts = 0;            ///< active self-contact pairs (closer than the contact distance)
   /// Smallest distance over the active self-contact pairs at the end of the step, m (infinity
@@ -37,7 +74,8 @@ struct StepStats {
   int intersecting_pairs = 0;  ///< intersecting triangle pairs after the step (and untangling)
   int intersecting_found = 0;  ///< intersecting triangle pairs the solve left (before untangling)
   bool untangled = false;      ///< the untangling fail-safe ran this step
-  double broad_phase_seconds = 0;
+  double broad_phase_seconds = 0;  ///< broad phase (inside the predictor and contacts stages)
+  StageTimes stage;            ///< where the step's time went
   double seconds = 0;          ///< wall time of the step
 };
 

@@ -33,6 +33,7 @@
 #include "sim/solver/preconditioner.h"
 #include "sim/solver/self_contact.h"
 #include "sim/solver/solver.h"
+#include "sim/log.h"
 
 namespace gd::sim {
 
@@ -292,9 +293,13 @@ class Solver final : public SolverBase {
     Exec::upload(hinge_slots_, d.hinge_slots);
     Exec::upload(x_, d.x);
     Exec::upload(v_, d.v);
-    for (auto* vec : {&x_t_, &v_t_, &g_, &dx_, &r_, &z_, &p_, &ap_, &x_trial_}) Exec::resize(*vec, 3 * n_);
+    for (auto* vec : {&x_t_, &v_t_, &g_, &g_trial_, &dx_, &r_, &z_, &p_, &ap_, &x_trial_}) Exec::resize(*vec, 3 * n_);
     Exec::resize(vals_, 9 * static_cast<size_t>(d.blocks()));
-    precond_ = make_preconditioner<Exec>(opt.preconditioner, n_);
+    precond_ = make_preconditioner<Exec>(opt, n_);
+    // The Newton stopping rule predicts the next correction with a preconditioner that carries
+    // smooth modes: PCG's own when it does (MAS), else a MAS instance kept for that alone.
+    if (!precond_->estimates_smooth_modes() && (opt.newton_rtol > 0 || opt.newton_atol > 0))
+      estimator_ = std::make_unique<MultilevelAdditiveSchwarz<Exec>>(n_, opt.mas_domain_size);
     Exec::resize(fixed_, n_);
     Exec::resize(kin_flag_, n_);
     Exec::resize(kin_target_, 3 * static_cast<size_t>(n_));
@@ -337,37 +342,55 @@ class Solver final : public SolverBase {
   StepStats step(const KinematicTargets& kin, bool quasi_static) override {
     const auto t0 = std::chrono::steady_clock::now();
     StepStats st;
+    StageTimes& T = st.stage;
     const double bp_seconds_at_start = self_ ? self_->broad_phase_seconds() : 0.0;
-    begin_step(kin, quasi_static);                    // lagged data, Dirichlet targets, predictor
+    timed(T.predictor, [&] { begin_step(kin, quasi_static); });   // lagged data, Dirichlet targets, predictor
+    bool gradient_known = false;                                    // g_ is the gradient at x (line search)
+    double scale = 0;                                               // the first Newton step's size, m/s
     for (int k = 0; k < opt_.newton_max_iters; ++k) {
-      select_contacts();                               // active self-contact pairs at x
-      assemble();                                      // gradient and PSD Hessian of L at x
-      st.pcg_iters += solve_linear();                  // dx = -H^-1 g (inexact)
-      find_contacts_along_step();                      // broad phase on the motion x -> x + dx
+      if (k > 0 && residual_rule() && converged(&st, k, gradient_known, scale)) break;  // residual small
+      timed(T.contacts, [&] { select_contacts(); });                // active self-contact pairs at x
       double e0 = 0;
-      const double alpha = line_search(max_step(), &e0);  // CCD cap, then Armijo backtracking
-      if (!std::isfinite(e0)) {                        // e.g. a target that tears the cloth apart
+      timed(T.assembly, [&] { e0 = assemble(); });                  // L, gradient and PSD Hessian at x
+      if (!std::isfinite(e0)) {                                     // e.g. a target that tears the cloth apart
         st.finite = false;
         break;
       }
-      axpy(alpha, dx_, x_);                            // x += alpha dx
+      if (k == 0 && residual_rule() && predictor_converged(&st)) break;  // nothing left to solve
+      timed(T.precond, [&] { prepare_linear_solve(); });            // contact couplings, preconditioner
+      timed(T.pcg, [&] { st.pcg_iters += solve_linear(); });        // dx = -H^-1 g (inexact)
+      timed(T.ccd, [&] { clip_step_at_table(); });                  // vertices landing on the table: cut
+      timed(T.contacts, [&] { find_contacts_along_step(); });       // broad phase on the motion x -> x + dx
+      double alpha_max = 1, alpha = 0;
+      timed(T.ccd, [&] { alpha_max = max_step(); });                // CCD: largest safe fraction of dx
+      timed(T.line_search, [&] { alpha = line_search(alpha_max, e0, &st.energy_evals); });  // Armijo backtracking
+      gradient_known = accept_step(alpha);                          // x += alpha dx
       st.newton_iters = k + 1;
       st.min_alpha = std::min(st.min_alpha, alpha);
-      // Converged when the Newton direction itself is small: a step cut short by CCD or the line
-      // search (alpha << 1) moves little without being at the minimum.
+      const double taken = alpha * rms_velocity(dx_);               // the correction just made, m/s
+      if (k == 0) scale = taken;
       st.step_norm = max_abs(dx_) / P_.h;
+      gd::log().trace("newton {}: step rms {:.3g} m/s (max |dx|/h {:.3g}), alpha {:.3g} (max {:.3g}), pcg {}, "
+                      "candidates {}, evaluations {}", k, taken, st.step_norm, alpha, alpha_max, st.pcg_iters, cand_.n,
+                      st.energy_evals);
+      if (k > 0 && residual_rule() && taken <= residual_threshold(scale) && !pressed()) {  // last correction small
+        st.converged = true;
+        break;
+      }
+      // Also converged when the Newton direction itself is small: a step cut short by CCD or the
+      // line search (alpha << 1) moves little without being at the minimum.
       if (st.step_norm < opt_.newton_tol) {
         st.converged = true;
         break;
       }
     }
-    end_step();                                        // v = (x - x_t)/h
-    if (self_) Exec::download(host_x_, x_);            // host copy for the two checks below
+    end_step();                                                     // v = (x - x_t)/h
+    if (self_) Exec::download(host_x_, x_);                         // host copy for the two checks below
     if (self_) st.min_self_distance = self_->min_active_distance(host_x_);
     st.max_grip_force = max_grip_force();
-    adapt_barrier_stiffness(st.min_self_distance);     // stiffer barriers if gaps got tiny
+    adapt_barrier_stiffness(st.min_self_distance);                  // stiffer barriers if gaps got tiny
     st.barrier_scale = kappa_scale_;
-    check_intersections(&st);                          // exact count; untangle if any (fail-safe)
+    check_intersections(&st);                                       // exact count; untangle if any (fail-safe)
     if (self_) {
       st.contacts = self_->active().size();
       st.candidates = self_->candidates().size();
@@ -504,6 +527,7 @@ class Solver final : public SolverBase {
     P_.h = opt_.dt;
     P_.quasi_static = quasi_static;
     P_.friction_eps = opt_.friction_eps_v * opt_.dt;
+    precond_ready_ = false;  // set up again at this step's first Newton iteration
     if (quasi_static) Exec::fill(v_, 0.0);
     copy(x_, x_t_);
     copy(v_, v_t_);
@@ -650,70 +674,208 @@ class Solver final : public SolverBase {
   /// the untangling fail-safe runs when there are any.
   void check_intersections(StepStats* st) {
     if (!self_ || !opt_.check_intersections) return;
-    st->intersecting_pairs = self_->count_intersections(host_x_);
+    timed(st->stage.intersections, [&] { st->intersecting_pairs = self_->count_intersections(host_x_); });
     st->intersecting_found = st->intersecting_pairs;
     if (st->intersecting_pairs > 0 && opt_.untangle) {
       st->untangled = true;
-      st->intersecting_pairs = self_->untangle(&host_x_, kin_fixed_host_);
+      timed(st->stage.untangle, [&] { st->intersecting_pairs = self_->untangle(&host_x_, kin_fixed_host_); });
       Exec::upload(x_, host_x_);
     }
   }
 
-  /// Gradient g_ and projected Hessian vals_ of L at x_. Dirichlet rows are left zero (identity
-  /// is implied in the matrix-vector product).
-  void assemble() {
-    Exec::fill(vals_, 0.0);
-    Exec::fill(g_, 0.0);
+  /// Runs f and adds its wall time to `seconds` (the backend's queued work included).
+  template <class F>
+  static void timed(double& seconds, F&& f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    f();
+    Exec::sync();
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+
+  /// Whether the residual stopping rule is on (SceneOptions::newton_rtol / newton_atol): in
+  /// dynamic steps. Quasi-static steps (Scene::relax, static validation) are solves for an
+  /// equilibrium, stopped by newton_tol and relax's own tolerance alone.
+  bool residual_rule() const { return !P_.quasi_static && (opt_.newton_rtol > 0 || opt_.newton_atol > 0); }
+  /// The velocity correction below which Newton stops, given the first Newton step's (m/s).
+  double residual_threshold(double first_step) const {
+    return std::max(opt_.newton_atol, opt_.newton_rtol * first_step);
+  }
+
+  /// Before Newton iteration k >= 1: whether the iterate is converged, judged by the correction its
+  /// gradient still asks for against the first step's `scale`: estimated with the last
+  /// preconditioner where it carries smooth modes (MAS: the next Newton step, P⁻¹g, without
+  /// assembling or solving), else bounded by residual_bound. The gradient comes from the line
+  /// search when it was computed there.
+  bool converged(StepStats* st, int k, bool gradient_known, double scale) {
+    if (!gradient_known) timed(st->stage.assembly, [&] { evaluate(x_, g_, false); });
+    Preconditioner<Exec>* estimator = estimator_ ? estimator_.get() : precond_.get();
+    if (precond_ready_ && estimator->estimates_smooth_modes()) {
+      timed(st->stage.pcg, [&] { estimator->apply(Exec::ptr(g_), Exec::ptr(z_)); });
+      st->residual = rms_velocity(z_);
+    } else {
+      st->residual = residual_bound();
+    }
+    st->converged = st->residual <= residual_threshold(scale) && !pressed();
+    gd::log().trace("newton {}: next correction {:.3g} m/s (first step {:.3g}){}", k, st->residual, scale,
+                    st->converged ? ", converged" : "");
+    return st->converged;
+  }
+
+  /// A self-contact pair pressed closer than kPressedGapFloors CCD floors while the barrier can
+  /// still stiffen: not converged whatever the residual says, so that stiffen_pressed_pairs gets
+  /// its next Newton iteration (the per-iteration guard against grips squeezing cloth through
+  /// cloth; validation case self/press).
+  bool pressed() {
+    if (!self_ || kappa_scale_ >= kKappaScaleMax) return false;
+    Exec::download(host_x_, x_);
+    return self_->min_active_distance(host_x_) < kPressedGapFloors * P_.ccd_floor;
+  }
+
+  /// After the first assembly: whether the predictor is already within newton_atol.
+  bool predictor_converged(StepStats* st) {
+    st->residual0 = st->residual = residual_bound();
+    st->converged = st->residual0 <= opt_.newton_atol;
+    return st->converged;
+  }
+
+  /// An upper bound of the velocity correction the gradient g_ still asks for: the Hessian is at
+  /// least M/h² (inertia; every other term is PSD), so the Newton correction d = -H⁻¹ g has
+  /// |d|_M <= h² |g|_M⁻¹, i.e. an RMS velocity of at most h |g|_M⁻¹ / sqrt(M), m/s. A safe test
+  /// (it never calls an unconverged iterate converged) that is tight where inertia dominates
+  /// (free flight, sliding, the predictor) and pessimistic for stiff membrane errors, which the
+  /// step test after each iteration catches instead.
+  double residual_bound() {
+    const detail::View V = view();
+    const double* g = Exec::ptr(g_);
+    const double num = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+      return V.fixed[i] ? 0.0 : detail::load3(g, i).squaredNorm() / V.mass[i];
+    });
+    return P_.h * std::sqrt(num / free_mass());
+  }
+
+  /// Total mass of the free vertices, kg.
+  double free_mass() {
+    const detail::View V = view();
+    const double m = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return V.fixed[i] ? 0.0 : V.mass[i]; });
+    return m > 0 ? m : 1.0;
+  }
+
+  /// Mass-weighted RMS of a displacement over the step, |d|_M / (h sqrt(M)) over the free
+  /// vertices, m/s.
+  double rms_velocity(const Vec<double>& d) {
+    const detail::View V = view();
+    const double* p = Exec::ptr(d);
+    const double num = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+      return V.fixed[i] ? 0.0 : V.mass[i] * detail::load3(p, i).squaredNorm();
+    });
+    return std::sqrt(num / free_mass()) / P_.h;
+  }
+
+  /// x += alpha dx, taking the line search's accepted trial point (bit for bit the state it
+  /// evaluated) and its gradient. Returns whether g_ now holds the gradient at the new x.
+  bool accept_step(double alpha) {
+    if (alpha == 0.0) return false;
+    if (alpha == last_trial_alpha_) {
+      std::swap(x_, x_trial_);
+      std::swap(g_, g_trial_);
+      return true;
+    }
+    axpy(alpha, dx_, x_);
+    return false;
+  }
+
+  /// L at x_ with its gradient g_ and projected Hessian vals_ (the active pairs' off-diagonal
+  /// blocks in act_H_/fr_H_).
+  double assemble() {
+    return evaluate(x_, g_, true);
+  }
+
+  /// L(xs), its gradient into gs and, when `hessian` (xs must be x_), the PSD-projected Hessian
+  /// into vals_. Dirichlet rows are left zero (identity is implied in the matrix-vector product).
+  /// Self-contact pairs: the active ones (selected at x_) with the Hessian, the candidates
+  /// otherwise (a line-search trial point: every pair within dhat of it is a candidate).
+  double evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessian) {
+    if (hessian) Exec::fill(vals_, 0.0);
+    Exec::fill(gs, 0.0);
     const detail::View V = view();
     const detail::Params P = P_;
-    const double* x = Exec::ptr(x_);
-    double* g = Exec::ptr(g_);
-    double* H = Exec::ptr(vals_);
-    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
-      if (V.fixed[i]) return;
+    const double* x = Exec::ptr(xs);
+    double* g = Exec::ptr(gs);
+    double* H = hessian ? Exec::ptr(vals_) : nullptr;
+    double e = Exec::sum_effects(n_, [=] GD_HD_LAMBDA(int i) {
+      if (V.fixed[i]) return 0.0;
       Vec3 gi;
       Mat3 Hi;
-      detail::vertex_terms(V, P, i, detail::load3(x, i), &gi, &Hi);
+      const double ei = detail::vertex_terms(V, P, i, detail::load3(x, i), &gi, H ? &Hi : nullptr);
       detail::store3(g, i, gi);
-      double* b = H + 9 * V.diag[i];
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) b[3 * r + c] = Hi(r, c);
+      if (H) {
+        double* b = H + 9 * V.diag[i];
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) b[3 * r + c] = Hi(r, c);
+      }
+      return ei;
     }, Exec::kParallelMinHeavy);
-    for_each_element(data_->tri_colors, V.nt, [=] GD_HD_LAMBDA(int t) {
+    e += sum_elements(data_->tri_colors, V.nt, [=] GD_HD_LAMBDA(int t) {
       Vec9 ge;
       Mat9 He;
-      detail::triangle_terms(V, P, t, x, &ge, &He);
+      const double et = detail::triangle_terms(V, P, t, x, &ge, H ? &He : nullptr);
       scatter<3>(V, V.tris + 3 * t, V.tri_slots + 9 * t, ge, He, g, H);
+      return et;
     });
-    for_each_element(data_->hinge_colors, V.nh, [=] GD_HD_LAMBDA(int h) {
+    e += sum_elements(data_->hinge_colors, V.nh, [=] GD_HD_LAMBDA(int h) {
       Vec12 ge;
       Mat12 He;
-      detail::hinge_terms(V, P, h, x, &ge, &He);
+      const double eh = detail::hinge_terms(V, P, h, x, &ge, H ? &He : nullptr);
       scatter<4>(V, V.hinges + 4 * h, V.hinge_slots + 16 * h, ge, He, g, H);
+      return eh;
     });
-    if (!self_) return;
-    // Contact pairs couple vertices outside the mesh pattern: their diagonal blocks go into the
-    // block matrix, their off-diagonal blocks stay with the pair (applied in spmv).
-    // Two passes per list: the pair terms in parallel into per-pair storage, then their gradient
-    // and diagonal blocks added into shared rows (serial on the CPU, atomics on the GPU).
+    if (self_) e += evaluate_pairs(x, g, H);
+    return e;
+  }
+
+  /// The self-contact pairs' share of evaluate(): the pair terms in parallel into per-pair storage,
+  /// then their gradient (and diagonal blocks) added into shared rows (serial on the CPU, atomics
+  /// on the GPU). The off-diagonal blocks stay with the pair until merge_pair_blocks.
+  double evaluate_pairs(const double* x, double* g, double* H) {
+    const detail::View V = view();
+    const detail::Params P = P_;
+    const bool want_h = H != nullptr;
+    const detail::PairView L = want_h ? V.act : V.cand;
+    if (!want_h && cand_gd_.size() < 48 * static_cast<size_t>(L.n)) Exec::resize(cand_gd_, 48 * static_cast<size_t>(L.n));
+    if (live_.size() < static_cast<size_t>(std::max(L.n, V.n_fr))) Exec::resize(live_, static_cast<size_t>(std::max(L.n, V.n_fr)));
+    int* live = Exec::ptr(live_);  // candidates beyond dhat (most of them) add nothing
     double* HA = Exec::ptr(act_H_);
     double* HF = Exec::ptr(fr_H_);
-    double* GA = Exec::ptr(act_gd_);
+    double* GA = want_h ? Exec::ptr(act_gd_) : Exec::ptr(cand_gd_);
     double* GF = Exec::ptr(fr_gd_);
-    Exec::for_each(V.act.n, [=] GD_HD_LAMBDA(int c) {
+    double e = Exec::sum_effects(L.n, [=] GD_HD_LAMBDA(int c) {
+      const int* vs = L.v + 4 * c;
+      live[c] = 0;
+      if (V.fixed[vs[0]] && V.fixed[vs[1]] && V.fixed[vs[2]] && V.fixed[vs[3]]) {  // as select_active: no free vertex
+        if (want_h)
+          for (int k = 0; k < 144; ++k) HA[144 * c + k] = 0.0;
+        return 0.0;
+      }
       Vec12 ge;
       Mat12 He;
-      detail::pair_barrier(P, V.act, c, x, &ge, &He);
-      store_pair(V, V.act.v + 4 * c, ge, He, HA + 144 * c, GA + 48 * c);
+      const double ec = detail::pair_barrier(P, L, c, x, &ge, want_h ? &He : nullptr);
+      if (ec == 0.0 && !want_h) return 0.0;  // beyond dhat: no gradient
+      live[c] = 1;
+      store_pair(V, L.v + 4 * c, ge, want_h ? &He : nullptr, HA + 144 * c, GA + 48 * c);
+      return ec;
     }, Exec::kParallelMinHeavy);
-    Exec::for_each(V.n_fr, [=] GD_HD_LAMBDA(int k) {
+    e += Exec::sum_effects(V.n_fr, [=] GD_HD_LAMBDA(int k) {
       Vec12 ge;
       Mat12 He;
-      detail::pair_friction(V, P, k, x, &ge, &He);
-      store_pair(V, V.fr_v + 4 * k, ge, He, HF + 144 * k, GF + 48 * k);
+      const double ek = detail::pair_friction(V, P, k, x, &ge, want_h ? &He : nullptr);
+      store_pair(V, V.fr_v + 4 * k, ge, want_h ? &He : nullptr, HF + 144 * k, GF + 48 * k);
+      return ek;
     }, Exec::kParallelMinHeavy);
-    Exec::for_each(V.act.n, [=] GD_HD_LAMBDA(int c) { add_pair(V, V.act.v + 4 * c, GA + 48 * c, g, H); }, kSerialOnCpu);
+    Exec::for_each(L.n, [=] GD_HD_LAMBDA(int c) {
+      if (live[c]) add_pair(V, L.v + 4 * c, GA + 48 * c, g, H);
+    }, kSerialOnCpu);
     Exec::for_each(V.n_fr, [=] GD_HD_LAMBDA(int k) { add_pair(V, V.fr_v + 4 * k, GF + 48 * k, g, H); }, kSerialOnCpu);
+    return e;
   }
 
   /// Loops that add into shared rows without colouring: serial on the CPU, atomics on the GPU.
@@ -722,11 +884,13 @@ class Solver final : public SolverBase {
   /// Splits a pair's gradient and Hessian (Dirichlet rows/columns dropped): off-diagonal blocks
   /// into Hpair (row-major 12x12, diagonal blocks zero), gradient and diagonal blocks into gd
   /// (12 + 4 x 9 values) for add_pair.
-  GD_HD static void store_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12& He,
+  GD_HD static void store_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12* Hp,
                                double* Hpair, double* gd) {
     for (int a = 0; a < 4; ++a) {
       const bool fa = V.fixed[vs[a]];
       for (int c = 0; c < 3; ++c) gd[3 * a + c] = fa ? 0.0 : ge(3 * a + c);
+      if (!Hp) continue;
+      const Mat12& He = *Hp;
       for (int b = 0; b < 4; ++b) {
         const bool keep = !fa && !V.fixed[vs[b]];
         for (int r = 0; r < 3; ++r)
@@ -739,11 +903,13 @@ class Solver final : public SolverBase {
     }
   }
 
-  /// Adds a stored pair's gradient and diagonal blocks into g and the block matrix.
+  /// Adds a stored pair's gradient and diagonal blocks into g and the block matrix (H null: the
+  /// gradient only).
   GD_HD static void add_pair(const detail::View& V, const int* vs, const double* gd, double* g, double* H) {
     for (int a = 0; a < 4; ++a) {
       if (V.fixed[vs[a]]) continue;
       for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, gd[3 * a + c]);
+      if (!H) continue;
       double* blk = H + 9 * V.diag[vs[a]];
       for (int k = 0; k < 9; ++k) Exec::add(blk + k, gd[12 + 9 * a + k]);
     }
@@ -755,6 +921,7 @@ class Solver final : public SolverBase {
     for (int a = 0; a < K; ++a) {
       if (V.fixed[vs[a]]) continue;
       for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, ge(3 * a + c));
+      if (!H) continue;
       for (int b = 0; b < K; ++b) {
         if (V.fixed[vs[b]]) continue;
         double* blk = H + 9 * slots[K * a + b];
@@ -764,40 +931,22 @@ class Solver final : public SolverBase {
     }
   }
 
-  /// Runs an element loop: colour by colour on the CPU, all at once with atomics on the GPU.
+  /// Sum of f over an element loop that scatters into shared rows: colour by colour on the CPU,
+  /// all at once with atomics on the GPU.
   template <class F>
-  void for_each_element(const Coloring& coloring, int count, const F& f) {
+  double sum_elements(const Coloring& coloring, int count, const F& f) {
     if constexpr (Exec::kColoring) {
       const int* order = coloring.order.data();
+      double e = 0;
       for (int c = 0; c < coloring.colors(); ++c) {
         const int begin = coloring.offsets[c];
-        Exec::for_each(coloring.offsets[c + 1] - begin, [=](int k) { f(order[begin + k]); }, Exec::kParallelMinHeavy);
+        e += Exec::sum_effects(coloring.offsets[c + 1] - begin, [=](int k) { return f(order[begin + k]); },
+                               Exec::kParallelMinHeavy);
       }
+      return e;
     } else {
-      Exec::for_each(count, f, Exec::kParallelMinHeavy);
+      return Exec::sum_effects(count, f, Exec::kParallelMinHeavy);
     }
-  }
-
-  /// L(x) at the given positions (infinite if a vertex is on or below the table).
-  double objective(const Vec<double>& xs) {
-    const detail::View V = view();
-    const detail::Params P = P_;
-    const double* x = Exec::ptr(xs);
-    double e = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
-      return V.fixed[i] ? 0.0 : detail::vertex_terms(V, P, i, detail::load3(x, i), nullptr, nullptr);
-    }, Exec::kParallelMinHeavy);
-    e += Exec::sum(V.nt, [=] GD_HD_LAMBDA(int t) { return detail::triangle_terms(V, P, t, x, nullptr, nullptr); },
-                   Exec::kParallelMinHeavy);
-    e += Exec::sum(V.nh, [=] GD_HD_LAMBDA(int h) { return detail::hinge_terms(V, P, h, x, nullptr, nullptr); },
-                   Exec::kParallelMinHeavy);
-    if (self_) {
-      e += Exec::sum(V.cand.n, [=] GD_HD_LAMBDA(int c) {
-        return detail::pair_barrier(P, V.cand, c, x, nullptr, nullptr);
-      }, Exec::kParallelMinHeavy);
-      e += Exec::sum(V.n_fr, [=] GD_HD_LAMBDA(int k) { return detail::pair_friction(V, P, k, x, nullptr, nullptr); },
-                     Exec::kParallelMinHeavy);
-    }
-    return e;
   }
 
   /// y = A x over free vertices (Dirichlet rows and columns act as identity / zero).
@@ -806,119 +955,125 @@ class Solver final : public SolverBase {
     const double* x = Exec::ptr(xs);
     const double* A = Exec::ptr(vals_);
     double* y = Exec::ptr(ys);
+    const bool couplings = self_ != nullptr;
+    const int* crp = Exec::ptr(cpl_row_ptr_);
+    const int* ccols = Exec::ptr(cpl_cols_);
+    const double* cvals = Exec::ptr(cpl_vals_);
     Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
-      Vec3 acc = Vec3::Zero();
+      double acc[3] = {0, 0, 0};
       if (V.fixed[i]) {
-        acc = detail::load3(x, i);
-      } else {
-        for (int k = V.row_ptr[i]; k < V.row_ptr[i + 1]; ++k) {
-          const int j = V.cols[k];
-          if (V.fixed[j]) continue;
-          const double* b = A + 9 * k;
-          const Vec3 xj = detail::load3(x, j);
-          acc.x() += b[0] * xj.x() + b[1] * xj.y() + b[2] * xj.z();
-          acc.y() += b[3] * xj.x() + b[4] * xj.y() + b[5] * xj.z();
-          acc.z() += b[6] * xj.x() + b[7] * xj.y() + b[8] * xj.z();
-        }
+        detail::store3(y, i, detail::load3(x, i));
+        return;
       }
-      detail::store3(y, i, acc);
+      auto add_row = [&](const int* rp, const int* cols, const double* vals) {
+        for (int k = rp[i]; k < rp[i + 1]; ++k) {
+          const int j = cols[k];
+          if (V.fixed[j]) continue;
+          const double* b = vals + 9 * k;
+          const double* xj = x + 3 * j;
+          for (int r = 0; r < 3; ++r) acc[r] += b[3 * r] * xj[0] + b[3 * r + 1] * xj[1] + b[3 * r + 2] * xj[2];
+        }
+      };
+      add_row(V.row_ptr, V.cols, A);
+      if (couplings) add_row(crp, ccols, cvals);  // contact pairs' off-diagonal blocks
+      y[3 * i] = acc[0], y[3 * i + 1] = acc[1], y[3 * i + 2] = acc[2];
     }, Exec::kParallelMinHeavy);
-    if (!self_) return;
-    if constexpr (std::is_same_v<Exec, CpuExec>) {
-      coupling_spmv(x, y);
-    } else {
-      pair_spmv(V.act.n, V.act.v, Exec::ptr(act_H_), x, y);
-      pair_spmv(V.n_fr, V.fr_v, Exec::ptr(fr_H_), x, y);
-    }
   }
 
-  /// CPU: the pairs' off-diagonal blocks summed per coupled (row, column) vertex pair into a
-  /// block CSR, once per linear solve. The layers of a garment lying flat make ~8 contact pairs
-  /// per vertex that share most of their vertex pairs, so each PCG iteration then touches every
-  /// coupling once instead of once per pair that contains it (the GPU keeps pair_spmv).
+  /// The pairs' off-diagonal blocks summed per coupled (row, column) vertex pair into a block CSR
+  /// (cpl_*), once per linear solve, on the host. The layers of a garment lying flat make ~8
+  /// contact pairs per vertex that share most of their vertex pairs, so each PCG iteration then
+  /// touches every coupling once instead of once per pair that contains it, rows are gathered
+  /// without atomics, and the preconditioner sees the couplings as a matrix. (On CUDA the pairs'
+  /// Hessians travel to the host and the CSR back: a device-side merge is still to come.)
   void merge_pair_blocks() {
-    const detail::View V = view();
+    const ContactPairs& act = self_->active();
+    const FrictionPairs& fr = self_->friction();
+    const double* HA = nullptr;
+    const double* HF = nullptr;
+    if constexpr (std::is_same_v<Exec, CpuExec>) {
+      HA = act_H_.data();
+      HF = fr_H_.data();
+    } else {
+      Exec::download(host_act_H_, act_H_);
+      Exec::download(host_fr_H_, fr_H_);
+      HA = host_act_H_.data();
+      HF = host_fr_H_.data();
+    }
+    const int* fixed = kin_fixed_host_.data();
     struct Ref {
       int col;
       const double* block;  // 3x3 at stride 12 in a pair's 12x12
     };
-    cpl_row_ptr_.assign(n_ + 1, 0);
+    std::vector<int>& row_ptr = cpl_row_ptr_h_;
+    row_ptr.assign(n_ + 1, 0);
     auto each_block = [&](int count, const int* vs_all, const double* Hs, auto&& f) {
       for (int c = 0; c < count; ++c) {
         const int* vs = vs_all + 4 * c;
         for (int a = 0; a < 4; ++a) {
-          if (V.fixed[vs[a]]) continue;
+          if (fixed[vs[a]]) continue;
           for (int b = 0; b < 4; ++b)
-            if (b != a && !V.fixed[vs[b]]) f(vs[a], vs[b], Hs + 144 * c + 36 * a + 3 * b);
+            if (b != a && !fixed[vs[b]]) f(vs[a], vs[b], Hs + 144 * c + 36 * a + 3 * b);
         }
       }
     };
     auto each_pair_block = [&](auto&& f) {
-      each_block(V.act.n, V.act.v, Exec::ptr(act_H_), f);
-      each_block(V.n_fr, V.fr_v, Exec::ptr(fr_H_), f);
+      each_block(act.size(), act.v.data(), HA, f);
+      each_block(fr.size(), fr.v.data(), HF, f);
     };
-    each_pair_block([&](int row, int, const double*) { ++cpl_row_ptr_[row + 1]; });
-    for (int i = 0; i < n_; ++i) cpl_row_ptr_[i + 1] += cpl_row_ptr_[i];
-    std::vector<Ref> refs(cpl_row_ptr_[n_]);
-    std::vector<int> cursor(cpl_row_ptr_.begin(), cpl_row_ptr_.end() - 1);
+    each_pair_block([&](int row, int, const double*) { ++row_ptr[row + 1]; });
+    for (int i = 0; i < n_; ++i) row_ptr[i + 1] += row_ptr[i];
+    std::vector<Ref> refs(row_ptr[n_]);
+    std::vector<int> cursor(row_ptr.begin(), row_ptr.end() - 1);
     each_pair_block([&](int row, int col, const double* blk) { refs[cursor[row]++] = {col, blk}; });
     // Per row: one block per distinct column (cpl_slot_ marks the columns seen in this row), the
     // blocks of equal columns summed in pair order.
-    cpl_cols_.clear();
-    cpl_vals_.clear();
+    std::vector<int>& cols = cpl_cols_h_;
+    std::vector<double>& vals = cpl_vals_h_;
+    cols.clear();
+    vals.clear();
     cpl_slot_.assign(n_, -1);
     int out_begin = 0;
     for (int i = 0; i < n_; ++i) {
-      for (int e = cpl_row_ptr_[i]; e < cpl_row_ptr_[i + 1]; ++e) {
+      for (int e = row_ptr[i]; e < row_ptr[i + 1]; ++e) {
         const Ref& ref = refs[e];
         int& slot = cpl_slot_[ref.col];
         if (slot < out_begin) {  // first in this row (slots of earlier rows are smaller)
-          slot = static_cast<int>(cpl_cols_.size());
-          cpl_cols_.push_back(ref.col);
-          cpl_vals_.resize(cpl_vals_.size() + 9, 0.0);
+          slot = static_cast<int>(cols.size());
+          cols.push_back(ref.col);
+          vals.resize(vals.size() + 9, 0.0);
         }
-        double* dst = cpl_vals_.data() + 9 * static_cast<size_t>(slot);
+        double* dst = vals.data() + 9 * static_cast<size_t>(slot);
         for (int r = 0; r < 3; ++r)
           for (int k = 0; k < 3; ++k) dst[3 * r + k] += ref.block[12 * r + k];
       }
-      cpl_row_ptr_[i] = out_begin;
-      out_begin = static_cast<int>(cpl_cols_.size());
+      row_ptr[i] = out_begin;
+      out_begin = static_cast<int>(cols.size());
     }
-    cpl_row_ptr_[n_] = out_begin;
+    row_ptr[n_] = out_begin;
+    if (cols.empty()) {  // keep the pointers valid
+      cols.push_back(0);
+      vals.resize(9, 0.0);
+    }
+    Exec::take(cpl_row_ptr_, row_ptr);
+    Exec::take(cpl_cols_, cols);
+    Exec::take(cpl_vals_, vals);
   }
 
-  /// CPU: y += (merged pair couplings) x, row-parallel (see merge_pair_blocks).
-  void coupling_spmv(const double* x, double* y) {
-    const int* rp = cpl_row_ptr_.data();
-    const int* cols = cpl_cols_.data();
-    const double* B = cpl_vals_.data();
-    Exec::for_each(n_, [=](int i) {
-      double acc[3] = {0, 0, 0};
-      for (int k = rp[i]; k < rp[i + 1]; ++k) {
-        const double* b = B + 9 * k;
-        const double* xj = x + 3 * cols[k];
-        for (int r = 0; r < 3; ++r) acc[r] += b[3 * r] * xj[0] + b[3 * r + 1] * xj[1] + b[3 * r + 2] * xj[2];
-      }
-      for (int r = 0; r < 3; ++r) y[3 * i + r] += acc[r];
-    }, Exec::kParallelMinHeavy);
-  }
-
-  /// y += (off-diagonal blocks of the pairs' Hessians) x.
-  void pair_spmv(int count, const int* vs_all, const double* Hs, const double* x, double* y) {
-    const detail::View V = view();
-    Exec::for_each(count, [=] GD_HD_LAMBDA(int c) {
-      const int* vs = vs_all + 4 * c;
-      const double* Hc = Hs + 144 * c;
-      for (int a = 0; a < 4; ++a) {
-        if (V.fixed[vs[a]]) continue;
-        for (int r = 0; r < 3; ++r) {
-          double acc = 0;
-          for (int b = 0; b < 4; ++b)
-            for (int k = 0; k < 3; ++k) acc += Hc[36 * a + 12 * r + 3 * b + k] * x[3 * vs[b] + k];
-          Exec::add(y + 3 * vs[a] + r, acc);
-        }
-      }
-    }, kSerialOnCpu);
+  /// Before a linear solve: the contact couplings as a matrix, then the preconditioner's setup.
+  void prepare_linear_solve() {
+    if (opt_.linear_solver == LinearSolverKind::kDirect && std::is_same_v<Exec, CpuExec>) return;
+    if (self_) merge_pair_blocks();
+    BlockMatrixView A{n_, Exec::ptr(row_ptr_), Exec::ptr(cols_), Exec::ptr(diag_), Exec::ptr(vals_), Exec::ptr(fixed_)};
+    if (self_) {
+      A.cpl_row_ptr = Exec::ptr(cpl_row_ptr_);
+      A.cpl_cols = Exec::ptr(cpl_cols_);
+      A.cpl_vals = Exec::ptr(cpl_vals_);
+    }
+    A.x = Exec::ptr(x_);
+    precond_->setup(A);
+    if (estimator_) estimator_->setup(A);
+    precond_ready_ = true;
   }
 
   /// Solves H dx = -g. Returns the iterations spent (1 for the direct solver).
@@ -929,12 +1084,8 @@ class Solver final : public SolverBase {
     return solve_pcg();
   }
 
+  /// PCG on H dx = -g with the preconditioner set up by prepare_linear_solve.
   int solve_pcg() {
-    precond_->setup(BlockMatrixView{n_, Exec::ptr(row_ptr_), Exec::ptr(cols_), Exec::ptr(diag_), Exec::ptr(vals_),
-                                    Exec::ptr(fixed_)});
-    if constexpr (std::is_same_v<Exec, CpuExec>) {
-      if (self_) merge_pair_blocks();
-    }
     Exec::fill(dx_, 0.0);
     copy(g_, r_);
     scale(-1.0, r_);  // r = -g (free rows; Dirichlet rows of g are zero)
@@ -1005,7 +1156,15 @@ class Solver final : public SolverBase {
       ldlt_.factorize(A);
       Eigen::Map<const Eigen::VectorXd> g(g_.data(), 3 * n_);
       Eigen::Map<Eigen::VectorXd> dx(dx_.data(), 3 * n_);
-      if (ldlt_.info() != Eigen::Success) return solve_pcg();
+      if (ldlt_.info() != Eigen::Success) {
+        if (self_) merge_pair_blocks();
+        BlockMatrixView A{n_, Exec::ptr(row_ptr_), Exec::ptr(cols_), Exec::ptr(diag_), Exec::ptr(vals_),
+                          Exec::ptr(fixed_)};
+        if (self_) A.cpl_row_ptr = cpl_row_ptr_.data(), A.cpl_cols = cpl_cols_.data(), A.cpl_vals = cpl_vals_.data();
+        A.x = x_.data();
+        precond_->setup(A);
+        return solve_pcg();
+      }
       dx = ldlt_.solve(-g);
       return 1;
     } else {
@@ -1038,6 +1197,31 @@ class Solver final : public SolverBase {
       return worst;
     }, Exec::kParallelMinHeavy);
     return inv > 1.0 ? 1.0 / inv : 1.0;
+  }
+
+  /// The table bound per vertex instead of for the whole step: each free vertex's motion towards
+  /// the table is cut to 90% of its height (its motion along the table is kept), so a few
+  /// vertices landing do not shorten every other vertex's step (the line search then checks the
+  /// cut direction). Kept only when the cut direction still descends; otherwise dx is restored
+  /// and table_ccd_bound scales the whole step as before.
+  void clip_step_at_table() {
+    if (!P_.table) return;
+    const detail::View V = view();
+    const detail::Params P = P_;
+    const double* x = Exec::ptr(x_);
+    double* dx = Exec::ptr(dx_);
+    double* saved = Exec::ptr(z_);  // free after PCG
+    const double clipped = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+      for (int c = 0; c < 3; ++c) saved[3 * i + c] = dx[3 * i + c];
+      if (V.fixed[i]) return 0.0;
+      const Real d = P.table_n.dot(detail::load3(x, i)) - P.table_offset;
+      const Vec3 step = detail::load3(dx, i);
+      const Real dn = P.table_n.dot(step);
+      if (dn >= -0.9 * d) return 0.0;
+      detail::store3(dx, i, step + (-0.9 * d - dn) * P.table_n);
+      return 1.0;
+    });
+    if (clipped > 0 && !(dot(g_, dx_) < 0)) copy(z_, dx_);
   }
 
   /// Largest step fraction keeping every free vertex at least 10% of its distance above the
@@ -1086,18 +1270,22 @@ class Solver final : public SolverBase {
     return inv > 1.0 ? 1.0 / inv : 1.0;
   }
 
-  /// Backtracking (Armijo) from alpha_max; returns the accepted step fraction.
-  double line_search(double alpha_max, double* e_start) {
-    const double e0 = objective(x_);
-    *e_start = e0;
-    if (!std::isfinite(e0)) return 0.0;
+  /// Backtracking (Armijo) from alpha_max, given L(x) = e0; returns the accepted step fraction.
+  /// Each trial also computes the gradient there (g_trial_): the next Newton iteration's residual
+  /// check then needs no pass of its own. evals counts the evaluations.
+  double line_search(double alpha_max, double e0, int* evals) {
+    last_trial_alpha_ = -1;
     const double slope = dot(g_, dx_);
     double alpha = alpha_max;
     for (int k = 0; k < 20; ++k) {
       copy(x_, x_trial_);
       axpy(alpha, dx_, x_trial_);
-      const double e = objective(x_trial_);
-      if (std::isfinite(e) && e <= e0 + 1e-4 * alpha * std::min(slope, 0.0)) return alpha;
+      const double e = evaluate(x_trial_, g_trial_, false);
+      ++*evals;
+      if (std::isfinite(e) && e <= e0 + 1e-4 * alpha * std::min(slope, 0.0)) {
+        last_trial_alpha_ = alpha;
+        return alpha;
+      }
       alpha *= 0.5;
     }
     return 0.0;
@@ -1165,6 +1353,7 @@ class Solver final : public SolverBase {
   Vec<double> f_ext_;
   Vec<double> x_, v_, x_t_, v_t_, g_, dx_, r_, z_, p_, ap_, x_trial_, vals_, kin_target_;
   std::unique_ptr<Preconditioner<Exec>> precond_;
+  std::unique_ptr<Preconditioner<Exec>> estimator_;  ///< MAS for the stopping rule when PCG's is not
   std::vector<int> kin_fixed_host_;
   // self-contact (host bookkeeping, device pair lists)
   std::unique_ptr<SelfContact> self_;
@@ -1203,9 +1392,17 @@ class Solver final : public SolverBase {
   Vec<int> fr_v_;
   Vec<double> act_H_, fr_w_, fr_T_, fr_lambda_, fr_H_;
   Vec<double> act_gd_, fr_gd_;  ///< per pair: gradient (12) and diagonal blocks (4 x 9), see store_pair
-  /// CPU: the contact pairs' off-diagonal blocks merged per vertex pair (merge_pair_blocks).
-  std::vector<int> cpl_row_ptr_, cpl_cols_, cpl_slot_;
-  std::vector<double> cpl_vals_;
+  /// The contact pairs' off-diagonal blocks merged per vertex pair (merge_pair_blocks): built on
+  /// the host (*_h_), handed to the backend.
+  std::vector<int> cpl_row_ptr_h_, cpl_cols_h_, cpl_slot_;
+  std::vector<double> cpl_vals_h_, host_act_H_, host_fr_H_;
+  Vec<int> cpl_row_ptr_, cpl_cols_;
+  Vec<double> cpl_vals_;
+  bool precond_ready_ = false;  ///< precond_ was set up in this step (not with the direct solver)
+  /// The step fraction of the line search's accepted trial (accept_step swaps it in).
+  double last_trial_alpha_ = -1;
+  Vec<double> g_trial_, cand_gd_;  ///< gradient at the trial point; candidate pairs' gradients
+  Vec<int> live_;                  ///< per pair of the last evaluate_pairs: whether it added anything
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   bool ldlt_analyzed_ = false;
 };

@@ -7,6 +7,8 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <numeric>
 #include <vector>
 
 namespace gd::sim {
@@ -54,6 +56,12 @@ struct CpuExec {
     return s;
   }
 
+  /// Sum of f(i) over [0, n) where f also writes memory (each i evaluated exactly once).
+  template <class F>
+  static double sum_effects(int n, const F& f, int parallel_min = kParallelMin) {
+    return sum(n, f, parallel_min);
+  }
+
   /// Maximum of f(i) over [0, n) (0 for n == 0).
   template <class F>
   static double max(int n, const F& f, int parallel_min = kParallelMin) {
@@ -65,6 +73,22 @@ struct CpuExec {
 
   /// Add into memory owned by the current element's colour (exclusive by construction).
   static inline void add(double* p, double v) { *p += v; }
+
+  /// Sorts 64-bit keys ascending.
+  static void sort(Vector<uint64_t>& v) { std::sort(v.begin(), v.end()); }
+  /// In-place exclusive prefix sum of v[0, count).
+  template <class T>
+  static void exclusive_scan(Vector<T>& v, int count) {
+    std::exclusive_scan(v.begin(), v.begin() + count, v.begin(), T{0});
+  }
+  /// One element, read back to the host.
+  template <class T>
+  static T read(const Vector<T>& v, size_t i) { return v[i]; }
+  /// A host vector handed to the backend (the CPU takes it as it is; its old contents come back).
+  template <class T>
+  static void take(Vector<T>& dst, std::vector<T>& src) { dst.swap(src); }
+  /// Waits for queued work (stage timers); nothing is queued on the CPU.
+  static void sync() {}
 
 };
 

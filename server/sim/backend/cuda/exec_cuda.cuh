@@ -7,9 +7,13 @@
 #include <thrust/execution_policy.h>
 #include <thrust/fill.h>
 #include <thrust/functional.h>
+#include <thrust/reduce.h>
 #include <thrust/iterator/counting_iterator.h>
+#include <thrust/scan.h>
+#include <thrust/sort.h>
 #include <thrust/transform_reduce.h>
 
+#include <cstdint>
 #include <vector>
 
 namespace gd::sim {
@@ -60,6 +64,17 @@ struct CudaExec {
                                     f, 0.0, thrust::plus<double>());
   }
 
+  /// Sum of f(i) where f also writes memory: thrust's reductions may evaluate an element more
+  /// than once, so each value goes to a buffer first (one kernel), then a plain reduction.
+  template <class F>
+  static double sum_effects(int n, const F& f, int /*parallel_min*/ = 0) {
+    if (n <= 0) return 0.0;
+    thrust::device_vector<double> values(n);
+    double* out = thrust::raw_pointer_cast(values.data());
+    for_each(n, [=] __host__ __device__(int i) { out[i] = f(i); });
+    return thrust::reduce(thrust::device, values.begin(), values.end(), 0.0);
+  }
+
   template <class F>
   static double max(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
@@ -75,6 +90,16 @@ struct CudaExec {
 #endif
   }
 
+  static void sort(Vector<uint64_t>& v) { thrust::sort(thrust::device, v.begin(), v.end()); }
+  template <class T>
+  static void exclusive_scan(Vector<T>& v, int count) {
+    thrust::exclusive_scan(thrust::device, v.begin(), v.begin() + count, v.begin());
+  }
+  template <class T>
+  static T read(const Vector<T>& v, size_t i) { return v[i]; }
+  template <class T>
+  static void take(Vector<T>& dst, std::vector<T>& src) { upload(dst, src); }
+  static void sync() { cudaDeviceSynchronize(); }
 };
 
 }  // namespace gd::sim

@@ -1,0 +1,434 @@
+#pragma once
+/// \file
+/// Multilevel additive Schwarz (MAS) preconditioner after Wu, Wang and Wang 2022 ("A GPU-based
+/// multilevel additive Schwarz preconditioner for cloth and deformable body simulation", ACM TOG
+/// 41(4)), written once over the execution policy (CPU: OpenMP loops, CUDA: one thread per
+/// domain) like the rest of the solver.
+///
+/// Hierarchy, rebuilt at every setup (once per Newton iteration) from the assembled matrix:
+/// - Level 0: the free vertices sorted by the Morton code of their current positions; domains
+///   are runs of B consecutive vertices (B = 32 by default, a warp).
+/// - Level l+1: inside each level-l domain, the nodes joined by a nonzero block of the matrix
+///   (the mesh's and the contact couplings') form connected pieces; each piece becomes one node
+///   of level l+1 (a supernode: the set of original vertices below it). Level l+1's domains are
+///   again runs of B consecutive nodes. Levels stop when one domain holds every node.
+/// - Each level's matrix is the Galerkin aggregate R_l A R_lᵀ (R_l sums the rows of a node's
+///   vertices); each domain gets the dense (3B x 3B) block of it, Cholesky-factored.
+/// Apply: z = Σ_l R_lᵀ D_l⁻¹ R_l r (restrict, per-domain dense solve, prolong, sum over levels):
+/// symmetric and positive definite, so PCG can use it.
+///
+/// Every level keeps its nodes' vertices as one permutation of the vertices (`members`) with
+/// offsets: a domain's vertices are a contiguous range of it, so building the next level, the
+/// dense blocks and the restriction are gathers, parallel over domains or nodes, with no atomics
+/// and a deterministic result.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "sim/demand.h"
+#include "sim/solver/preconditioner.h"
+
+namespace gd::sim {
+
+namespace mas_detail {
+
+/// Spreads the low 10 bits of v so that bit k lands at bit 3k (Morton interleave).
+GD_HD uint64_t spread_bits(uint64_t v) {
+  v &= 0x3ff;
+  v = (v | (v << 16)) & 0x30000ff;
+  v = (v | (v << 8)) & 0x300f00f;
+  v = (v | (v << 4)) & 0x30c30c3;
+  v = (v | (v << 2)) & 0x9249249;
+  return v;
+}
+
+/// 30-bit Morton code of a point inside the cube [lo, lo + size]^3.
+GD_HD uint64_t morton_code(const double* p, const double* lo, double inv_size) {
+  uint64_t c[3];
+  for (int k = 0; k < 3; ++k) {
+    double u = (p[k] - lo[k]) * inv_size * 1023.0;
+    u = u < 0 ? 0 : (u > 1023.0 ? 1023.0 : u);
+    c[k] = static_cast<uint64_t>(u);
+  }
+  return spread_bits(c[0]) | (spread_bits(c[1]) << 1) | (spread_bits(c[2]) << 2);
+}
+
+/// In-place Cholesky factorisation of the symmetric m x m row-major matrix A (lower triangle
+/// read and overwritten with L, A = L Lᵀ). A pivot that is not positive (rounding in a nearly
+/// singular aggregate) is replaced by its row's diagonal entry or 1, so the factor stays usable as
+/// a preconditioner. Returns the number of pivots so replaced.
+GD_HD int cholesky_in_place(double* A, int m) {
+  int fixed = 0;
+  for (int j = 0; j < m; ++j) {
+    double* rj = A + static_cast<size_t>(j) * m;
+    double s = rj[j];
+    for (int k = 0; k < j; ++k) s -= rj[k] * rj[k];
+    if (!(s > 1e-12 * fabs(rj[j]))) {
+      s = fabs(rj[j]) > 0 ? fabs(rj[j]) : 1.0;
+      ++fixed;
+    }
+    const double d = sqrt(s);
+    rj[j] = d;
+    const double inv = 1.0 / d;
+    for (int i = j + 1; i < m; ++i) {
+      double* ri = A + static_cast<size_t>(i) * m;
+      double t = ri[j];
+      for (int k = 0; k < j; ++k) t -= ri[k] * rj[k];
+      ri[j] = t * inv;
+    }
+  }
+  return fixed;
+}
+
+/// Packs the lower triangle of a row-major m x m factor into single precision, row by row (row i
+/// at i (i + 1) / 2), with the reciprocals of the diagonal in place of the diagonal (the solves
+/// then multiply instead of dividing). L Lᵀ of the rounded factor is still symmetric positive
+/// definite, and the apply reads a quarter of the bytes of the double factor.
+GD_HD void pack_lower(const double* L, int m, float* P) {
+  for (int i = 0; i < m; ++i) {
+    float* row = P + i * (i + 1) / 2;
+    for (int k = 0; k < i; ++k) row[k] = static_cast<float>(L[static_cast<size_t>(i) * m + k]);
+    row[i] = static_cast<float>(1.0 / L[static_cast<size_t>(i) * m + i]);
+  }
+}
+
+/// Solves L Lᵀ y = b in place (b overwritten by y) with a factor packed by pack_lower. The
+/// forward pass keeps four partial sums (a single running sum is bound by its latency); the
+/// backward pass scatters row i of L once y_i is known (independent updates).
+GD_HD void cholesky_solve_packed(const float* __restrict__ P, int m, double* __restrict__ b) {
+  for (int i = 0; i < m; ++i) {  // L u = b
+    const float* __restrict__ ri = P + i * (i + 1) / 2;
+    double t0 = 0, t1 = 0, t2 = 0, t3 = 0;
+    int k = 0;
+    for (; k + 4 <= i; k += 4) {
+      t0 += ri[k] * b[k];
+      t1 += ri[k + 1] * b[k + 1];
+      t2 += ri[k + 2] * b[k + 2];
+      t3 += ri[k + 3] * b[k + 3];
+    }
+    for (; k < i; ++k) t0 += ri[k] * b[k];
+    b[i] = (b[i] - ((t0 + t1) + (t2 + t3))) * ri[i];
+  }
+  for (int i = m - 1; i >= 0; --i) {  // Lᵀ y = u
+    const float* __restrict__ ri = P + i * (i + 1) / 2;
+    const double yi = b[i] * ri[i];
+    b[i] = yi;
+    for (int k = 0; k < i; ++k) b[k] -= ri[k] * yi;
+  }
+}
+
+/// One level of the hierarchy, as raw pointers for kernels.
+struct LevelView {
+  int nodes = 0, domains = 0;
+  const int* node_of;  ///< per vertex: its node at this level (-1 for Dirichlet vertices)
+  const int* offsets;  ///< nodes + 1: node k's vertices are members[offsets[k] .. offsets[k+1])
+  const int* members;  ///< the free vertices, node by node
+};
+
+inline constexpr int kMaxLevels = 8;
+
+/// Every level's view and solution, passed by value into the prolongation kernel.
+struct LevelPack {
+  LevelView L[kMaxLevels];
+  const double* sol[kMaxLevels];
+};
+
+}  // namespace mas_detail
+
+/// The multilevel additive Schwarz preconditioner (see the file comment). B: nodes per domain.
+template <class Exec>
+class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
+  template <class T>
+  using Vec = typename Exec::template Vector<T>;
+
+ public:
+  static constexpr int kMaxLevels = mas_detail::kMaxLevels;
+
+  MultilevelAdditiveSchwarz(int n, int domain_size) : n_(n), B_(domain_size) {
+    GD_DEMAND(domain_size >= 2 && domain_size <= 64, "MAS domain size must be in [2, 64]");
+    Exec::resize(keys_, n_);
+  }
+
+  void setup(const BlockMatrixView& A) override {
+    A_ = A;
+    order_vertices(A);                  // level 0: free vertices in Morton order
+    levels_ = 1;
+    while (levels_ < kMaxLevels && level(levels_ - 1).domains > 1) {
+      if (!coarsen(A, levels_ - 1)) break;  // level l+1: connected pieces of level l's domains
+      ++levels_;
+    }
+    for (int l = 0; l < levels_; ++l) factor_level(A, l);  // dense blocks of R A Rᵀ, Cholesky
+  }
+
+  void apply(const double* r, double* z) override {
+    for (int l = 0; l < levels_; ++l) solve_level(l, r);  // restrict, per-domain solve
+    prolong(r, z);                                        // sum of the levels' corrections
+  }
+
+  /// The coarse levels carry smooth modes (a uniform force meets the aggregated inertia alone).
+  bool estimates_smooth_modes() const override { return true; }
+
+  /// Levels of the last setup (for tests and logs).
+  int levels() const { return levels_; }
+  /// Nodes of level l of the last setup.
+  int nodes(int l) const { return store_[l].nodes; }
+
+  // Stages are public only because nvcc requires the functions that enclose extended
+  // __host__ __device__ lambdas to be public.
+  struct LevelStore {
+    int nodes = 0, domains = 0;
+    Vec<int> node_of, offsets, members;
+    Vec<int> local_comp;  ///< per node: its connected piece inside its domain (coarsen)
+    Vec<int> comp_count;  ///< per domain: connected pieces (coarsen), then their prefix sum
+    Vec<double> dense;    ///< per domain: (3B)^2 block, factored in place (setup scratch)
+    Vec<float> packed;    ///< per domain: its Cholesky factor's lower triangle, single precision
+    Vec<double> rhs;      ///< per domain: 3B restricted residual, then the solution
+  };
+
+  mas_detail::LevelView level(int l) const {
+    const LevelStore& s = store_[l];
+    return {s.nodes, s.domains, Exec::ptr(s.node_of), Exec::ptr(s.offsets), Exec::ptr(s.members)};
+  }
+
+  /// Level 0: every free vertex is a node; nodes in Morton order of the current positions.
+  void order_vertices(const BlockMatrixView& A) {
+    const int n = n_;
+    const double* x = A.x;
+    const int* fixed = A.fixed;
+    // A cube around the free vertices: their centroid +- their largest distance from it.
+    const double free_count_d = Exec::sum(n, [=] GD_HD_LAMBDA(int i) { return fixed[i] ? 0.0 : 1.0; });
+    const int free_count = static_cast<int>(free_count_d);
+    double c[3] = {0, 0, 0};
+    for (int k = 0; k < 3; ++k)
+      if (free_count > 0) c[k] = Exec::sum(n, [=] GD_HD_LAMBDA(int i) { return fixed[i] ? 0.0 : x[3 * i + k]; }) / free_count_d;
+    const double c0 = c[0], c1 = c[1], c2 = c[2];
+    const double radius = Exec::max(n, [=] GD_HD_LAMBDA(int i) {
+      if (fixed[i]) return 0.0;
+      return fmax(fabs(x[3 * i] - c0), fmax(fabs(x[3 * i + 1] - c1), fabs(x[3 * i + 2] - c2)));
+    });
+    const double inv = radius > 0 ? 0.5 / radius : 0.0;
+    const double l0 = c0 - radius, l1 = c1 - radius, l2 = c2 - radius;
+    uint64_t* keys = Exec::ptr(keys_);
+    // Key: Morton code above the vertex id (unique keys: the order is deterministic); Dirichlet
+    // vertices sort last and are left out.
+    Exec::for_each(n, [=] GD_HD_LAMBDA(int i) {
+      const double lov[3] = {l0, l1, l2};
+      const uint64_t code = fixed[i] ? (uint64_t(1) << 31) : mas_detail::morton_code(x + 3 * i, lov, inv);
+      keys[i] = code << 32 | static_cast<uint64_t>(i);
+    });
+    Exec::sort(keys_);
+    LevelStore& s = store_[0];
+    s.nodes = free_count;
+    s.domains = (free_count + B_ - 1) / B_;
+    ensure(s.node_of, n);
+    ensure(s.offsets, free_count + 1);
+    ensure(s.members, std::max(free_count, 1));
+    int* node_of = Exec::ptr(s.node_of);
+    int* offsets = Exec::ptr(s.offsets);
+    int* members = Exec::ptr(s.members);
+    Exec::for_each(n, [=] GD_HD_LAMBDA(int i) { node_of[i] = -1; });
+    Exec::for_each(free_count, [=] GD_HD_LAMBDA(int k) {
+      const int v = static_cast<int>(keys[k] & 0xffffffffu);
+      node_of[v] = k;
+      members[k] = v;
+      offsets[k] = k;
+    });
+    Exec::for_each(1, [=] GD_HD_LAMBDA(int) { offsets[free_count] = free_count; });
+  }
+
+  /// Builds level l+1 from level l: connected pieces of each domain's nodes become nodes.
+  /// Returns false when no piece joined two nodes (nothing to coarsen).
+  bool coarsen(const BlockMatrixView& A, int l) {
+    LevelStore& s = store_[l];
+    LevelStore& t = store_[l + 1];
+    const mas_detail::LevelView L = level(l);
+    const int B = B_;
+    ensure(s.local_comp, std::max(L.nodes, 1));
+    ensure(s.comp_count, L.domains + 1);
+    int* local_comp = Exec::ptr(s.local_comp);
+    int* comp_count = Exec::ptr(s.comp_count);
+    const BlockMatrixView M = A;
+    const int domains = L.domains;
+    Exec::for_each(1, [=] GD_HD_LAMBDA(int) { comp_count[domains] = 0; });
+    // Per domain: adjacency bitmasks of its nodes, then connected pieces, labelled in the order
+    // of their first node.
+    Exec::for_each(L.domains, [=] GD_HD_LAMBDA(int d) {
+      const int first = d * B;
+      const int count = L.nodes - first < B ? L.nodes - first : B;
+      uint64_t adj[64];
+      for (int a = 0; a < count; ++a) adj[a] = uint64_t(1) << a;
+      for (int a = 0; a < count; ++a) {
+        for (int e = L.offsets[first + a]; e < L.offsets[first + a + 1]; ++e) {
+          const int v = L.members[e];
+          auto visit = [&](int j) {
+            const int nb = L.node_of[j];
+            if (nb >= first && nb < first + count && nb != first + a) {
+              adj[a] |= uint64_t(1) << (nb - first);
+              adj[nb - first] |= uint64_t(1) << a;
+            }
+          };
+          for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) visit(M.cols[k]);
+          if (M.cpl_row_ptr)
+            for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) visit(M.cpl_cols[k]);
+        }
+      }
+      int comps = 0;
+      uint64_t seen = 0;
+      for (int a = 0; a < count; ++a) {
+        if (seen >> a & 1) continue;
+        uint64_t piece = uint64_t(1) << a, grown = 0;
+        while (piece != grown) {  // closure of the piece under adjacency
+          grown = piece;
+          for (int b = 0; b < count; ++b)
+            if (grown >> b & 1) piece |= adj[b];
+        }
+        for (int b = 0; b < count; ++b)
+          if (piece >> b & 1) local_comp[first + b] = comps;
+        seen |= piece;
+        ++comps;
+      }
+      comp_count[d] = comps;
+    });
+    Exec::exclusive_scan(s.comp_count, L.domains + 1);  // comp_count[d]: first node of domain d
+    const int next_nodes = Exec::read(s.comp_count, L.domains);
+    if (next_nodes >= L.nodes) return false;
+    t.nodes = next_nodes;
+    t.domains = (next_nodes + B - 1) / B;
+    ensure(t.node_of, n_);
+    ensure(t.offsets, next_nodes + 1);
+    ensure(t.members, std::max(L.nodes > 0 ? Exec::read(s.offsets, L.nodes) : 0, 1));
+    int* node_of = Exec::ptr(t.node_of);
+    int* offsets = Exec::ptr(t.offsets);
+    int* members = Exec::ptr(t.members);
+    // Per domain of level l: its vertices (a contiguous range of members) regrouped piece by
+    // piece into the same range, stable; offsets and node_of of the new nodes.
+    Exec::for_each(L.domains, [=] GD_HD_LAMBDA(int d) {
+      const int first = d * B;
+      const int count = L.nodes - first < B ? L.nodes - first : B;
+      const int base = comp_count[d], comps = comp_count[d + 1] - base;
+      int out = L.offsets[first];
+      for (int c = 0; c < comps; ++c) {
+        offsets[base + c] = out;
+        for (int a = 0; a < count; ++a) {
+          if (local_comp[first + a] != c) continue;
+          for (int e = L.offsets[first + a]; e < L.offsets[first + a + 1]; ++e) {
+            const int v = L.members[e];
+            members[out++] = v;
+            node_of[v] = base + c;
+          }
+        }
+      }
+    });
+    const int total = Exec::read(s.offsets, L.nodes);
+    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+      if (L.node_of[i] < 0) node_of[i] = -1;
+    });
+    Exec::for_each(1, [=] GD_HD_LAMBDA(int) { offsets[next_nodes] = total; });
+    return true;
+  }
+
+  /// Dense blocks of level l's aggregated matrix per domain, Cholesky-factored.
+  void factor_level(const BlockMatrixView& A, int l) {
+    LevelStore& s = store_[l];
+    const mas_detail::LevelView L = level(l);
+    const int B = B_, m = 3 * B_;
+    const size_t tri = static_cast<size_t>(m) * (m + 1) / 2;
+    ensure(s.dense, static_cast<size_t>(L.domains) * m * m);
+    ensure(s.packed, static_cast<size_t>(L.domains) * tri);
+    ensure(s.rhs, static_cast<size_t>(L.domains) * m);
+    double* dense = Exec::ptr(s.dense);
+    float* packed = Exec::ptr(s.packed);
+    const BlockMatrixView M = A;
+    Exec::for_each(L.domains, [=] GD_HD_LAMBDA(int d) {
+      double* D = dense + static_cast<size_t>(d) * m * m;
+      for (int k = 0; k < m * m; ++k) D[k] = 0.0;
+      const int first = d * B;
+      const int count = L.nodes - first < B ? L.nodes - first : B;
+      for (int a = 0; a < count; ++a) {
+        for (int e = L.offsets[first + a]; e < L.offsets[first + a + 1]; ++e) {
+          const int v = L.members[e];
+          auto add_block = [&](int j, const double* blk) {
+            const int nb = L.node_of[j];
+            if (nb < first || nb >= first + count) return;
+            double* dst = D + static_cast<size_t>(3 * a) * m + 3 * (nb - first);
+            for (int r = 0; r < 3; ++r)
+              for (int c = 0; c < 3; ++c) dst[r * m + c] += blk[3 * r + c];
+          };
+          for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) add_block(M.cols[k], M.vals + 9 * k);
+          if (M.cpl_row_ptr)
+            for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) add_block(M.cpl_cols[k], M.cpl_vals + 9 * k);
+        }
+      }
+      for (int a = count; a < B; ++a)  // padding of the last domain: identity
+        for (int r = 0; r < 3; ++r) D[static_cast<size_t>(3 * a + r) * m + 3 * a + r] = 1.0;
+      mas_detail::cholesky_in_place(D, m);
+      mas_detail::pack_lower(D, m, packed + d * tri);
+    }, 1);
+  }
+
+  /// Restricts r to level l (sums over each node's vertices) and solves each domain's block.
+  void solve_level(int l, const double* r) {
+    LevelStore& s = store_[l];
+    const mas_detail::LevelView L = level(l);
+    const int B = B_, m = 3 * B_;
+    const size_t tri = static_cast<size_t>(m) * (m + 1) / 2;
+    const float* packed = Exec::ptr(s.packed);
+    double* rhs = Exec::ptr(s.rhs);
+    Exec::for_each(L.domains, [=] GD_HD_LAMBDA(int d) {
+      double* b = rhs + static_cast<size_t>(d) * m;
+      const int first = d * B;
+      const int count = L.nodes - first < B ? L.nodes - first : B;
+      for (int a = 0; a < B; ++a) {
+        double acc[3] = {0, 0, 0};
+        if (a < count)
+          for (int e = L.offsets[first + a]; e < L.offsets[first + a + 1]; ++e) {
+            const double* rv = r + 3 * L.members[e];
+            acc[0] += rv[0], acc[1] += rv[1], acc[2] += rv[2];
+          }
+        b[3 * a] = acc[0], b[3 * a + 1] = acc[1], b[3 * a + 2] = acc[2];
+      }
+      mas_detail::cholesky_solve_packed(packed + d * tri, m, b);
+    }, 1);
+  }
+
+  /// z = Σ_l (level l's solution at the vertex's node); Dirichlet rows pass r through.
+  void prolong(const double* r, double* z) {
+    mas_detail::LevelPack pk;
+    for (int l = 0; l < levels_; ++l) {
+      pk.L[l] = level(l);
+      pk.sol[l] = Exec::ptr(store_[l].rhs);
+    }
+    const int levels = levels_;
+    const int B = B_;
+    Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+      if (pk.L[0].node_of[i] < 0) {
+        z[3 * i] = r[3 * i], z[3 * i + 1] = r[3 * i + 1], z[3 * i + 2] = r[3 * i + 2];
+        return;
+      }
+      double acc[3] = {0, 0, 0};
+      for (int l = 0; l < levels; ++l) {
+        const int k = pk.L[l].node_of[i];
+        const int d = k / B, a = k - d * B;
+        const double* y = pk.sol[l] + static_cast<size_t>(d) * 3 * B + 3 * a;
+        acc[0] += y[0], acc[1] += y[1], acc[2] += y[2];
+      }
+      z[3 * i] = acc[0], z[3 * i + 1] = acc[1], z[3 * i + 2] = acc[2];
+    });
+  }
+
+ private:
+  template <class T>
+  static void ensure(Vec<T>& v, size_t size) {
+    if (v.size() < size) Exec::resize(v, size);
+  }
+
+  int n_, B_;
+  int levels_ = 0;
+  BlockMatrixView A_{};
+  Vec<uint64_t> keys_;
+  LevelStore store_[kMaxLevels];
+};
+
+}  // namespace gd::sim
