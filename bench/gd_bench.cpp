@@ -67,6 +67,7 @@ struct CaseResult {
   double converged = 0;  ///< fraction of timed steps whose Newton solve converged
   double bytes_per_vertex = 0;
   std::string backend;
+  std::string preconditioner;  ///< the one the case ran with (auto resolved)
   std::string error;  ///< non-empty when the case failed
   bool contact = false;        ///< a self-contact case (fold/<N>)
   double contacts = 0;         ///< mean active self-contact pairs per timed step
@@ -93,6 +94,7 @@ CaseResult run_case(int target, Real side, int warmup, int steps, double max_sec
   auto scene = Scene::create(mesh, mat, opt);
   if (!bench_scene.pins.empty()) scene->pin(bench_scene.pins);
   r.backend = scene->backend();
+  r.preconditioner = gd::sim::preconditioner_name(opt);
   r.bytes_per_vertex = scene->bytes_per_vertex();
   std::fprintf(stderr, "[gd-bench] %s: %d vertices on %s (setup %.2f s); %d warm-up + %d timed steps\n",
                r.name.c_str(), r.vertices, r.backend.c_str(), seconds_since(t_setup), warmup, steps);
@@ -203,6 +205,7 @@ nlohmann::json to_json(const CaseResult& r) {
                       {"converged", r.steps > 0 ? nlohmann::json(r.converged) : nlohmann::json(nullptr)},
                       {"bytes_per_vertex", r.bytes_per_vertex},
                       {"backend", r.backend},
+                      {"preconditioner", r.preconditioner},
                       {"contact", r.contact}};
   if (r.contact) {
     j["contacts"] = r.contacts;
@@ -217,12 +220,12 @@ nlohmann::json to_json(const CaseResult& r) {
 }
 
 void print_table(const std::vector<CaseResult>& rs) {
-  std::printf("%-14s %9s %6s %12s %9s %9s %10s %10s %9s %8s %-8s\n", "case", "vertices", "steps", "ms/step", "newton",
-              "pcg", "converged", "bytes/vtx", "contacts", "bp share", "backend");
+  std::printf("%-14s %9s %6s %12s %9s %9s %10s %10s %9s %8s %-8s %s\n", "case", "vertices", "steps", "ms/step",
+              "newton", "pcg", "converged", "bytes/vtx", "contacts", "bp share", "backend", "precond");
   for (const auto& r : rs) {
-    std::printf("%-14s %9d %6d %12.2f %9.2f %9.1f %9.0f%% %10.0f %9.0f %7.0f%% %-8s%s\n", r.name.c_str(), r.vertices,
+    std::printf("%-14s %9d %6d %12.2f %9.2f %9.1f %9.0f%% %10.0f %9.0f %7.0f%% %-8s %s%s\n", r.name.c_str(), r.vertices,
                 r.steps, r.ms_per_step, r.newton_iters, r.pcg_iters, 100.0 * r.converged, r.bytes_per_vertex,
-                r.contacts, 100.0 * r.broad_phase_share, r.backend.c_str(),
+                r.contacts, 100.0 * r.broad_phase_share, r.backend.c_str(), r.preconditioner.c_str(),
                 r.error.empty() ? "" : ("  FAILED: " + r.error).c_str());
   }
   std::printf("(ms/step: mean wall time of a step; newton, pcg: mean iterations per step, PCG summed over "

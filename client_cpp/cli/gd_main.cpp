@@ -116,6 +116,9 @@ int main(int argc, char** argv) {
   std::string contact_hessian = "projected";
   run->add_option("--contact-hessian", contact_hessian, "self-contact Hessian: gauss-newton | projected")
       ->capture_default_str();
+  run->add_option("--newton-rtol", cfg.scene.newton_rtol,
+                  "Newton stops when the next correction is below this fraction of the first (0: off)")
+      ->capture_default_str();
   std::string preconditioner = "auto";
   run->add_option("--preconditioner", preconditioner,
                   "PCG preconditioner: auto (MAS without self-contact, block-Jacobi with it) | mas | block-jacobi")
@@ -181,7 +184,7 @@ int main(int argc, char** argv) {
     }
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
-                                     "--contact-hessian", "--preconditioner", "--no-plots", "--mesh-every",
+                                     "--contact-hessian", "--preconditioner", "--newton-rtol", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");

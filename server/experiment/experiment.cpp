@@ -49,12 +49,23 @@ metrics::Cloud to_cloud(const std::vector<Vec3>& x) {
 /// Shape statistics of the cloth at one instant.
 struct Shape {
   double min_z = 0, max_z = 0, mean_z = 0, extent_x = 0, extent_y = 0;
+  /// Height below which 95% of the vertices lie: how tall the bulk of a folded stack is, without
+  /// the one sleeve tip that max_z follows.
+  double p95_z = 0;
 };
 Shape shape_of(const std::vector<Vec3>& x) {
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   double z = 0;
-  for (const Vec3& p : x) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p), z += p.z();
-  return {lo.z(), hi.z(), x.empty() ? 0.0 : z / double(x.size()), hi.x() - lo.x(), hi.y() - lo.y()};
+  std::vector<double> zs;
+  zs.reserve(x.size());
+  for (const Vec3& p : x) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p), z += p.z(), zs.push_back(p.z());
+  double p95 = 0;
+  if (!zs.empty()) {
+    const size_t k = std::min(zs.size() - 1, static_cast<size_t>(0.95 * static_cast<double>(zs.size())));
+    std::nth_element(zs.begin(), zs.begin() + static_cast<std::ptrdiff_t>(k), zs.end());
+    p95 = zs[k];
+  }
+  return {lo.z(), hi.z(), x.empty() ? 0.0 : z / double(x.size()), hi.x() - lo.x(), hi.y() - lo.y(), p95};
 }
 
 /// First time at which an arm's gripper is below the closing threshold (fixed-point grab time of
@@ -450,8 +461,8 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["failure"] = sc.failure();
   s["backend"] = sc.backend();
   s["initial"] = {{"min_z", ini.min_z}, {"max_z", ini.max_z}, {"extent_x", ini.extent_x}, {"extent_y", ini.extent_y}};
-  s["final"] = {{"min_z", fin.min_z}, {"max_z", fin.max_z}, {"mean_z", fin.mean_z}, {"extent_x", fin.extent_x},
-                {"extent_y", fin.extent_y}};
+  s["final"] = {{"min_z", fin.min_z}, {"max_z", fin.max_z}, {"mean_z", fin.mean_z}, {"p95_z", fin.p95_z},
+                {"extent_x", fin.extent_x}, {"extent_y", fin.extent_y}};
   s["garment_length"] = garment.length;
   s["garment_width"] = garment.width;
   nlohmann::json ev = nlohmann::json::array();

@@ -8,7 +8,6 @@ build-cpu/bin, build-peers/bin)."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -25,19 +24,12 @@ pybullet = pytest.importorskip("pybullet", exc_type=ImportError)
 
 sys.path.insert(0, str(RUNNER.parent))
 import run_peers  # noqa: E402
+from gd_bench_path import gd_bench_candidates  # noqa: E402
 
 
 def _gd_bench() -> Path | None:
-    cands = []
-    if os.environ.get("GD_BENCH"):
-        cands.append(Path(os.environ["GD_BENCH"]))
-    if os.environ.get("GD_BUILD_DIR"):
-        cands.append(Path(os.environ["GD_BUILD_DIR"]) / "bin" / "gd-bench")
-    cands += [ROOT / d / "bin" / "gd-bench" for d in ("build", "build-cpu", "build-peers")]
-    for c in cands:
-        if run_peers.supports_export(c):
-            return c
-    return None
+    return next((c for c in gd_bench_candidates(("build", "build-cpu", "build-peers")) if run_peers.supports_export(c)),
+                None)
 
 
 GD_BENCH = _gd_bench()

@@ -42,11 +42,13 @@ struct SceneOptions {
   /// Residual stopping rule (docs/physics.md, "Solver"), in velocity units: Newton stops once the
   /// correction still to come is at most max(newton_atol, newton_rtol x the first Newton step),
   /// each measured as a mass-weighted RMS velocity over the free vertices, |d|_M / (h sqrt(M)):
-  /// after an iteration, the step it took; before one, an upper bound of the step the gradient
-  /// asks for (h |g|_M⁻¹ / sqrt(M)). A step whose predictor is already within newton_atol takes
-  /// no Newton iteration. Both 0: off (only newton_tol stops Newton). Dynamic steps only:
+  /// after an iteration, the step it took; before iteration k >= 1, the next step predicted by
+  /// one MAS apply on the gradient (P⁻¹g, no assembly or solve); before the first, an upper bound
+  /// of the step the gradient asks for (h |g|_M⁻¹ / sqrt(M)): a step whose predictor is already
+  /// within newton_atol takes no Newton iteration. A self-contact pair pressed below 10 CCD floors
+  /// keeps Newton going. Both 0: off (only newton_tol stops Newton). Dynamic steps only:
   /// quasi-static steps (Scene::relax) always run to newton_tol.
-  Real newton_rtol = 0.1;
+  Real newton_rtol = 0.03;
   Real newton_atol = 1e-3;        ///< m/s
   int pcg_max_iters = 100;        ///< PCG iteration cap per Newton iteration
   Real pcg_tol = 1e-2;            ///< PCG relative residual tolerance (inexact Newton)

@@ -359,7 +359,6 @@ class Solver final : public SolverBase {
       if (k == 0 && residual_rule() && predictor_converged(&st)) break;  // nothing left to solve
       timed(T.precond, [&] { prepare_linear_solve(); });            // contact couplings, preconditioner
       timed(T.pcg, [&] { st.pcg_iters += solve_linear(); });        // dx = -H^-1 g (inexact)
-      timed(T.ccd, [&] { clip_step_at_table(); });                  // vertices landing on the table: cut
       timed(T.contacts, [&] { find_contacts_along_step(); });       // broad phase on the motion x -> x + dx
       double alpha_max = 1, alpha = 0;
       timed(T.ccd, [&] { alpha_max = max_step(); });                // CCD: largest safe fraction of dx
@@ -1197,31 +1196,6 @@ class Solver final : public SolverBase {
       return worst;
     }, Exec::kParallelMinHeavy);
     return inv > 1.0 ? 1.0 / inv : 1.0;
-  }
-
-  /// The table bound per vertex instead of for the whole step: each free vertex's motion towards
-  /// the table is cut to 90% of its height (its motion along the table is kept), so a few
-  /// vertices landing do not shorten every other vertex's step (the line search then checks the
-  /// cut direction). Kept only when the cut direction still descends; otherwise dx is restored
-  /// and table_ccd_bound scales the whole step as before.
-  void clip_step_at_table() {
-    if (!P_.table) return;
-    const detail::View V = view();
-    const detail::Params P = P_;
-    const double* x = Exec::ptr(x_);
-    double* dx = Exec::ptr(dx_);
-    double* saved = Exec::ptr(z_);  // free after PCG
-    const double clipped = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
-      for (int c = 0; c < 3; ++c) saved[3 * i + c] = dx[3 * i + c];
-      if (V.fixed[i]) return 0.0;
-      const Real d = P.table_n.dot(detail::load3(x, i)) - P.table_offset;
-      const Vec3 step = detail::load3(dx, i);
-      const Real dn = P.table_n.dot(step);
-      if (dn >= -0.9 * d) return 0.0;
-      detail::store3(dx, i, step + (-0.9 * d - dn) * P.table_n);
-      return 1.0;
-    });
-    if (clipped > 0 && !(dot(g_, dx_) < 0)) copy(z_, dx_);
   }
 
   /// Largest step fraction keeping every free vertex at least 10% of its distance above the

@@ -1,0 +1,51 @@
+"""gd-bench --json on tiny cases: one object per case with the iteration counts, the preconditioner
+it ran with, and where the step time went (stage_ms), the stages summing to about the step time.
+
+Skips when no gd-bench binary exists ($GD_BENCH, $GD_BUILD_DIR/bin, build/bin, build-cpu/bin)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pytest
+from gd_bench_path import gd_bench_candidates
+
+STAGES = {"predictor", "contacts", "assembly", "precond", "pcg", "ccd", "line_search", "intersections", "untangle"}
+
+
+BENCH = next(iter(gd_bench_candidates()), None)
+pytestmark = pytest.mark.skipif(BENCH is None, reason="no gd-bench binary built")
+
+
+def run_bench(*extra: str) -> list[dict]:
+    out = subprocess.run([str(BENCH), "--json", "--sizes", "400", "--steps", "3", "--warmup", "1", "--threads", "1",
+                          "--max-seconds", "0", *extra], capture_output=True, text=True, timeout=300, check=True)
+    return json.loads(out.stdout)
+
+
+def test_cases_report_stages_and_preconditioner():
+    cases = {c["case"]: c for c in run_bench("--cases", "drape,fold")}
+    assert set(cases) == {"drape/400", "fold/400"}
+    for name, c in cases.items():
+        assert "error" not in c, c
+        assert c["steps"] == 3
+        assert set(c["stage_ms"]) == STAGES
+        assert all(v >= 0 for v in c["stage_ms"].values())
+        # The timed stages cover the step but for bookkeeping between them.
+        total = sum(c["stage_ms"].values())
+        assert 0.5 * c["ms_per_step"] < total <= 1.05 * c["ms_per_step"] + 0.5, (name, total, c["ms_per_step"])
+        assert c["newton_iters"] >= 0 and c["pcg_iters"] >= 0 and 0 <= c["converged"] <= 1
+        assert c["energy_evals"] >= c["newton_iters"]  # one line-search trial per Newton iteration at least
+    # Auto: MAS without self-contact, block-Jacobi with it; cloth-cloth work only in the fold.
+    assert cases["drape/400"]["preconditioner"] == "mas"
+    assert cases["fold/400"]["preconditioner"] == "block-jacobi"
+    assert cases["drape/400"]["stage_ms"]["intersections"] == 0
+    assert cases["fold/400"]["contacts"] > 0
+
+
+def test_preconditioner_flag_is_honoured():
+    (c,) = run_bench("--cases", "drape", "--preconditioner", "block-jacobi")
+    assert c["preconditioner"] == "block-jacobi"
+    (c,) = run_bench("--cases", "drape", "--preconditioner", "mas", "--mas-domain", "8")
+    assert c["preconditioner"] == "mas"
