@@ -55,7 +55,13 @@ def main():
     ap.add_argument("--out", default="fold_matrix_out")
     ap.add_argument("--json", help="write the rows here")
     a = ap.parse_args()
-    jobs = [(g, p) for g in a.garments.split(",") for p in a.perturbations.split(",")]
+    perts = a.perturbations.split(",")
+    unknown = [p for p in perts if p not in PERTURBATIONS]
+    if unknown:
+        ap.error(f"unknown perturbation(s) {', '.join(unknown)}; known: {', '.join(PERTURBATIONS)}")
+    if not os.access(a.gd, os.X_OK):
+        ap.error(f"--gd {a.gd} is not an executable; build it (scripts/build) or pass its path")
+    jobs = [(g, p) for g in a.garments.split(",") for p in perts]
     rows = []
     with cf.ThreadPoolExecutor(a.jobs) as ex:
         futs = [ex.submit(run_one, a.gd, g, a.vertices, p, a.out, 1) for g, p in jobs]
