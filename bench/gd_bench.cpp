@@ -173,16 +173,9 @@ std::vector<int> parse_sizes(const std::string& s) {
   std::string item;
   while (std::getline(ss, item, ',')) {
     if (item.empty()) continue;
-    std::size_t pos = 0;
-    long v = 0;
-    try {
-      v = std::stol(item, &pos);
-    } catch (const std::exception&) {
-      pos = 0;
-    }
-    if (pos != item.size() || v < 4 || v > 100000000)
-      throw CLI::ValidationError("--sizes", "'" + item + "' is not a vertex count (integer >= 4)");
-    out.push_back(static_cast<int>(v));
+    const int v = gd::bench::parse_vertex_count(item);
+    if (v < 0) throw CLI::ValidationError("--sizes", "'" + item + "' is not a vertex count (integer >= 4)");
+    out.push_back(v);
   }
   if (out.empty()) throw CLI::ValidationError("--sizes", "no sizes given");
   return out;

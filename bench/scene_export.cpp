@@ -78,23 +78,27 @@ BenchScene make_bench_scene(int target, Real side, bool contact) {
   return s;
 }
 
+int parse_vertex_count(const std::string& text) {
+  std::size_t pos = 0;
+  long v = 0;
+  try {
+    v = std::stol(text, &pos);
+  } catch (const std::exception&) {
+    return -1;
+  }
+  return text.empty() || pos != text.size() || v < 4 || v > 100000000 ? -1 : static_cast<int>(v);
+}
+
 void parse_case(const std::string& name, bool& contact, int& target) {
   const auto slash = name.find('/');
   const std::string kind = name.substr(0, slash);
   if (slash == std::string::npos || (kind != "drape" && kind != "fold"))
     throw std::invalid_argument("case '" + name + "' is not drape/<N> or fold/<N>");
   const std::string num = name.substr(slash + 1);
-  std::size_t pos = 0;
-  long v = 0;
-  try {
-    v = std::stol(num, &pos);
-  } catch (const std::exception&) {
-    pos = 0;
-  }
-  if (num.empty() || pos != num.size() || v < 4 || v > 100000000)
-    throw std::invalid_argument("case '" + name + "': '" + num + "' is not a vertex count (integer >= 4)");
+  const int v = parse_vertex_count(num);
+  if (v < 0) throw std::invalid_argument("case '" + name + "': '" + num + "' is not a vertex count (integer >= 4)");
   contact = kind == "fold";
-  target = static_cast<int>(v);
+  target = v;
 }
 
 void export_case(const ExportOptions& o) {

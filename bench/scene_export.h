@@ -39,6 +39,9 @@ gd::sim::Mesh square_with_about(gd::sim::Real side, int target);
 /// no pins.
 BenchScene make_bench_scene(int target, gd::sim::Real side, bool contact);
 
+/// The vertex count written as `text` (an integer in [4, 1e8]), or -1 if it is not one.
+int parse_vertex_count(const std::string& text);
+
 /// Parses "drape/<N>" or "fold/<N>" into (contact, N); throws std::invalid_argument otherwise.
 void parse_case(const std::string& name, bool& contact, int& target);
 
