@@ -26,7 +26,8 @@
 ///   gd-bench export --case drape/5000|fold/5000 --out DIR [--side 0.5] [--material cotton] [--simulate K]
 ///
 /// Writes the case's exact scene (mesh.obj, rest.obj, scene.json; scene_export.h) for the peer
-/// benchmark (bench/peers); --simulate K also steps ours K steps on one thread (ours_state.json).
+/// benchmark (bench/peers); --simulate K also steps ours K steps on one thread (ours_state.json),
+/// with the solver flags given before `export` (e.g. `gd-bench --pcg-newton-fraction 0 export ...`).
 
 #include <CLI/CLI.hpp>
 #include <chrono>
@@ -250,7 +251,7 @@ int main(int argc, char** argv) {
   std::string kinds = "drape,fold";
   std::string precond_arg = "default";
   int newton_max = 0, pcg_max = 0, mas_domain = 0;
-  double newton_rtol = -1, newton_atol = -1;
+  double newton_rtol = -1, newton_atol = -1, pcg_newton_fraction = -1, pcg_tol = -1, dt = -1;
   std::string contact_hessian_arg = "default";
   std::string bending_hessian_arg = "default";
   app.add_flag("--json", json, "Print one JSON array of results on stdout (and nothing else)");
@@ -283,6 +284,10 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--pcg-max", pcg_max, "PCG iteration cap per Newton iteration (0: default)")->check(CLI::NonNegativeNumber);
   app.add_option("--newton-rtol", newton_rtol, "Residual stopping rule, relative (negative: default)");
+  app.add_option("--pcg-tol", pcg_tol, "PCG relative residual tolerance (negative: default)");
+  app.add_option("--dt", dt, "Time step, s (negative: default)");
+  app.add_option("--pcg-newton-fraction", pcg_newton_fraction,
+                 "With MAS: PCG stops at this fraction of the Newton rule's threshold (0: off; negative: default)");
   app.add_option("--newton-atol", newton_atol, "Residual stopping rule, absolute, m/s (negative: default)");
   app.add_option("--contact-hessian", contact_hessian_arg, "Self-contact barrier Hessian")
       ->check(CLI::IsMember({"default", "projected", "gauss-newton"}))
@@ -328,8 +333,35 @@ int main(int argc, char** argv) {
 
   CLI11_PARSE(app, argc, argv);
 
+  // The solver flags, shared by the timed cases and export --simulate (validated).
+  auto solver_options = [&] {
+    SceneOptions opt;
+    opt.backend = backend_arg == "cpu"    ? gd::sim::BackendKind::kCpu
+                  : backend_arg == "cuda" ? gd::sim::BackendKind::kCuda
+                                          : gd::sim::BackendKind::kAuto;
+    opt.threads = threads;
+    if (precond_arg == "mas") opt.preconditioner = gd::sim::PreconditionerKind::kMas;
+    if (precond_arg == "block-jacobi") opt.preconditioner = gd::sim::PreconditionerKind::kBlockJacobi;
+    if (precond_arg == "auto") opt.preconditioner = gd::sim::PreconditionerKind::kAuto;
+    if (mas_domain > 0) opt.mas_domain_size = mas_domain;
+    if (newton_max > 0) opt.newton_max_iters = newton_max;
+    if (pcg_max > 0) opt.pcg_max_iters = pcg_max;
+    if (newton_rtol >= 0) opt.newton_rtol = newton_rtol;
+    if (pcg_newton_fraction >= 0) opt.pcg_newton_fraction = pcg_newton_fraction;
+    if (pcg_tol > 0) opt.pcg_tol = pcg_tol;
+    if (dt > 0) opt.dt = dt;
+    if (newton_atol >= 0) opt.newton_atol = newton_atol;
+    if (contact_hessian_arg == "projected") opt.contact_hessian = gd::sim::ContactHessianKind::kProjected;
+    if (contact_hessian_arg == "gauss-newton") opt.contact_hessian = gd::sim::ContactHessianKind::kGaussNewton;
+    if (bending_hessian_arg == "gauss-newton") opt.bending_hessian = gd::sim::BendingHessianKind::kGaussNewton;
+    if (bending_hessian_arg == "projected-exact") opt.bending_hessian = gd::sim::BendingHessianKind::kProjectedExact;
+    opt.validate();
+    return opt;
+  };
+
   if (*export_cmd) {
     try {
+      exp_opt.options = solver_options();
       gd::bench::export_case(exp_opt);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "gd-bench export: %s\n", e.what());
@@ -352,24 +384,7 @@ int main(int argc, char** argv) {
   std::vector<CaseResult> results;
   try {
     const std::vector<int> sizes = parse_sizes(sizes_arg);
-    SceneOptions opt;
-    opt.backend = backend_arg == "cpu"    ? gd::sim::BackendKind::kCpu
-                  : backend_arg == "cuda" ? gd::sim::BackendKind::kCuda
-                                          : gd::sim::BackendKind::kAuto;
-    opt.threads = threads;
-    if (precond_arg == "mas") opt.preconditioner = gd::sim::PreconditionerKind::kMas;
-    if (precond_arg == "block-jacobi") opt.preconditioner = gd::sim::PreconditionerKind::kBlockJacobi;
-    if (precond_arg == "auto") opt.preconditioner = gd::sim::PreconditionerKind::kAuto;
-    if (mas_domain > 0) opt.mas_domain_size = mas_domain;
-    if (newton_max > 0) opt.newton_max_iters = newton_max;
-    if (pcg_max > 0) opt.pcg_max_iters = pcg_max;
-    if (newton_rtol >= 0) opt.newton_rtol = newton_rtol;
-    if (newton_atol >= 0) opt.newton_atol = newton_atol;
-    if (contact_hessian_arg == "projected") opt.contact_hessian = gd::sim::ContactHessianKind::kProjected;
-    if (contact_hessian_arg == "gauss-newton") opt.contact_hessian = gd::sim::ContactHessianKind::kGaussNewton;
-    if (bending_hessian_arg == "gauss-newton") opt.bending_hessian = gd::sim::BendingHessianKind::kGaussNewton;
-    if (bending_hessian_arg == "projected-exact") opt.bending_hessian = gd::sim::BendingHessianKind::kProjectedExact;
-    opt.validate();
+    SceneOptions opt = solver_options();
     const auto lib = gd::sim::MaterialLibrary::load_default();
     const auto& mat = lib.get(material_name);
     const auto t_all = Clock::now();

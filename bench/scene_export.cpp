@@ -113,7 +113,7 @@ void export_case(const ExportOptions& o) {
   const Mesh& m = s.mesh;
   const auto lib = gd::sim::MaterialLibrary::load_default();
   const gd::sim::Material& mat = lib.get(o.material);
-  gd::sim::SceneOptions opt;  // gd-bench's cases run with the defaults, self-contact per case
+  gd::sim::SceneOptions opt = o.options;  // gd-bench's solver flags, self-contact per case
   opt.self_contact = contact;
   opt.validate();
   gd::sim::validate_mesh(m);

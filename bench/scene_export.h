@@ -51,6 +51,9 @@ struct ExportOptions {
   double side = 0.5;
   std::string material = "cotton";
   int simulate_steps = 0;  ///< > 0: also step our solver this many steps (1 thread), ours_state.json
+  /// The solver settings of that simulation (gd-bench's solver flags; self_contact and threads are
+  /// set by the case). scene.json's damping and drag come from it too.
+  gd::sim::SceneOptions options;
 };
 
 /// Writes the case's scene to options.out_dir (created if missing) with SceneOptions defaults

@@ -272,6 +272,9 @@ void SceneOptions::validate() const {
   nonneg(newton_atol, "newton_atol");
   if (newton_rtol >= 1) throw InputError(fmt::format("option newton_rtol must be below 1 (got {})", newton_rtol));
   positive(pcg_tol, "pcg_tol");
+  nonneg(pcg_newton_fraction, "pcg_newton_fraction");
+  if (pcg_newton_fraction > 1)
+    throw InputError(fmt::format("option pcg_newton_fraction must be at most 1 (got {})", pcg_newton_fraction));
   if (mas_domain_size < 2 || mas_domain_size > 64)
     throw InputError(fmt::format("option mas_domain_size must be in [2, 64] (got {})", mas_domain_size));
   if (threads < 0) throw InputError("option threads must be >= 0");

@@ -182,6 +182,7 @@ TEST(SceneBackends, CudaStepMatchesCpuStep) {
   if (!cuda_available()) GTEST_SKIP() << "no CUDA device on this machine";
   SceneOptions o;
   o.pcg_tol = 1e-8;
+  o.pcg_newton_fraction = 0;  // a tight linear solve on both
   o.pcg_max_iters = 2000;
   o.newton_max_iters = 10;
   o.newton_tol = 1e-8;

@@ -52,6 +52,12 @@ struct SceneOptions {
   Real newton_atol = 1e-3;        ///< m/s
   int pcg_max_iters = 100;        ///< PCG iteration cap per Newton iteration
   Real pcg_tol = 1e-2;            ///< PCG relative residual tolerance (inexact Newton)
+  /// With MAS in a dynamic step under the residual rule, PCG also stops once its estimate of the
+  /// correction still to come (P⁻¹r as a mass-weighted RMS velocity) is at most this fraction of
+  /// what the Newton rule accepts, max(newton_atol, newton_rtol x the first step): the linear
+  /// solve made no more exact than the Newton iteration asks for (docs/physics.md, "PCG stops
+  /// with Newton"). 0: off (pcg_tol and pcg_max_iters alone).
+  Real pcg_newton_fraction = 0.1;
   LinearSolverKind linear_solver = LinearSolverKind::kPcg;
   PreconditionerKind preconditioner = PreconditionerKind::kAuto;
   int mas_domain_size = 16;       ///< MAS: nodes per domain (2..64)

@@ -55,30 +55,43 @@ void scale_along_edge(const Eigen::Vector3i& tri, int a, int b, Real ratio, Vec2
 
 }  // namespace
 
-Coloring color_elements(const std::vector<int>& elems, int k, int vertices) {
-  const int ne = static_cast<int>(elems.size()) / k;
-  constexpr int kWords = 4;  // up to 256 colours
-  std::vector<uint64_t> used(static_cast<size_t>(vertices) * kWords, 0);
-  std::vector<int> color(ne);
-  int ncolors = 0;
-  for (int e = 0; e < ne; ++e) {
-    uint64_t mask[kWords] = {0, 0, 0, 0};
-    for (int a = 0; a < k; ++a)
-      for (int w = 0; w < kWords; ++w) mask[w] |= used[static_cast<size_t>(elems[k * e + a]) * kWords + w];
-    int c = 0;
-    while (c < 64 * kWords && (mask[c / 64] >> (c % 64) & 1u)) ++c;
-    GD_DEMAND(c < 64 * kWords, "element colouring needs more than 256 colours");
-    color[e] = c;
-    ncolors = std::max(ncolors, c + 1);
-    for (int a = 0; a < k; ++a) used[static_cast<size_t>(elems[k * e + a]) * kWords + c / 64] |= uint64_t{1} << (c % 64);
-  }
+Coloring color_elements(const std::vector<int>& elems, int k, int vertices, int chunk) {
+  GD_DEMAND(chunk >= 1, "colouring chunks need at least one element");
   Coloring out;
+  out.elements = static_cast<int>(elems.size()) / k;
+  out.chunk = chunk;
+  const int nc = (out.elements + chunk - 1) / chunk;
+  // Colours in use at each vertex, a bit per colour; more words as colours run out (a mesh in
+  // random order makes every chunk meet every other).
+  int words = 1;
+  std::vector<uint64_t> used(static_cast<size_t>(vertices), 0);
+  std::vector<int> color(nc);
+  int ncolors = 0;
+  for (int q = 0; q < nc; ++q) {
+    std::vector<uint64_t> mask(words, 0);
+    for (int e = out.first(q); e < out.last(q); ++e)
+      for (int a = 0; a < k; ++a)
+        for (int w = 0; w < words; ++w) mask[w] |= used[static_cast<size_t>(elems[k * e + a]) * words + w];
+    int c = 0;
+    while (c < 64 * words && (mask[c / 64] >> (c % 64) & 1u)) ++c;
+    if (c == 64 * words) {  // every colour taken here: widen the masks by a word
+      std::vector<uint64_t> wider(static_cast<size_t>(vertices) * (words + 1), 0);
+      for (size_t v = 0; v < static_cast<size_t>(vertices); ++v)
+        std::copy_n(used.begin() + v * words, words, wider.begin() + v * (words + 1));
+      used.swap(wider);
+      ++words;
+    }
+    color[q] = c;
+    ncolors = std::max(ncolors, c + 1);
+    for (int e = out.first(q); e < out.last(q); ++e)
+      for (int a = 0; a < k; ++a) used[static_cast<size_t>(elems[k * e + a]) * words + c / 64] |= uint64_t{1} << (c % 64);
+  }
   out.offsets.assign(ncolors + 1, 0);
-  for (int e = 0; e < ne; ++e) ++out.offsets[color[e] + 1];
+  for (int q = 0; q < nc; ++q) ++out.offsets[color[q] + 1];
   for (int c = 0; c < ncolors; ++c) out.offsets[c + 1] += out.offsets[c];
-  out.order.resize(ne);
+  out.chunks.resize(nc);
   std::vector<int> fill(out.offsets.begin(), out.offsets.end() - 1);
-  for (int e = 0; e < ne; ++e) out.order[fill[color[e]]++] = e;
+  for (int q = 0; q < nc; ++q) out.chunks[fill[color[q]]++] = q;
   return out;
 }
 

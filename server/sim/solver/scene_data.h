@@ -15,11 +15,20 @@
 
 namespace gd::sim {
 
-/// Elements grouped so that no two elements of one colour share a vertex.
+/// Elements in contiguous chunks of `chunk` elements (mesh order), the chunks grouped into
+/// colours so that no two chunks of one colour share a vertex: the chunks of a colour run in
+/// parallel without atomics, each walking its elements in mesh order, so neighbouring elements
+/// write neighbouring Hessian blocks (an element-by-element colouring scatters every colour over
+/// the whole mesh and made the 20k-vertex assembly 1.8x slower on one thread).
 struct Coloring {
-  std::vector<int> order;    ///< element indices, colour by colour
-  std::vector<int> offsets;  ///< colour c is order[offsets[c] .. offsets[c+1])
+  int elements = 0;          ///< elements coloured
+  int chunk = 1;             ///< elements per chunk (the last one may be shorter)
+  std::vector<int> chunks;   ///< chunk indices, colour by colour
+  std::vector<int> offsets;  ///< colour c is chunks[offsets[c] .. offsets[c+1])
   int colors() const { return offsets.empty() ? 0 : static_cast<int>(offsets.size()) - 1; }
+  /// Elements [first(k), last(k)) form chunk k.
+  int first(int k) const { return k * chunk; }
+  int last(int k) const { return k * chunk + chunk < elements ? k * chunk + chunk : elements; }
 };
 
 struct SceneData {
@@ -53,7 +62,11 @@ struct SceneData {
 /// options.rest_from_uv, else from the initial 3D shape.
 SceneData build_scene_data(const Mesh& mesh, const Material& material, const SceneOptions& options);
 
-/// Greedy colouring of elements with k vertices each (flat index array).
-Coloring color_elements(const std::vector<int>& elems, int k, int vertices);
+/// Elements per chunk of the colourings build_scene_data makes.
+inline constexpr int kColoringChunk = 256;
+
+/// Greedy colouring of the chunks of `chunk` consecutive elements with k vertices each (flat
+/// index array); chunk = 1 colours element by element.
+Coloring color_elements(const std::vector<int>& elems, int k, int vertices, int chunk = kColoringChunk);
 
 }  // namespace gd::sim

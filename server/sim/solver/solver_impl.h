@@ -86,6 +86,7 @@ struct View {
   const StretchShearRest* tri_rest;
   const int* hinges;
   const HingeRest* hinge_rest;
+  const double* hinge_grad_t;  // per hinge: the dihedral angle's gradient at x_t (12), for damping
   const int* row_ptr;
   const int* cols;
   const int* diag;
@@ -250,17 +251,15 @@ GD_HD Real triangle_terms(const View& V, const Params& P, int t, const double* x
 GD_HD Real hinge_terms(const View& V, const Params& P, int h, const double* x, Vec12* g, Mat12* H) {
   const int* hv = V.hinges + 4 * h;
   const HingeRest& r = V.hinge_rest[h];
-  Vec12 xs, ys;
-  for (int k = 0; k < 4; ++k) {
-    xs.segment<3>(3 * k) = load3(x, hv[k]);
-    ys.segment<3>(3 * k) = load3(V.x_t, hv[k]);
-  }
+  Vec12 xs;
+  for (int k = 0; k < 4; ++k) xs.segment<3>(3 * k) = load3(x, hv[k]);
   Real e = bending_energy(xs.segment<3>(0), xs.segment<3>(3), xs.segment<3>(6), xs.segment<3>(9), r, g, H,
                           P.bending_exact_projected ? HessianKind::kExact : HessianKind::kProjected);
   if (H && P.bending_exact_projected) project_psd<12>(H);
   if (P.beta_bend > 0) {
-    Vec12 gt;
-    dihedral_angle_derivatives(ys.segment<3>(0), ys.segment<3>(3), ys.segment<3>(6), ys.segment<3>(9), &gt, nullptr);
+    Vec12 ys;
+    for (int k = 0; k < 4; ++k) ys.segment<3>(3 * k) = load3(V.x_t, hv[k]);
+    const Eigen::Map<const Vec12> gt(V.hinge_grad_t + 12 * h);
     Vec12 ge;
     Mat12 He;
     e += bending_damping_energy(xs, ys, gt, r, P.beta_bend, P.h, g ? &ge : nullptr, H ? &He : nullptr);
@@ -268,6 +267,16 @@ GD_HD Real hinge_terms(const View& V, const Params& P, int h, const double* x, V
     if (H) *H += He;
   }
   return e;
+}
+
+/// The dihedral angle's gradient at the step start, which curvature-rate damping holds fixed
+/// through the step (computed once per step instead of at every evaluation).
+GD_HD void hinge_step_start(const View& V, int h, double* grad_t) {
+  const int* hv = V.hinges + 4 * h;
+  Vec12 gt;
+  dihedral_angle_derivatives(load3(V.x_t, hv[0]), load3(V.x_t, hv[1]), load3(V.x_t, hv[2]), load3(V.x_t, hv[3]), &gt,
+                             nullptr);
+  for (int k = 0; k < 12; ++k) grad_t[12 * h + k] = gt(k);
 }
 
 }  // namespace detail
@@ -295,6 +304,7 @@ class Solver final : public SolverBase {
     Exec::upload(v_, d.v);
     for (auto* vec : {&x_t_, &v_t_, &g_, &g_trial_, &dx_, &r_, &z_, &p_, &ap_, &x_trial_}) Exec::resize(*vec, 3 * n_);
     Exec::resize(vals_, 9 * static_cast<size_t>(d.blocks()));
+    Exec::resize(hinge_grad_t_, 12 * static_cast<size_t>(d.hinge_count()));
     precond_ = make_preconditioner<Exec>(opt, n_);
     // The Newton stopping rule predicts the next correction with a preconditioner that carries
     // smooth modes: PCG's own when it does (MAS), else a MAS instance kept for that alone.
@@ -358,7 +368,7 @@ class Solver final : public SolverBase {
       }
       if (k == 0 && residual_rule() && predictor_converged(&st)) break;  // nothing left to solve
       timed(T.precond, [&] { prepare_linear_solve(); });            // contact couplings, preconditioner
-      timed(T.pcg, [&] { st.pcg_iters += solve_linear(); });        // dx = -H^-1 g (inexact)
+      timed(T.pcg, [&] { st.pcg_iters += solve_linear(scale); });   // dx = -H^-1 g (inexact)
       timed(T.contacts, [&] { find_contacts_along_step(); });       // broad phase on the motion x -> x + dx
       double alpha_max = 1, alpha = 0;
       timed(T.ccd, [&] { alpha_max = max_step(); });                // CCD: largest safe fraction of dx
@@ -494,6 +504,7 @@ class Solver final : public SolverBase {
     V.tri_rest = Exec::ptr(tri_rest_);
     V.hinges = Exec::ptr(hinges_);
     V.hinge_rest = Exec::ptr(hinge_rest_);
+    V.hinge_grad_t = Exec::ptr(hinge_grad_t_);
     V.row_ptr = Exec::ptr(row_ptr_);
     V.cols = Exec::ptr(cols_);
     V.diag = Exec::ptr(diag_);
@@ -530,6 +541,11 @@ class Solver final : public SolverBase {
     if (quasi_static) Exec::fill(v_, 0.0);
     copy(x_, x_t_);
     copy(v_, v_t_);
+    if (P_.beta_bend > 0) {  // the damping's lagged angle gradient
+      const detail::View V0 = view();
+      double* grad_t = Exec::ptr(hinge_grad_t_);
+      Exec::for_each(V0.nh, [=] GD_HD_LAMBDA(int h) { detail::hinge_step_start(V0, h, grad_t); }, Exec::kParallelMinHeavy);
+    }
     // Kinematic vertices: hard Dirichlet without self-contact; with self-contact they stay in the
     // solve, pulled to their targets by a stiff spring, so CCD also guards their motion and a
     // gripper pushes cloth aside instead of jumping through it.
@@ -539,6 +555,7 @@ class Solver final : public SolverBase {
     for (int k : kin.vertices) (soft ? kin_flag : kin_fixed_host_)[k] = 1;
     Exec::upload(fixed_, kin_fixed_host_);
     Exec::upload(kin_flag_, kin_flag);
+    update_free_mass();
     std::vector<double> targets(3 * static_cast<size_t>(n_), 0.0);
     for (size_t k = 0; k < kin.vertices.size(); ++k)
       for (int c = 0; c < 3; ++c) targets[3 * kin.vertices[k] + c] = kin.targets[3 * k + c];
@@ -752,11 +769,13 @@ class Solver final : public SolverBase {
     return P_.h * std::sqrt(num / free_mass());
   }
 
-  /// Total mass of the free vertices, kg.
-  double free_mass() {
+  /// Total mass of the free vertices, kg (set by begin_step: the Dirichlet set changes only there).
+  double free_mass() const { return free_mass_; }
+
+  void update_free_mass() {
     const detail::View V = view();
     const double m = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return V.fixed[i] ? 0.0 : V.mass[i]; });
-    return m > 0 ? m : 1.0;
+    free_mass_ = m > 0 ? m : 1.0;
   }
 
   /// Mass-weighted RMS of a displacement over the step, |d|_M / (h sqrt(M)) over the free
@@ -930,18 +949,29 @@ class Solver final : public SolverBase {
     }
   }
 
-  /// Sum of f over an element loop that scatters into shared rows: colour by colour on the CPU,
-  /// all at once with atomics on the GPU.
+  /// Sum of f over an element loop that scatters into shared rows: on the CPU colour by colour,
+  /// a colour's chunks in parallel and each chunk's elements in mesh order (SceneData's
+  /// Coloring); all at once with atomics on the GPU.
   template <class F>
   double sum_elements(const Coloring& coloring, int count, const F& f) {
     if constexpr (Exec::kColoring) {
-      const int* order = coloring.order.data();
-      double e = 0;
+      GD_DEMAND(coloring.elements == count, "element colouring built for another mesh");
+      const Coloring* C = &coloring;
+      const int* chunks = coloring.chunks.data();
+      // Each chunk's energy into its own slot, summed in chunk order: the same bits at any
+      // thread count (an OpenMP reduction would sum in an order that depends on it).
+      chunk_energy_.resize(coloring.chunks.size());
+      double* ce = chunk_energy_.data();
       for (int c = 0; c < coloring.colors(); ++c) {
         const int begin = coloring.offsets[c];
-        e += Exec::sum_effects(coloring.offsets[c + 1] - begin, [=](int k) { return f(order[begin + k]); },
-                               Exec::kParallelMinHeavy);
+        Exec::for_each(coloring.offsets[c + 1] - begin, [=](int k) {
+          double s = 0;
+          for (int i = C->first(chunks[begin + k]); i < C->last(chunks[begin + k]); ++i) s += f(i);
+          ce[begin + k] = s;
+        }, std::max(2, Exec::kParallelMinHeavy / C->chunk));
       }
+      double e = 0;
+      for (double v : chunk_energy_) e += v;
       return e;
     } else {
       return Exec::sum_effects(count, f, Exec::kParallelMinHeavy);
@@ -1076,15 +1106,20 @@ class Solver final : public SolverBase {
   }
 
   /// Solves H dx = -g. Returns the iterations spent (1 for the direct solver).
-  int solve_linear() {
+  int solve_linear(double first_step) {
     if constexpr (std::is_same_v<Exec, CpuExec>) {
       if (opt_.linear_solver == LinearSolverKind::kDirect) return solve_direct();
     }
-    return solve_pcg();
+    return solve_pcg(first_step);
   }
 
   /// PCG on H dx = -g with the preconditioner set up by prepare_linear_solve.
-  int solve_pcg() {
+  int solve_pcg(double first_step) {
+    // With MAS, z = P⁻¹r estimates the correction PCG has still to make (as in converged()):
+    // stop once it is a fraction of what the Newton rule will accept (pcg_newton_fraction), so the
+    // linear solve is no more exact than the Newton iteration needs. In the first Newton iteration
+    // the step built so far stands for the first step (it only grows, so the test stays strict).
+    const bool newton_stop = residual_rule() && opt_.pcg_newton_fraction > 0 && precond_->estimates_smooth_modes();
     Exec::fill(dx_, 0.0);
     copy(g_, r_);
     scale(-1.0, r_);  // r = -g (free rows; Dirichlet rows of g are zero)
@@ -1104,6 +1139,10 @@ class Solver final : public SolverBase {
       ++it;
       if (std::sqrt(dot(r_, r_)) <= opt_.pcg_tol * r0) break;
       precond_->apply(Exec::ptr(r_), Exec::ptr(z_));
+      if (newton_stop) {
+        const double target = residual_threshold(first_step > 0 ? first_step : rms_velocity(dx_));
+        if (rms_velocity(z_) <= opt_.pcg_newton_fraction * target) break;
+      }
       const double rz_new = dot(r_, z_);
       const double beta = rz_new / rz;
       rz = rz_new;
@@ -1162,12 +1201,12 @@ class Solver final : public SolverBase {
         if (self_) A.cpl_row_ptr = cpl_row_ptr_.data(), A.cpl_cols = cpl_cols_.data(), A.cpl_vals = cpl_vals_.data();
         A.x = x_.data();
         precond_->setup(A);
-        return solve_pcg();
+        return solve_pcg(0);
       }
       dx = ldlt_.solve(-g);
       return 1;
     } else {
-      return solve_pcg();
+      return solve_pcg(0);
     }
   }
 
@@ -1325,7 +1364,7 @@ class Solver final : public SolverBase {
   Vec<StretchShearRest> tri_rest_;
   Vec<HingeRest> hinge_rest_;
   Vec<double> f_ext_;
-  Vec<double> x_, v_, x_t_, v_t_, g_, dx_, r_, z_, p_, ap_, x_trial_, vals_, kin_target_;
+  Vec<double> x_, v_, x_t_, v_t_, g_, dx_, r_, z_, p_, ap_, x_trial_, vals_, kin_target_, hinge_grad_t_;
   std::unique_ptr<Preconditioner<Exec>> precond_;
   std::unique_ptr<Preconditioner<Exec>> estimator_;  ///< MAS for the stopping rule when PCG's is not
   std::vector<int> kin_fixed_host_;
@@ -1370,6 +1409,8 @@ class Solver final : public SolverBase {
   /// the host (*_h_), handed to the backend.
   std::vector<int> cpl_row_ptr_h_, cpl_cols_h_, cpl_slot_;
   std::vector<double> cpl_vals_h_, host_act_H_, host_fr_H_;
+  std::vector<double> chunk_energy_;  ///< sum_elements: per chunk (CPU)
+  double free_mass_ = 1.0;           ///< free_mass()
   Vec<int> cpl_row_ptr_, cpl_cols_;
   Vec<double> cpl_vals_;
   bool precond_ready_ = false;  ///< precond_ was set up in this step (not with the direct solver)

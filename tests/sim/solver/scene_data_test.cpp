@@ -1,7 +1,12 @@
-// Rest data from per-corner pattern coordinates (seams), creases and elastic edges.
+// Rest data from per-corner pattern coordinates (seams), creases and elastic edges; the chunked
+// element colourings of the CPU assembly.
 #include "sim/solver/scene_data.h"
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <set>
 
 #include "sim/demand.h"
 #include "sim/material.h"
@@ -111,6 +116,59 @@ TEST(SceneDataRest, FeatureEdgesAndUvIndicesAreValidated) {
   m = with_corner_uvs(good, Vec2::Zero());
   m.uv_tris[0][1] = 100000;
   EXPECT_THROW(validate_mesh(m), InputError);
+}
+
+/// Every element in exactly one chunk, each chunk listed once, and no vertex shared by two
+/// chunks of one colour (what lets a colour's chunks add into the Hessian in parallel).
+void expect_valid_coloring(const Coloring& c, const std::vector<int>& elems, int k) {
+  const int ne = static_cast<int>(elems.size()) / k;
+  ASSERT_EQ(c.elements, ne);
+  std::vector<int> seen(ne, 0);
+  std::set<int> chunks;
+  for (int col = 0; col < c.colors(); ++col) {
+    std::set<int> touched;
+    for (int q = c.offsets[col]; q < c.offsets[col + 1]; ++q) {
+      const int chunk = c.chunks[q];
+      EXPECT_TRUE(chunks.insert(chunk).second) << "chunk " << chunk << " listed twice";
+      std::set<int> mine;
+      for (int e = c.first(chunk); e < c.last(chunk); ++e) {
+        ++seen[e];
+        for (int a = 0; a < k; ++a) mine.insert(elems[k * e + a]);
+      }
+      for (int v : mine) EXPECT_TRUE(touched.insert(v).second) << "colour " << col << " shares vertex " << v;
+    }
+  }
+  for (int e = 0; e < ne; ++e) EXPECT_EQ(seen[e], 1) << "element " << e;
+}
+
+TEST(SceneDataColoring, ChunksOfOneColourShareNoVertex) {
+  const SceneData d = build_scene_data(make_rect(0.5, 0.5, 0.01), cotton(), {});
+  expect_valid_coloring(d.tri_colors, d.tris, 3);
+  expect_valid_coloring(d.hinge_colors, d.hinges, 4);
+  // A grid numbered row by row: a chunk meets only its neighbours, so a few colours hold many
+  // chunks each (parallel work) while every chunk walks its elements in mesh order.
+  EXPECT_LE(d.tri_colors.colors(), 4);
+  EXPECT_LE(d.hinge_colors.colors(), 4);
+  EXPECT_GE(d.tri_colors.chunks.size(), 10u);
+}
+
+TEST(SceneDataColoring, ShuffledElementsAndManyColoursStayValid) {
+  const SceneData d = build_scene_data(make_rect(0.3, 0.3, 0.01), cotton(), {});
+  // Triangles in random order: chunks meet far more chunks, the colouring must still hold.
+  const int nt = d.triangles();
+  std::vector<int> perm(nt);
+  for (int t = 0; t < nt; ++t) perm[t] = t;
+  std::shuffle(perm.begin(), perm.end(), std::mt19937(7));
+  std::vector<int> shuffled;
+  for (int t : perm) shuffled.insert(shuffled.end(), d.tris.begin() + 3 * t, d.tris.begin() + 3 * t + 3);
+  for (int chunk : {1, 7, 64, 256}) expect_valid_coloring(color_elements(shuffled, 3, d.n, chunk), shuffled, 3);
+  // A fan of 150 triangles around one vertex: every element meets every other, 150 colours (more
+  // than one 64-bit mask word holds).
+  std::vector<int> fan;
+  for (int t = 0; t < 150; ++t) fan.insert(fan.end(), {0, 1 + t, 2 + t});
+  const Coloring c = color_elements(fan, 3, 152, 1);
+  expect_valid_coloring(c, fan, 3);
+  EXPECT_EQ(c.colors(), 150);
 }
 
 }  // namespace
