@@ -589,15 +589,16 @@ class Solver final : public SolverBase {
       Exec::upload(x_, host_x_);
     }
     if (self_) {
-      // Lagged friction from the contacts at the start of the step; then make the predictor
-      // safe: candidates along x_t -> x, and the whole motion scaled back by CCD where needed.
+      // One broad phase on the predictor's motion x_t -> x: its candidates hold every pair within
+      // dhat at x_t too (a swept box contains the box at x_t), so the contacts at the start of
+      // the step, which lag the friction, are selected from them; then the whole motion is
+      // scaled back by CCD where needed.
       Exec::download(host_xt_, x_t_);
-      self_->find(host_xt_, host_xt_);
+      Exec::download(host_x_, x_);
+      self_->find(host_xt_, host_x_);
       self_->select_active(host_xt_, kin_fixed_host_);
       self_->build_friction(host_xt_);
       upload_friction();
-      Exec::download(host_x_, x_);
-      self_->find(host_xt_, host_x_);
       upload_candidates();
       for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] = host_x_[k] - host_xt_[k];
       Exec::upload(dx_, host_dx_);

@@ -266,6 +266,24 @@ TEST(BroadPhase, CrumpledSheetsMatchBruteForceAndMissNothing) {
   EXPECT_GT(close_tt, 100);
 }
 
+// The solver's predictor selects the contacts at the step start from the candidates of the
+// motion x0 -> x1 (one broad phase per step instead of two): the swept candidates must contain
+// every static candidate at x0.
+TEST(BroadPhase, SweptCandidatesContainTheStaticOnes) {
+  for (unsigned seed : {4u, 5u}) {
+    const Flat f = crumpled_sheet(0.2, 0.014, seed, 0.1, 0.03);
+    auto embree = make_embree_broad_phase(f.tris, f.edges, f.n);
+    const std::vector<double> x1 = displaced(f, 200 + seed, 0.12, 0.02);
+    ContactCandidates still, swept;
+    embree->find(f.x, f.x, 0.004, &still);
+    embree->find(f.x, x1, 0.004, &swept);
+    ASSERT_GT(still.vf.size(), 0u);
+    ASSERT_GT(still.ee.size(), 0u);
+    for (const auto& p : still.vf) EXPECT_TRUE(contains(swept.vf, p[0], p[1])) << "vf " << p[0] << " " << p[1];
+    for (const auto& p : still.ee) EXPECT_TRUE(contains(swept.ee, p[0], p[1])) << "ee " << p[0] << " " << p[1];
+  }
+}
+
 TEST(BroadPhase, FoldedSheetFindsTheLayerBelow) {
   const Real spacing = 0.01, gap = 0.004;
   const Flat f = folded_sheet(0.2, 0.08, spacing, gap);
