@@ -5,7 +5,7 @@
 ///   L(x) = 1/(2h^2)|x - x_hat|_M^2 + E_membrane + E_bend + E_gravity + E_table + E_friction
 ///          + D_drag + D_damping
 /// with a few inexact Newton iterations: assemble the gradient and PSD-projected Hessian, solve
-/// with PCG (block-Jacobi), cap the step so no vertex reaches the table (CCD on a plane), and
+/// with PCG (MAS or block-Jacobi, SceneOptions::preconditioner), cap the step so no vertex reaches the table (CCD on a plane), and
 /// backtrack until L decreases. Dirichlet (kinematic) vertices are set to their targets and
 /// removed from the solve. Included only by the backend translation units.
 

@@ -1,8 +1,9 @@
 #pragma once
 /// \file
 /// The CPU execution policy of the shared solver: plain host vectors and OpenMP loops.
-/// Element loops that scatter into shared rows run colour by colour (no two elements of one
-/// colour share a vertex), so adds need no atomics and results are deterministic.
+/// Element loops that scatter into shared rows run colour by colour over chunks of consecutive
+/// elements (no two chunks of one colour share a vertex; SceneData's Coloring), so adds need no
+/// atomics and results are deterministic.
 
 #include <omp.h>
 
@@ -15,7 +16,7 @@ namespace gd::sim {
 
 struct CpuExec {
   static constexpr const char* kName = "cpu";
-  /// Element loops use a vertex colouring instead of atomic adds.
+  /// Element loops use a chunk colouring instead of atomic adds.
   static constexpr bool kColoring = true;
 
   template <class T>
