@@ -220,9 +220,9 @@ bool Scene::do_step(bool quasi_static) {
   time_ += options_.dt;
   if (stats_.untangled) ++untangle_runs_;
   gd::log().debug("step t={:.3f}: newton {} pcg {} min_alpha {:.3g} |dx|/dt {:.3g} contacts {} candidates {} "
-                  "min gap {:.3g} barrier x{:g} grip {:.3g} N intersecting {} (found {}){}",
+                  "(queries {}) min gap {:.3g} barrier x{:g} grip {:.3g} N intersecting {} (found {}){}",
                   time_, stats_.newton_iters, stats_.pcg_iters, stats_.min_alpha, stats_.step_norm, stats_.contacts,
-                  stats_.candidates, stats_.min_self_distance, stats_.barrier_scale, stats_.max_grip_force, stats_.intersecting_pairs, stats_.intersecting_found, stats_.untangled ? " (untangled)" : "");
+                  stats_.candidates, stats_.broad_phase_queries, stats_.min_self_distance, stats_.barrier_scale, stats_.max_grip_force, stats_.intersecting_pairs, stats_.intersecting_found, stats_.untangled ? " (untangled)" : "");
   return true;
 }
 

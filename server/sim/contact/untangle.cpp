@@ -421,28 +421,39 @@ std::vector<Eigen::Vector2i> intersecting_pairs(const std::vector<double>& x, co
                                                 const std::vector<Eigen::Vector2i>& candidates) {
   check_mesh(x, tris);
   const int nt = static_cast<int>(tris.size() / 3);
+  // Candidates in parallel, each thread collecting its own; sorted below, so the answer does not
+  // depend on the thread count.
   std::vector<Eigen::Vector2i> out;
-  for (const auto& c : candidates) {
-    const int a = std::min(c[0], c[1]), b = std::max(c[0], c[1]);
-    GD_DEMAND(a >= 0 && b < nt, "candidate triangle index out of range");
-    if (a == b) continue;
-    const int* ta = &tris[3 * a];
-    const int* tb = &tris[3 * b];
-    if (share_vertex(ta, tb)) continue;
-    const Vec3 a0 = vtx(x, ta[0]), a1 = vtx(x, ta[1]), a2 = vtx(x, ta[2]);
-    const Vec3 b0 = vtx(x, tb[0]), b1 = vtx(x, tb[1]), b2 = vtx(x, tb[2]);
-    // Cheap box rejection, conservative with respect to the test's tolerance (1e-12 of the extent).
-    const Vec3 alo = a0.cwiseMin(a1).cwiseMin(a2), ahi = a0.cwiseMax(a1).cwiseMax(a2);
-    const Vec3 blo = b0.cwiseMin(b1).cwiseMin(b2), bhi = b0.cwiseMax(b1).cwiseMax(b2);
-    const double slack = 1e-9 * (ahi.cwiseMax(bhi) - alo.cwiseMin(blo)).maxCoeff();
-    if (((alo.array() - slack) > bhi.array()).any() || ((blo.array() - slack) > ahi.array()).any()) continue;
-    if (!triangles_intersect(a0, a1, a2, b0, b1, b2)) continue;
-    // Touching within rounding is contact, not a crossing: a crossing formed by continuous
-    // motion has no primitive pair at (numerically) zero distance, since it passes through
-    // contact first.
-    const Vec3 ta3[3] = {a0, a1, a2}, tb3[3] = {b0, b1, b2};
-    if (min_primitive_distance(ta3, tb3) < kTouchDistance) continue;
-    out.emplace_back(a, b);
+  const int count = static_cast<int>(candidates.size());
+#pragma omp parallel if (count >= 4096)
+  {
+    std::vector<Eigen::Vector2i> found;
+#pragma omp for schedule(static) nowait
+    for (int k = 0; k < count; ++k) {
+      const auto& c = candidates[k];
+      const int a = std::min(c[0], c[1]), b = std::max(c[0], c[1]);
+      GD_DEMAND(a >= 0 && b < nt, "candidate triangle index out of range");
+      if (a == b) continue;
+      const int* ta = &tris[3 * a];
+      const int* tb = &tris[3 * b];
+      if (share_vertex(ta, tb)) continue;
+      const Vec3 a0 = vtx(x, ta[0]), a1 = vtx(x, ta[1]), a2 = vtx(x, ta[2]);
+      const Vec3 b0 = vtx(x, tb[0]), b1 = vtx(x, tb[1]), b2 = vtx(x, tb[2]);
+      // Cheap box rejection, conservative with respect to the test's tolerance (1e-12 of the extent).
+      const Vec3 alo = a0.cwiseMin(a1).cwiseMin(a2), ahi = a0.cwiseMax(a1).cwiseMax(a2);
+      const Vec3 blo = b0.cwiseMin(b1).cwiseMin(b2), bhi = b0.cwiseMax(b1).cwiseMax(b2);
+      const double slack = 1e-9 * (ahi.cwiseMax(bhi) - alo.cwiseMin(blo)).maxCoeff();
+      if (((alo.array() - slack) > bhi.array()).any() || ((blo.array() - slack) > ahi.array()).any()) continue;
+      if (!triangles_intersect(a0, a1, a2, b0, b1, b2)) continue;
+      // Touching within rounding is contact, not a crossing: a crossing formed by continuous
+      // motion has no primitive pair at (numerically) zero distance, since it passes through
+      // contact first.
+      const Vec3 ta3[3] = {a0, a1, a2}, tb3[3] = {b0, b1, b2};
+      if (min_primitive_distance(ta3, tb3) < kTouchDistance) continue;
+      found.emplace_back(a, b);
+    }
+#pragma omp critical(gd_intersecting_pairs)
+    out.insert(out.end(), found.begin(), found.end());
   }
   std::sort(out.begin(), out.end(),
             [](const Eigen::Vector2i& p, const Eigen::Vector2i& q) { return std::tie(p[0], p[1]) < std::tie(q[0], q[1]); });

@@ -295,7 +295,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
         ++comps;
       }
       comp_count[d] = comps;
-    });
+    }, 1);
     Exec::exclusive_scan(s.comp_count, L.domains + 1);  // comp_count[d]: first node of domain d
     const int next_nodes = Exec::read(s.comp_count, L.domains);
     if (next_nodes >= L.nodes) return false;
@@ -325,7 +325,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
           }
         }
       }
-    });
+    }, 1);
     const int total = Exec::read(s.offsets, L.nodes);
     Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
       if (L.node_of[i] < 0) node_of[i] = -1;

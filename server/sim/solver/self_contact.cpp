@@ -15,6 +15,9 @@
 namespace gd::sim {
 namespace {
 
+/// Pair loops shorter than this stay on the calling thread (a pair distance is ~0.1 us).
+constexpr int kParallelPairs = 1024;
+
 Vec3 at(const std::vector<double>& x, int i) { return Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]); }
 
 /// Distance of a pair (VF or EE) at positions x.
@@ -34,7 +37,7 @@ void ContactPairs::push(const int* vs, int t, double k, double e) {
 }
 
 SelfContact::SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass)
-    : d_(data), dhat_(dhat), kappa_per_mass_(kappa_per_mass) {
+    : d_(data), dhat_(dhat), kappa_per_mass_(kappa_per_mass), slack_(kBroadPhaseSlack * dhat) {
   // Unique undirected edges of the triangles.
   for (int t = 0; t < d_.triangles(); ++t)
     for (int k = 0; k < 3; ++k) {
@@ -49,16 +52,75 @@ SelfContact::SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass)
   bp_ = make_embree_broad_phase(d_.tris, edges_, d_.n);
 }
 
+bool SelfContact::covered_by_last_query(const std::vector<double>& x0, const std::vector<double>& x1) const {
+  if (query_lo_.size() != x0.size() || x1.size() != x0.size()) return false;
+  const double r = 0.5 * slack_;
+  for (size_t k = 0; k < x0.size(); ++k) {
+    const double lo = query_lo_[k] - r, hi = query_hi_[k] + r;
+    if (!(x0[k] >= lo && x0[k] <= hi && x1[k] >= lo && x1[k] <= hi)) return false;  // NaN: not covered
+  }
+  return true;
+}
+
 void SelfContact::find(const std::vector<double>& x0, const std::vector<double>& x1) {
-  const auto t0 = std::chrono::steady_clock::now();
-  bp_->find(x0, x1, dhat_, &raw_);
-  bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (covered_by_last_query(x0, x1)) {
+    ++reuses_;
+  } else {
+    const auto t0 = std::chrono::steady_clock::now();
+    bp_->find(x0, x1, dhat_ + slack_, &raw_);
+    bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ++queries_;
+    query_lo_.resize(x0.size());
+    query_hi_.resize(x0.size());
+    for (size_t k = 0; k < x0.size(); ++k) {
+      query_lo_[k] = std::min(x0[k], x1[k]);
+      query_hi_[k] = std::max(x0[k], x1[k]);
+    }
+  }
+  // Keep the pairs whose boxes of this motion, inflated by dhat, overlap: what a query with
+  // margin dhat would report (the slack only made the query's answer last longer).
+  motion_lo_.resize(x0.size());
+  motion_hi_.resize(x0.size());
+  for (size_t k = 0; k < x0.size(); ++k) {
+    motion_lo_[k] = std::min(x0[k], x1[k]);
+    motion_hi_[k] = std::max(x0[k], x1[k]);
+  }
+  const double margin = dhat_ * (1 + 1e-9);
+  const double* lo = motion_lo_.data();
+  const double* hi = motion_hi_.data();
+  auto near = [=](const int* a, int na, const int* b, int nb) {
+    for (int d = 0; d < 3; ++d) {
+      double alo = lo[3 * a[0] + d], ahi = hi[3 * a[0] + d], blo = lo[3 * b[0] + d], bhi = hi[3 * b[0] + d];
+      for (int k = 1; k < na; ++k) alo = std::min(alo, lo[3 * a[k] + d]), ahi = std::max(ahi, hi[3 * a[k] + d]);
+      for (int k = 1; k < nb; ++k) blo = std::min(blo, lo[3 * b[k] + d]), bhi = std::max(bhi, hi[3 * b[k] + d]);
+      if (alo - margin > bhi || blo - margin > ahi) return false;
+    }
+    return true;
+  };
+  const int nvf = static_cast<int>(raw_.vf.size()), nee = static_cast<int>(raw_.ee.size());
+  keep_.resize(nvf + nee);
+#pragma omp parallel for schedule(static) if (nvf + nee >= kParallelPairs)
+  for (int c = 0; c < nvf + nee; ++c) {
+    if (c < nvf) {
+      const auto& p = raw_.vf[c];
+      keep_[c] = near(&p[0], 1, &d_.tris[3 * p[1]], 3);
+    } else {
+      const auto& p = raw_.ee[c - nvf];
+      keep_[c] = near(edges_[p[0]].data(), 2, edges_[p[1]].data(), 2);
+    }
+  }
   cand_.clear();
-  for (const auto& p : raw_.vf) {
+  const size_t total = std::count(keep_.begin(), keep_.end(), 1);
+  cand_.v.reserve(4 * total), cand_.type.reserve(total), cand_.kappa.reserve(total), cand_.eps_x.reserve(total);
+  for (int c = 0; c < nvf; ++c) {
+    if (!keep_[c]) continue;
+    const auto& p = raw_.vf[c];
     const int v[4] = {p[0], d_.tris[3 * p[1]], d_.tris[3 * p[1] + 1], d_.tris[3 * p[1] + 2]};
     cand_.push(v, 0, kappa_scale_ * kappa_per_mass_ * d_.mass[v[0]], 0.0);
   }
-  for (const auto& p : raw_.ee) {
+  for (int c = 0; c < nee; ++c) {
+    if (!keep_[nvf + c]) continue;
+    const auto& p = raw_.ee[c];
     const auto& a = edges_[p[0]];
     const auto& b = edges_[p[1]];
     const int v[4] = {a[0], a[1], b[0], b[1]};
@@ -74,7 +136,7 @@ void SelfContact::select_active(const std::vector<double>& x, const std::vector<
   // The distances in parallel (the costly part), then the lists in candidate order.
   const int n = cand_.size();
   dist_.resize(n);
-#pragma omp parallel for schedule(static) if (n >= 4096)
+#pragma omp parallel for schedule(static) if (n >= kParallelPairs)
   for (int c = 0; c < n; ++c) {
     const int* v = &cand_.v[4 * c];
     dist_[c] = fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]] ? -1.0 : pair_distance(x, v, cand_.type[c]);
@@ -103,33 +165,56 @@ void SelfContact::set_kappa_scale(Real s) {
 double SelfContact::min_active_distance(const std::vector<double>& x) const {
   double m = std::numeric_limits<double>::infinity();
   const int n = active_.size();
-#pragma omp parallel for schedule(static) reduction(min : m) if (n >= 4096)
+#pragma omp parallel for schedule(static) reduction(min : m) if (n >= kParallelPairs)
   for (int c = 0; c < n; ++c) m = std::min(m, pair_distance(x, &active_.v[4 * c], active_.type[c]));
   return m;
 }
 
 void SelfContact::build_friction(const std::vector<double>& x_t) {
-  friction_.clear();
-  for (int c = 0; c < active_.size(); ++c) {
+  // Frames in parallel (the costly part), then the list in active-pair order.
+  const int n = active_.size();
+  fr_scratch_.resize(11 * static_cast<size_t>(n));  // per pair: lambda, 4 weights, 6 of T
+#pragma omp parallel for schedule(static) if (n >= kParallelPairs)
+  for (int c = 0; c < n; ++c) {
+    double* o = &fr_scratch_[11 * static_cast<size_t>(c)];
     const int* v = &active_.v[4 * c];
     const Vec3 p0 = at(x_t, v[0]), p1 = at(x_t, v[1]), p2 = at(x_t, v[2]), p3 = at(x_t, v[3]);
     const double dist = pair_distance(x_t, v, active_.type[c]);
     double lambda = contact_normal_force(dist, 0.0, dhat_, active_.kappa[c]);
     if (active_.type[c] == 1) lambda *= ee_mollifier(p0, p1, p2, p3, active_.eps_x[c], nullptr, nullptr);
+    o[0] = lambda;
     if (!(lambda > 0) || !std::isfinite(lambda)) continue;
     const ContactFrictionFrame f =
         active_.type[c] == 0 ? vf_friction_frame(p0, p1, p2, p3) : ee_friction_frame(p0, p1, p2, p3);
-    friction_.v.insert(friction_.v.end(), v, v + 4);
-    for (int k = 0; k < 4; ++k) friction_.w.push_back(f.w[k]);
-    for (int k = 0; k < 6; ++k) friction_.T.push_back(f.T.data()[k]);
-    friction_.lambda.push_back(lambda);
+    for (int k = 0; k < 4; ++k) o[1 + k] = f.w[k];
+    for (int k = 0; k < 6; ++k) o[5 + k] = f.T.data()[k];
+  }
+  friction_.clear();
+  for (int c = 0; c < n; ++c) {
+    const double* o = &fr_scratch_[11 * static_cast<size_t>(c)];
+    if (!(o[0] > 0) || !std::isfinite(o[0])) continue;
+    friction_.v.insert(friction_.v.end(), &active_.v[4 * c], &active_.v[4 * c] + 4);
+    friction_.w.insert(friction_.w.end(), o + 1, o + 5);
+    friction_.T.insert(friction_.T.end(), o + 5, o + 11);
+    friction_.lambda.push_back(o[0]);
   }
 }
 
 int SelfContact::count_intersections(const std::vector<double>& x) {
-  std::vector<Eigen::Vector2i> pairs;
-  bp_->triangle_pairs(x, x, 0.0, &pairs);
-  return static_cast<int>(intersecting_pairs(x, d_.tris, pairs).size());
+  // Triangle pairs from a query with margin slack at the positions of its time, reused while no
+  // vertex has moved more than slack/2 from there (as in find()): a pair whose triangles touch
+  // at x had boxes within slack of each other then.
+  bool covered = tri_query_x_.size() == x.size();
+  const double r = 0.5 * slack_;
+  for (size_t k = 0; covered && k < x.size(); ++k) covered = std::abs(x[k] - tri_query_x_[k]) <= r;  // NaN: false
+  if (!covered) {
+    const auto t0 = std::chrono::steady_clock::now();
+    bp_->triangle_pairs(x, x, slack_, &tri_raw_);
+    bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ++queries_;
+    tri_query_x_ = x;
+  }
+  return static_cast<int>(intersecting_pairs(x, d_.tris, tri_raw_).size());  // its own box test first
 }
 
 int SelfContact::untangle(std::vector<double>* x, const std::vector<int>& fixed) {

@@ -42,6 +42,11 @@ class SelfContact {
   SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass);
 
   /// Candidates: pairs that can come within dhat while moving linearly from x0 to x1.
+  /// The broad phase runs with a margin of dhat + slack (slack = kBroadPhaseSlack x dhat), so its
+  /// candidates stay a superset for every later motion that keeps each vertex within slack/2 of
+  /// the box it swept in that query (two primitives within dhat then had boxes within dhat +
+  /// slack); such a motion reuses them without a new query (Newton iterations of a step, and
+  /// steps of cloth moving less than slack/2 from where the query saw it).
   void find(const std::vector<double>& x0, const std::vector<double>& x1);
   /// Active pairs: candidates closer than dhat at x with at least one free vertex. Pairs
   /// already at zero distance (driven there by kinematic vertices) are dropped from both lists
@@ -50,7 +55,8 @@ class SelfContact {
   /// Lagged friction frames of the active pairs at x_t.
   void build_friction(const std::vector<double>& x_t);
 
-  /// Number of intersecting triangle pairs (exact test over broad-phase candidates).
+  /// Number of intersecting triangle pairs (exact test over broad-phase candidates; the triangle
+  /// query, with margin slack, is reused while every vertex stays within slack/2 of its place).
   int count_intersections(const std::vector<double>& x);
   /// Runs the untangling fail-safe on x (free vertices only); returns pairs left.
   int untangle(std::vector<double>* x, const std::vector<int>& fixed);
@@ -66,6 +72,9 @@ class SelfContact {
   const FrictionPairs& friction() const { return friction_; }
   int dropped() const { return dropped_; }
   double broad_phase_seconds() const { return bp_seconds_; }
+  /// Broad-phase queries run, and find() calls answered from the last query's candidates.
+  long broad_phase_queries() const { return queries_; }
+  long broad_phase_reuses() const { return reuses_; }
   Real dhat() const { return dhat_; }
 
  private:
@@ -75,12 +84,26 @@ class SelfContact {
   std::unique_ptr<BroadPhase> bp_;
   std::vector<Eigen::Vector2i> edges_;
   std::vector<double> edge_len2_;  ///< rest squared edge lengths (mollifier)
+  /// Whether every vertex's motion x0 -> x1 stays within slack/2 of its box in the last query.
+  bool covered_by_last_query(const std::vector<double>& x0, const std::vector<double>& x1) const;
+
   ContactCandidates raw_;
+  Real slack_;
+  std::vector<double> query_lo_, query_hi_;    ///< per coordinate: the last query's swept box
+  std::vector<double> motion_lo_, motion_hi_;  ///< per coordinate: this motion's swept box
+  std::vector<unsigned char> keep_;            ///< per raw pair: its boxes of this motion overlap
+  std::vector<Eigen::Vector2i> tri_raw_;  ///< count_intersections' triangle pairs (margin slack)
+  std::vector<double> tri_query_x_;       ///< positions of that query
   ContactPairs cand_, active_;
   std::vector<double> dist_;  ///< select_active's per-candidate distances
   FrictionPairs friction_;
+  std::vector<double> fr_scratch_;  ///< build_friction's per-pair results
   int dropped_ = 0;
   double bp_seconds_ = 0;
+  long queries_ = 0, reuses_ = 0;
 };
+
+/// Extra broad-phase margin as a fraction of dhat (SelfContact::find).
+inline constexpr Real kBroadPhaseSlack = 1.0;
 
 }  // namespace gd::sim

@@ -30,6 +30,7 @@
 #include "sim/contact/ccd.h"
 #include "sim/contact/collider.h"
 #include "sim/contact/friction.h"
+#include "sim/solver/pair_blocks.h"
 #include "sim/solver/preconditioner.h"
 #include "sim/solver/self_contact.h"
 #include "sim/solver/solver.h"
@@ -354,6 +355,7 @@ class Solver final : public SolverBase {
     StepStats st;
     StageTimes& T = st.stage;
     const double bp_seconds_at_start = self_ ? self_->broad_phase_seconds() : 0.0;
+    const long bp_queries_at_start = self_ ? self_->broad_phase_queries() : 0;
     timed(T.predictor, [&] { begin_step(kin, quasi_static); });   // lagged data, Dirichlet targets, predictor
     bool gradient_known = false;                                    // g_ is the gradient at x (line search)
     double scale = 0;                                               // the first Newton step's size, m/s
@@ -404,6 +406,7 @@ class Solver final : public SolverBase {
       st.contacts = self_->active().size();
       st.candidates = self_->candidates().size();
       st.broad_phase_seconds = self_->broad_phase_seconds() - bp_seconds_at_start;
+      st.broad_phase_queries = static_cast<int>(self_->broad_phase_queries() - bp_queries_at_start);
     }
     st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return st;
@@ -1030,64 +1033,12 @@ class Solver final : public SolverBase {
       HA = host_act_H_.data();
       HF = host_fr_H_.data();
     }
-    const int* fixed = kin_fixed_host_.data();
-    struct Ref {
-      int col;
-      const double* block;  // 3x3 at stride 12 in a pair's 12x12
-    };
-    std::vector<int>& row_ptr = cpl_row_ptr_h_;
-    row_ptr.assign(n_ + 1, 0);
-    auto each_block = [&](int count, const int* vs_all, const double* Hs, auto&& f) {
-      for (int c = 0; c < count; ++c) {
-        const int* vs = vs_all + 4 * c;
-        for (int a = 0; a < 4; ++a) {
-          if (fixed[vs[a]]) continue;
-          for (int b = 0; b < 4; ++b)
-            if (b != a && !fixed[vs[b]]) f(vs[a], vs[b], Hs + 144 * c + 36 * a + 3 * b);
-        }
-      }
-    };
-    auto each_pair_block = [&](auto&& f) {
-      each_block(act.size(), act.v.data(), HA, f);
-      each_block(fr.size(), fr.v.data(), HF, f);
-    };
-    each_pair_block([&](int row, int, const double*) { ++row_ptr[row + 1]; });
-    for (int i = 0; i < n_; ++i) row_ptr[i + 1] += row_ptr[i];
-    std::vector<Ref> refs(row_ptr[n_]);
-    std::vector<int> cursor(row_ptr.begin(), row_ptr.end() - 1);
-    each_pair_block([&](int row, int col, const double* blk) { refs[cursor[row]++] = {col, blk}; });
-    // Per row: one block per distinct column (cpl_slot_ marks the columns seen in this row), the
-    // blocks of equal columns summed in pair order.
-    std::vector<int>& cols = cpl_cols_h_;
-    std::vector<double>& vals = cpl_vals_h_;
-    cols.clear();
-    vals.clear();
-    cpl_slot_.assign(n_, -1);
-    int out_begin = 0;
-    for (int i = 0; i < n_; ++i) {
-      for (int e = row_ptr[i]; e < row_ptr[i + 1]; ++e) {
-        const Ref& ref = refs[e];
-        int& slot = cpl_slot_[ref.col];
-        if (slot < out_begin) {  // first in this row (slots of earlier rows are smaller)
-          slot = static_cast<int>(cols.size());
-          cols.push_back(ref.col);
-          vals.resize(vals.size() + 9, 0.0);
-        }
-        double* dst = vals.data() + 9 * static_cast<size_t>(slot);
-        for (int r = 0; r < 3; ++r)
-          for (int k = 0; k < 3; ++k) dst[3 * r + k] += ref.block[12 * r + k];
-      }
-      row_ptr[i] = out_begin;
-      out_begin = static_cast<int>(cols.size());
-    }
-    row_ptr[n_] = out_begin;
-    if (cols.empty()) {  // keep the pointers valid
-      cols.push_back(0);
-      vals.resize(9, 0.0);
-    }
-    Exec::take(cpl_row_ptr_, row_ptr);
-    Exec::take(cpl_cols_, cols);
-    Exec::take(cpl_vals_, vals);
+    gd::sim::merge_pair_blocks(n_, kin_fixed_host_.data(),
+                               {PairHessians{act.size(), act.v.data(), HA}, PairHessians{fr.size(), fr.v.data(), HF}},
+                               &cpl_h_);
+    Exec::take(cpl_row_ptr_, cpl_h_.row_ptr);
+    Exec::take(cpl_cols_, cpl_h_.cols);
+    Exec::take(cpl_vals_, cpl_h_.vals);
   }
 
   /// Before a linear solve: the contact couplings as a matrix, then the preconditioner's setup.
@@ -1408,8 +1359,8 @@ class Solver final : public SolverBase {
   Vec<double> act_gd_, fr_gd_;  ///< per pair: gradient (12) and diagonal blocks (4 x 9), see store_pair
   /// The contact pairs' off-diagonal blocks merged per vertex pair (merge_pair_blocks): built on
   /// the host (*_h_), handed to the backend.
-  std::vector<int> cpl_row_ptr_h_, cpl_cols_h_, cpl_slot_;
-  std::vector<double> cpl_vals_h_, host_act_H_, host_fr_H_;
+  CouplingMatrix cpl_h_;  ///< merge_pair_blocks' host result (its storage reused)
+  std::vector<double> host_act_H_, host_fr_H_;
   std::vector<double> chunk_energy_;  ///< sum_elements: per chunk (CPU)
   double free_mass_ = 1.0;           ///< free_mass()
   Vec<int> cpl_row_ptr_, cpl_cols_;

@@ -1,0 +1,34 @@
+#pragma once
+/// \file
+/// Contact couplings as a block matrix: the off-diagonal 3x3 blocks of the contact pairs' 12x12
+/// Hessians summed per coupled (row, column) vertex pair into a block CSR. Host code (CPU and
+/// CUDA backends both build it on the host), run in parallel over the OpenMP threads with a
+/// result that does not depend on their number.
+
+#include <vector>
+
+namespace gd::sim {
+
+/// One list of pairs: `count` pairs of 4 vertex ids (v, 4 per pair) with their 12x12 Hessians (H,
+/// 144 per pair, row-major; block (a, b) starts at 36 a + 3 b with row stride 12).
+struct PairHessians {
+  int count = 0;
+  const int* v = nullptr;
+  const double* H = nullptr;
+};
+
+/// Block CSR of the couplings: row i's blocks are cols/vals[row_ptr[i], row_ptr[i+1]) (vals: 9
+/// per block, row-major). Never empty: a matrix without couplings holds one zero block after the
+/// last row, so pointers into it stay valid.
+struct CouplingMatrix {
+  std::vector<int> row_ptr, cols;
+  std::vector<double> vals;
+};
+
+/// Sums the off-diagonal blocks (a != b) of every pair in `lists` between free vertices (fixed[v]
+/// == 0) into `out` (overwritten; its storage is reused). n: vertex count. A row's columns come in
+/// the order they first appear (lists in order, pairs in order, a then b), and the blocks of one
+/// column are summed in that order: the same bits on any number of threads.
+void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>& lists, CouplingMatrix* out);
+
+}  // namespace gd::sim
