@@ -74,7 +74,7 @@ struct StepStats {
   int intersecting_pairs = 0;  ///< intersecting triangle pairs after the step (and untangling)
   int intersecting_found = 0;  ///< intersecting triangle pairs the solve left (before untangling)
   bool untangled = false;      ///< the untangling fail-safe ran this step
-  double broad_phase_seconds = 0;  ///< broad phase (inside the predictor and contacts stages)
+  double broad_phase_seconds = 0;  ///< broad-phase queries (inside the predictor, contacts and intersections stages)
   int broad_phase_queries = 0;     ///< broad-phase queries run (the others reused candidates)
   StageTimes stage;            ///< where the step's time went
   double seconds = 0;          ///< wall time of the step
