@@ -63,28 +63,24 @@ bool SelfContact::covered_by_last_query(const std::vector<double>& x0, const std
 }
 
 void SelfContact::find(const std::vector<double>& x0, const std::vector<double>& x1) {
-  if (covered_by_last_query(x0, x1)) {
+  const bool reuse = covered_by_last_query(x0, x1);
+  if (reuse) {
     ++reuses_;
-  } else {
+  } else {  // the broad phase also checks the sizes and finiteness of x0 and x1
     const auto t0 = std::chrono::steady_clock::now();
     bp_->find(x0, x1, dhat_ + slack_, &raw_);
     bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++queries_;
-    query_lo_.resize(x0.size());
-    query_hi_.resize(x0.size());
-    for (size_t k = 0; k < x0.size(); ++k) {
-      query_lo_[k] = std::min(x0[k], x1[k]);
-      query_hi_[k] = std::max(x0[k], x1[k]);
-    }
   }
-  // Keep the pairs whose boxes of this motion, inflated by dhat, overlap: what a query with
-  // margin dhat would report (the slack only made the query's answer last longer).
   motion_lo_.resize(x0.size());
   motion_hi_.resize(x0.size());
   for (size_t k = 0; k < x0.size(); ++k) {
     motion_lo_[k] = std::min(x0[k], x1[k]);
     motion_hi_[k] = std::max(x0[k], x1[k]);
   }
+  if (!reuse) query_lo_ = motion_lo_, query_hi_ = motion_hi_;  // what later motions are checked against
+  // Keep the pairs whose boxes of this motion, inflated by dhat, overlap: what a query with
+  // margin dhat would report (the slack only made the query's answer last longer).
   const double margin = dhat_ * (1 + 1e-9);
   const double* lo = motion_lo_.data();
   const double* hi = motion_hi_.data();
