@@ -217,6 +217,22 @@ GD_HD Real hinge_rest_coef(const Vec2& X0, const Vec2& X1, const Vec2& X2, const
                          Vec3(X2.x(), X2.y(), Real(0)), Vec3(X3.x(), X3.y(), Real(0)), area);
 }
 
+namespace detail {
+
+/// The bending energy's scalar part as a function of θ: returns E and writes dE/dθ and d²E/dθ²
+/// (d²E > 0: the Gauss-Newton factor).
+GD_HD Real bending_of_theta(const HingeRest& r, Real theta, Real* dE, Real* d2E) {
+  const Real inv_kn2 = r.kappa_n > Real(0) ? Real(1) / (r.kappa_n * r.kappa_n) : Real(0);
+  const Real K = r.area * r.stiffness;
+  const Real kappa = r.coef * (theta - r.theta0);
+  const Real k2 = kappa * kappa;
+  *dE = K * r.coef * kappa * (Real(1) + k2 * inv_kn2);
+  *d2E = K * r.coef * r.coef * (Real(1) + Real(3) * k2 * inv_kn2);
+  return K * (Real(0.5) * k2 + Real(0.25) * k2 * k2 * inv_kn2);
+}
+
+}  // namespace detail
+
 /// Nonlinear hinge bending energy, J:
 ///   κ = coef (θ - θ0),   E = area G (κ²/2 + κ⁴/(4 κn²))
 /// so the bending moment per unit length is G κ (1 + (κ/κn)²). kappa_n <= 0 drops the quartic
@@ -240,19 +256,31 @@ GD_HD Real bending_energy(const Vec3& x0, const Vec3& x1, const Vec3& x2, const 
     if (want_hess) hess->setZero();
     return Real(0);
   }
-  const Real inv_kn2 = r.kappa_n > Real(0) ? Real(1) / (r.kappa_n * r.kappa_n) : Real(0);
-  const Real K = r.area * r.stiffness;
-  const Real kappa = r.coef * (theta - r.theta0);
-  const Real k2 = kappa * kappa;
-  const Real energy = K * (Real(0.5) * k2 + Real(0.25) * k2 * k2 * inv_kn2);
-  if (grad == nullptr && !want_hess) return energy;
-  const Real dE = K * r.coef * kappa * (Real(1) + k2 * inv_kn2);
+  Real dE, d2E;
+  const Real energy = detail::bending_of_theta(r, theta, &dE, &d2E);
   if (grad) *grad = dE * gth;
   if (want_hess) {
-    const Real d2E = K * r.coef * r.coef * (Real(1) + Real(3) * k2 * inv_kn2);
     *hess = d2E * (gth * gth.transpose());
     if (want_theta_hess) *hess += dE * Hth;
   }
+  return energy;
+}
+
+/// bending_energy with its Gauss-Newton (kProjected) Hessian in factored form, the form the
+/// solver assembles from: Hessian = *hess_coef ∇θ ∇θᵀ with ∇θ written to *grad_theta (a
+/// rank-one 12x12 matrix added block by block without being formed). grad may be null;
+/// grad_theta and hess_coef may not. Degenerate hinges: 0 energy, zero ∇θ and coefficient.
+GD_HD Real bending_energy_rank1(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3,
+                                const HingeRest& r, Vec12* grad, Vec12* grad_theta, Real* hess_coef) {
+  Real theta;
+  if (!detail::hinge_angle(x0, x1, x2, x3, &theta, grad_theta, nullptr)) {
+    if (grad) grad->setZero();
+    *hess_coef = Real(0);
+    return Real(0);
+  }
+  Real dE;
+  const Real energy = detail::bending_of_theta(r, theta, &dE, hess_coef);
+  if (grad) *grad = dE * *grad_theta;
   return energy;
 }
 

@@ -11,6 +11,40 @@
 
 namespace gd::sim {
 
+/// membrane_damping_energy in the (w_u, w_v) space of stretch_shear.h: the energy at the
+/// deformation columns (wu, wv), and for non-null pointers its gradient (N) and constant PSD
+/// Hessian (N/m, 6x6) with respect to them.
+GD_HD Real membrane_damping_energy_w(const Vec3& wu, const Vec3& wv, const Vec3& wu_t, const Vec3& wv_t,
+                                     const StretchShearRest& r, Real beta, Real h, VecN<6>* grad_w,
+                                     MatN<6>* hess_w) {
+  const Vec3 du = wu - wu_t;
+  const Vec3 dv = wv - wv_t;
+  const Real lu = wu_t.norm();
+  const Real lv = wv_t.norm();
+  const Vec3 hu = lu > Real(1e-12) ? Vec3(wu_t / lu) : Vec3(Vec3::Zero());
+  const Vec3 hv = lv > Real(1e-12) ? Vec3(wv_t / lv) : Vec3(Vec3::Zero());
+  const Real su = hu.dot(du);
+  const Real sv = hv.dot(dv);
+  const Real ss = wv_t.dot(du) + wu_t.dot(dv);
+  const Real c = beta * r.area / h;
+  const Real energy = Real(0.5) * c * (r.k_warp * su * su + r.k_weft * sv * sv + r.k_shear * ss * ss);
+  if (grad_w) {
+    grad_w->segment<3>(0) = c * (r.k_warp * su * hu + r.k_shear * ss * wv_t);
+    grad_w->segment<3>(3) = c * (r.k_weft * sv * hv + r.k_shear * ss * wu_t);
+  }
+  if (hess_w) {
+    MatN<6>& Hw = *hess_w;
+    Hw.setZero();
+    Hw.block<3, 3>(0, 0) = (c * r.k_warp) * (hu * hu.transpose());
+    Hw.block<3, 3>(3, 3) = (c * r.k_weft) * (hv * hv.transpose());
+    VecN<6> rs;
+    rs.segment<3>(0) = wv_t;
+    rs.segment<3>(3) = wu_t;
+    Hw += (c * r.k_shear) * (rs * rs.transpose());
+  }
+  return energy;
+}
+
 /// Membrane damping potential of a triangle, J:
 ///   Δw = w(x) - w(x^t)  (per column),
 ///   E = beta/(2h) area [k_warp (ŵ_u^t.Δw_u)² + k_weft (ŵ_v^t.Δw_v)² + k_shear (w_v^t.Δw_u + w_u^t.Δw_v)²]
@@ -24,37 +58,23 @@ GD_HD Real membrane_damping_energy(const Vec3& x0, const Vec3& x1, const Vec3& x
   Vec3 wu;
   Vec3 wv;
   deformation_columns(x0, x1, x2, r.Dm_inv, &wu, &wv);
-  const Vec3 du = wu - wu_t;
-  const Vec3 dv = wv - wv_t;
-  const Real lu = wu_t.norm();
-  const Real lv = wv_t.norm();
-  const Vec3 hu = lu > Real(1e-12) ? Vec3(wu_t / lu) : Vec3(Vec3::Zero());
-  const Vec3 hv = lv > Real(1e-12) ? Vec3(wv_t / lv) : Vec3(Vec3::Zero());
-  const Real su = hu.dot(du);
-  const Real sv = hv.dot(dv);
-  const Real ss = wv_t.dot(du) + wu_t.dot(dv);
-  const Real c = beta * r.area / h;
-  const Real energy = Real(0.5) * c * (r.k_warp * su * su + r.k_weft * sv * sv + r.k_shear * ss * ss);
+  VecN<6> gw;
+  MatN<6> Hw;
+  const Real energy = membrane_damping_energy_w(wu, wv, wu_t, wv_t, r, beta, h, grad ? &gw : nullptr,
+                                                hess ? &Hw : nullptr);
   if (grad == nullptr && hess == nullptr) return energy;
   Vec3 cu;
   Vec3 cv;
   detail::membrane_weights(r.Dm_inv, &cu, &cv);
-  if (grad) {
-    const Vec3 gu = c * (r.k_warp * su * hu + r.k_shear * ss * wv_t);
-    const Vec3 gv = c * (r.k_weft * sv * hv + r.k_shear * ss * wu_t);
-    detail::membrane_map_gradient(cu, cv, gu, gv, grad);
-  }
-  if (hess) {
-    MatN<6> Hw = MatN<6>::Zero();
-    Hw.block<3, 3>(0, 0) = (c * r.k_warp) * (hu * hu.transpose());
-    Hw.block<3, 3>(3, 3) = (c * r.k_weft) * (hv * hv.transpose());
-    VecN<6> rs;
-    rs.segment<3>(0) = wv_t;
-    rs.segment<3>(3) = wu_t;
-    Hw += (c * r.k_shear) * (rs * rs.transpose());
-    detail::membrane_map_hessian(cu, cv, Hw, hess);
-  }
+  if (grad) detail::membrane_map_gradient(cu, cv, gw.segment<3>(0), gw.segment<3>(3), grad);
+  if (hess) detail::membrane_map_hessian(cu, cv, Hw, hess);
   return energy;
+}
+
+/// The constant c = beta/h area G coef² (J/rad²) of bending_damping_energy: its Hessian is
+/// c ∇θ^t ∇θ^tᵀ (the solver adds it in that factored form).
+GD_HD Real bending_damping_coef(const HingeRest& r, Real beta, Real h) {
+  return beta * r.area * r.stiffness * r.coef * r.coef / h;
 }
 
 /// Bending damping potential of a hinge, J:
@@ -67,7 +87,7 @@ GD_HD Real membrane_damping_energy(const Vec3& x0, const Vec3& x1, const Vec3& x
 GD_HD Real bending_damping_energy(const Vec12& x, const Vec12& x_t, const Vec12& grad_theta_t,
                                   const HingeRest& r, Real beta, Real h, Vec12* grad,
                                   Mat12* hess) {
-  const Real c = beta * r.area * r.stiffness * r.coef * r.coef / h;
+  const Real c = bending_damping_coef(r, beta, h);
   const Real dth = grad_theta_t.dot(x - x_t);
   if (grad) *grad = (c * dth) * grad_theta_t;
   if (hess) *hess = c * (grad_theta_t * grad_theta_t.transpose());

@@ -108,6 +108,50 @@ GD_HD Mat3 stretch_block_hessian(Real k, Real len, const Vec3& what, bool projec
 
 }  // namespace detail
 
+/// stretch_shear_energy in the (w_u, w_v) space of the file comment: the energy, and for non-null
+/// pointers its gradient (N, ordered w_u, w_v) and Hessian (N/m, 6x6; kind kExact or kProjected
+/// as in stretch_shear_energy) with respect to the deformation columns w_u, w_v at (wu, wv). The
+/// solver sums the membrane terms of a triangle in this space and maps them to the positions once
+/// (membrane_map_gradient, membrane_map_hessian with membrane_weights).
+GD_HD Real stretch_shear_energy_w(const Vec3& wu, const Vec3& wv, const StretchShearRest& r, VecN<6>* grad_w,
+                                  MatN<6>* hess_w, HessianKind kind) {
+  const Real lu = wu.norm();
+  const Real lv = wv.norm();
+  const Real s = wu.dot(wv);
+  const Real du = lu - Real(1);
+  const Real dv = lv - Real(1);
+  const Real ku = effective_stretch_stiffness(r.k_warp, lu, r.compression_ratio);
+  const Real kv = effective_stretch_stiffness(r.k_weft, lv, r.compression_ratio);
+  const Real energy = Real(0.5) * r.area * (ku * du * du + kv * dv * dv + r.k_shear * s * s);
+
+  const bool want_hess = hess_w != nullptr && kind != HessianKind::kNone;
+  if (grad_w == nullptr && !want_hess) return energy;
+
+  const Vec3 hu = lu > Real(1e-12) ? Vec3(wu / lu) : Vec3(Vec3::Zero());
+  const Vec3 hv = lv > Real(1e-12) ? Vec3(wv / lv) : Vec3(Vec3::Zero());
+  if (grad_w != nullptr) {
+    grad_w->segment<3>(0) = r.area * (ku * du * hu + r.k_shear * s * wv);
+    grad_w->segment<3>(3) = r.area * (kv * dv * hv + r.k_shear * s * wu);
+  }
+  if (want_hess) {
+    const bool projected = kind == HessianKind::kProjected;
+    MatN<6>& Hw = *hess_w;
+    Hw.setZero();
+    Hw.block<3, 3>(0, 0) = detail::stretch_block_hessian(r.area * ku, lu, hu, projected);
+    Hw.block<3, 3>(3, 3) = detail::stretch_block_hessian(r.area * kv, lv, hv, projected);
+    VecN<6> gs;
+    gs.segment<3>(0) = wv;
+    gs.segment<3>(3) = wu;
+    const Real ks = r.area * r.k_shear;
+    Hw += ks * (gs * gs.transpose());
+    if (!projected) {
+      Hw.block<3, 3>(0, 3) += (ks * s) * Mat3::Identity();
+      Hw.block<3, 3>(3, 0) += (ks * s) * Mat3::Identity();
+    }
+  }
+  return energy;
+}
+
 /// Baraff-Witkin membrane energy of one triangle, J:
 ///   E = area/2 * [k_u (|w_u|-1)^2 + k_v (|w_v|-1)^2 + k_shear (w_u . w_v)^2]
 /// with k_u = k_warp, k_v = k_weft, each times compression_ratio where that direction is compressed.
@@ -123,45 +167,16 @@ GD_HD Real stretch_shear_energy(const Vec3& x0, const Vec3& x1, const Vec3& x2,
   Vec3 wu;
   Vec3 wv;
   deformation_columns(x0, x1, x2, r.Dm_inv, &wu, &wv);
-  const Real lu = wu.norm();
-  const Real lv = wv.norm();
-  const Real s = wu.dot(wv);
-  const Real du = lu - Real(1);
-  const Real dv = lv - Real(1);
-  const Real ku = effective_stretch_stiffness(r.k_warp, lu, r.compression_ratio);
-  const Real kv = effective_stretch_stiffness(r.k_weft, lv, r.compression_ratio);
-  const Real energy = Real(0.5) * r.area * (ku * du * du + kv * dv * dv + r.k_shear * s * s);
-
   const bool want_hess = hess != nullptr && kind != HessianKind::kNone;
+  VecN<6> gw;
+  MatN<6> Hw;
+  const Real energy = stretch_shear_energy_w(wu, wv, r, grad ? &gw : nullptr, want_hess ? &Hw : nullptr, kind);
   if (grad == nullptr && !want_hess) return energy;
-
-  const Vec3 hu = lu > Real(1e-12) ? Vec3(wu / lu) : Vec3(Vec3::Zero());
-  const Vec3 hv = lv > Real(1e-12) ? Vec3(wv / lv) : Vec3(Vec3::Zero());
   Vec3 cu;
   Vec3 cv;
   detail::membrane_weights(r.Dm_inv, &cu, &cv);
-
-  if (grad != nullptr) {
-    const Vec3 gu = r.area * (ku * du * hu + r.k_shear * s * wv);
-    const Vec3 gv = r.area * (kv * dv * hv + r.k_shear * s * wu);
-    detail::membrane_map_gradient(cu, cv, gu, gv, grad);
-  }
-  if (want_hess) {
-    const bool projected = kind == HessianKind::kProjected;
-    MatN<6> Hw = MatN<6>::Zero();
-    Hw.block<3, 3>(0, 0) = detail::stretch_block_hessian(r.area * ku, lu, hu, projected);
-    Hw.block<3, 3>(3, 3) = detail::stretch_block_hessian(r.area * kv, lv, hv, projected);
-    VecN<6> gs;
-    gs.segment<3>(0) = wv;
-    gs.segment<3>(3) = wu;
-    const Real ks = r.area * r.k_shear;
-    Hw += ks * (gs * gs.transpose());
-    if (!projected) {
-      Hw.block<3, 3>(0, 3) += (ks * s) * Mat3::Identity();
-      Hw.block<3, 3>(3, 0) += (ks * s) * Mat3::Identity();
-    }
-    detail::membrane_map_hessian(cu, cv, Hw, hess);
-  }
+  if (grad != nullptr) detail::membrane_map_gradient(cu, cv, gw.segment<3>(0), gw.segment<3>(3), grad);
+  if (want_hess) detail::membrane_map_hessian(cu, cv, Hw, hess);
   return energy;
 }
 

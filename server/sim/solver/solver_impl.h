@@ -222,14 +222,27 @@ GD_HD Real triangle_terms(const View& V, const Params& P, int t, const double* x
   const StretchShearRest& r = V.tri_rest[t];
   Vec9 ge;
   Mat9 He;
-  Real e = stretch_shear_energy(x0, x1, x2, r, g, H, HessianKind::kProjected);
+  // Membrane stretch/shear and its damping, summed in (w_u, w_v) space and mapped to the
+  // positions once.
+  Vec3 wu, wv;
+  deformation_columns(x0, x1, x2, r.Dm_inv, &wu, &wv);
+  VecN<6> gw, gwd;
+  MatN<6> Hw, Hwd;
+  Real e = stretch_shear_energy_w(wu, wv, r, g ? &gw : nullptr, H ? &Hw : nullptr, HessianKind::kProjected);
   const Vec3 y0 = load3(V.x_t, i0), y1 = load3(V.x_t, i1), y2 = load3(V.x_t, i2);
   if (P.beta_membrane > 0) {
-    Vec3 wu, wv;
-    deformation_columns(y0, y1, y2, r.Dm_inv, &wu, &wv);
-    e += membrane_damping_energy(x0, x1, x2, wu, wv, r, P.beta_membrane, P.h, g ? &ge : nullptr, H ? &He : nullptr);
-    if (g) *g += ge;
-    if (H) *H += He;
+    Vec3 wu_t, wv_t;
+    deformation_columns(y0, y1, y2, r.Dm_inv, &wu_t, &wv_t);
+    e += membrane_damping_energy_w(wu, wv, wu_t, wv_t, r, P.beta_membrane, P.h, g ? &gwd : nullptr,
+                                   H ? &Hwd : nullptr);
+    if (g) gw += gwd;
+    if (H) Hw += Hwd;
+  }
+  if (g || H) {
+    Vec3 cu, cv;
+    membrane_weights(r.Dm_inv, &cu, &cv);
+    if (g) membrane_map_gradient(cu, cv, gw.segment<3>(0), gw.segment<3>(3), g);
+    if (H) membrane_map_hessian(cu, cv, Hw, H);
   }
   if (P.air_density > 0 && !P.quasi_static) {
     const Vec3 nrm = (y1 - y0).cross(y2 - y0);
@@ -248,7 +261,42 @@ GD_HD Real triangle_terms(const View& V, const Params& P, int t, const double* x
   return e;
 }
 
-/// Hinge terms: nonlinear bending and curvature-rate damping.
+/// A hinge's Hessian as two rank-one terms, cu u uᵀ + cw w wᵀ: bending's Gauss-Newton term
+/// (u = ∇θ) and curvature-rate damping (w = ∇θ at the step start). Assembled block by block
+/// without forming the 12x12 matrix (Solver::scatter_rank2).
+struct HingeHessian {
+  Vec12 u, w;
+  Real cu = 0, cw = 0;
+};
+
+/// Hinge terms with the Hessian in factored form (the default Gauss-Newton bending Hessian):
+/// the same energy, gradient and, summed out, Hessian as hinge_terms with kProjected.
+GD_HD Real hinge_terms_rank2(const View& V, const Params& P, int h, const double* x, Vec12* g, HingeHessian* H) {
+  const int* hv = V.hinges + 4 * h;
+  const HingeRest& r = V.hinge_rest[h];
+  Vec12 xs, gth;
+  Real d2E;
+  for (int k = 0; k < 4; ++k) xs.segment<3>(3 * k) = load3(x, hv[k]);
+  Real e = bending_energy_rank1(xs.segment<3>(0), xs.segment<3>(3), xs.segment<3>(6), xs.segment<3>(9), r, g,
+                                H ? &H->u : &gth, H ? &H->cu : &d2E);
+  if (H) H->cw = 0, H->w.setZero();  // no damping: a zero term (w must not hold garbage)
+  if (P.beta_bend > 0) {
+    Vec12 ys;
+    for (int k = 0; k < 4; ++k) ys.segment<3>(3 * k) = load3(V.x_t, hv[k]);
+    const Eigen::Map<const Vec12> gt(V.hinge_grad_t + 12 * h);
+    Vec12 ge;
+    e += bending_damping_energy(xs, ys, gt, r, P.beta_bend, P.h, g ? &ge : nullptr, nullptr);
+    if (g) *g += ge;
+    if (H) {
+      H->w = gt;
+      H->cw = bending_damping_coef(r, P.beta_bend, P.h);
+    }
+  }
+  return e;
+}
+
+/// Hinge terms: nonlinear bending and curvature-rate damping, the Hessian as a 12x12 matrix
+/// (with the projected exact bending Hessian; hinge_terms_rank2 otherwise).
 GD_HD Real hinge_terms(const View& V, const Params& P, int h, const double* x, Vec12* g, Mat12* H) {
   const int* hv = V.hinges + 4 * h;
   const HingeRest& r = V.hinge_rest[h];
@@ -846,9 +894,15 @@ class Solver final : public SolverBase {
     });
     e += sum_elements(data_->hinge_colors, V.nh, [=] GD_HD_LAMBDA(int h) {
       Vec12 ge;
-      Mat12 He;
-      const double eh = detail::hinge_terms(V, P, h, x, &ge, H ? &He : nullptr);
-      scatter<4>(V, V.hinges + 4 * h, V.hinge_slots + 16 * h, ge, He, g, H);
+      if (P.bending_exact_projected) {
+        Mat12 He;
+        const double eh = detail::hinge_terms(V, P, h, x, &ge, H ? &He : nullptr);
+        scatter<4>(V, V.hinges + 4 * h, V.hinge_slots + 16 * h, ge, He, g, H);
+        return eh;
+      }
+      detail::HingeHessian He;
+      const double eh = detail::hinge_terms_rank2(V, P, h, x, &ge, H ? &He : nullptr);
+      scatter_rank2(V, V.hinges + 4 * h, V.hinge_slots + 16 * h, ge, He, g, H);
       return eh;
     });
     if (self_) e += evaluate_pairs(x, g, H);
@@ -949,6 +1003,24 @@ class Solver final : public SolverBase {
         double* blk = H + 9 * slots[K * a + b];
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) Exec::add(blk + 3 * r + c, He(3 * a + r, 3 * b + c));
+      }
+    }
+  }
+
+  /// scatter<4> for a hinge Hessian in factored form: block (a, b) += cu u_a u_bᵀ + cw w_a w_bᵀ.
+  GD_HD static void scatter_rank2(const detail::View& V, const int* vs, const int* slots, const Vec12& ge,
+                                  const detail::HingeHessian& He, double* g, double* H) {
+    for (int a = 0; a < 4; ++a) {
+      if (V.fixed[vs[a]]) continue;
+      for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, ge(3 * a + c));
+      if (!H) continue;
+      const Vec3 su = He.cu * He.u.segment<3>(3 * a), sw = He.cw * He.w.segment<3>(3 * a);
+      for (int b = 0; b < 4; ++b) {
+        if (V.fixed[vs[b]]) continue;
+        const Vec3 ub = He.u.segment<3>(3 * b), wb = He.w.segment<3>(3 * b);
+        double* blk = H + 9 * slots[4 * a + b];
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) Exec::add(blk + 3 * r + c, su(r) * ub(c) + sw(r) * wb(c));
       }
     }
   }

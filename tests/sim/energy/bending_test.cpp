@@ -162,6 +162,47 @@ TEST(BendingEnergy, GradientAndHessianMatchFiniteDifferences) {
   EXPECT_GE(count, 60);
 }
 
+// The solver assembles the Gauss-Newton Hessian from bending_energy_rank1's factors: they must
+// give bending_energy's energy, gradient and kProjected Hessian.
+TEST(BendingEnergy, RankOneFormEqualsTheProjectedHessian) {
+  std::mt19937 rng(77);
+  std::uniform_real_distribution<Real> u(-1, 1);
+  int count = 0;
+  for (const auto& fab : kFabrics) {
+    for (Real kappa_n : {0.0, 1.0 / (20 * fab.thickness)}) {
+      for (int it = 0; it < 8; ++it) {
+        const Real L = 0.01 * (1 + 0.5 * u(rng));
+        const Vec12 x = random_hinge(rng, L);
+        HingeRest r;
+        r.theta0 = 0.5 * u(rng);
+        r.coef = hinge_rest_coef(Vec3(0, 0, 0), Vec3(L, 0, 0), Vec3(0.4 * L, L, 0), Vec3(0.5 * L, -L, 0), &r.area);
+        r.stiffness = fab.bending;
+        r.kappa_n = kappa_n;
+        Vec12 g, g1, gth;
+        Mat12 Hp;
+        Real c = -1;
+        const Real E = bending_energy(seg(x, 0), seg(x, 1), seg(x, 2), seg(x, 3), r, &g, &Hp, HessianKind::kProjected);
+        const Real E1 = bending_energy_rank1(seg(x, 0), seg(x, 1), seg(x, 2), seg(x, 3), r, &g1, &gth, &c);
+        EXPECT_EQ(E, E1);
+        EXPECT_TRUE(near_rel(g, g1, 1e-14));
+        EXPECT_GT(c, 0);
+        const Mat12 H1 = c * gth * gth.transpose();
+        EXPECT_TRUE(near_rel(Hp, H1, 1e-14)) << fab.name << " " << it;
+        ++count;
+      }
+    }
+  }
+  EXPECT_GE(count, 40);
+  // A degenerate hinge: zero energy, gradient, ∇θ and coefficient.
+  Vec12 g, gth;
+  Real c = -1;
+  HingeRest r{0.0, 1.0, 1e-4, 1e-5, 0.0};
+  EXPECT_EQ(bending_energy_rank1(Vec3(0, 0, 0), Vec3(0, 0, 0), Vec3(0, 1, 0), Vec3(0, -1, 0), r, &g, &gth, &c), 0.0);
+  EXPECT_EQ(c, 0.0);
+  EXPECT_EQ(g.norm(), 0.0);
+  EXPECT_EQ(gth.norm(), 0.0);
+}
+
 TEST(BendingEnergy, MomentGrowsQuadraticallyWithCurvature) {
   // dE/dθ / (area coef) is the bending moment G κ (1 + (κ/κn)²).
   const Real L = 0.01;

@@ -109,6 +109,40 @@ TEST(DampingEnergy, MembraneGradientAndHessianMatchFiniteDifferences) {
   EXPECT_GE(count, 60);
 }
 
+// The solver sums the membrane terms in (w_u, w_v) space: membrane_damping_energy_w's derivatives
+// there against finite differences.
+TEST(DampingEnergy, MembraneDerivativesInDeformationSpaceMatchFiniteDifferences) {
+  std::mt19937 rng(29);
+  for (const auto& fab : test::kFabrics) {
+    for (int it = 0; it < 10; ++it) {
+      const MembraneCase c = random_membrane(rng, 0.02, fab.stretch);
+      VecN<6> w, wt;
+      for (int k = 0; k < 2; ++k) {
+        wt.segment<3>(3 * k) = test::random_vec3(rng);
+        w.segment<3>(3 * k) = wt.segment<3>(3 * k) + 0.1 * test::random_vec3(rng);
+      }
+      const Real beta = 3e-3, h = 5e-3;
+      auto f = [&](const VecN<6>& y) {
+        return membrane_damping_energy_w(y.segment<3>(0), y.segment<3>(3), wt.segment<3>(0), wt.segment<3>(3), c.rest,
+                                         beta, h, nullptr, nullptr);
+      };
+      auto gf = [&](const VecN<6>& y) {
+        VecN<6> g;
+        membrane_damping_energy_w(y.segment<3>(0), y.segment<3>(3), wt.segment<3>(0), wt.segment<3>(3), c.rest, beta,
+                                  h, &g, nullptr);
+        return g;
+      };
+      VecN<6> g;
+      MatN<6> H;
+      membrane_damping_energy_w(w.segment<3>(0), w.segment<3>(3), wt.segment<3>(0), wt.segment<3>(3), c.rest, beta, h,
+                                &g, &H);
+      EXPECT_TRUE(test::near_rel(g, test::fd_gradient<6>(f, w, 1e-6), 1e-5)) << fab.name << " " << it;
+      EXPECT_TRUE(test::near_rel(H, test::fd_jacobian<6, 6>(gf, w, 1e-6), 1e-5)) << fab.name << " " << it;
+      EXPECT_TRUE(test::is_psd(H));
+    }
+  }
+}
+
 TEST(DampingEnergy, MembraneHessianIsBetaOverHTimesStiffnessAtRest) {
   // Stiffness-proportional damping: at an undeformed state x^t, the damping Hessian is
   // beta/h times the (projected) membrane stiffness.
@@ -178,6 +212,9 @@ TEST(DampingEnergy, BendingGradientAndHessianMatchFiniteDifferences) {
       EXPECT_NEAR(Es, beta / (2 * h) * r.area * fab.bending * r.coef * r.coef * dth * dth, 1e-3 * Es);
       EXPECT_GE(E, 0);
       EXPECT_EQ(bending_damping_energy(xt, xt, gth, r, beta, h, nullptr, nullptr), 0.0);
+      // The factored form the solver assembles: H = bending_damping_coef ∇θ^t ∇θ^tᵀ.
+      const Mat12 Hf = bending_damping_coef(r, beta, h) * gth * gth.transpose();
+      EXPECT_TRUE(test::near_rel(H, Hf, 1e-14));
       ++count;
     }
   }

@@ -113,6 +113,37 @@ TEST(StretchShearEnergy, GradientAndHessianMatchFiniteDifferences) {
   EXPECT_GE(count, 60);
 }
 
+// The solver sums the membrane terms in (w_u, w_v) space: stretch_shear_energy_w's derivatives
+// there against finite differences, stretched, compressed and sheared.
+TEST(StretchShearEnergy, DerivativesInDeformationSpaceMatchFiniteDifferences) {
+  std::mt19937 rng(4321);
+  for (const auto& fab : kFabrics) {
+    for (int it = 0; it < 12; ++it) {
+      Tri t = random_rest(rng, 0.02, fab.stretch, 0.6 * fab.stretch, 0.15 * fab.stretch);
+      t.rest.compression_ratio = (it % 2 == 0) ? 1.0 : 0.05;
+      VecN<6> w;
+      const Real stretch[3] = {0.8, 1.15, 1.4};  // compressed and stretched, away from the kink at |w_u| = 1
+      w.segment<3>(0) = stretch[it % 3] * test::random_vec3(rng).normalized();
+      w.segment<3>(3) = 0.3 * w.segment<3>(0).cross(test::random_vec3(rng)) + 0.2 * test::random_vec3(rng);
+      auto f = [&](const VecN<6>& y) {
+        return stretch_shear_energy_w(y.segment<3>(0), y.segment<3>(3), t.rest, nullptr, nullptr, HessianKind::kNone);
+      };
+      auto gf = [&](const VecN<6>& y) {
+        VecN<6> g;
+        stretch_shear_energy_w(y.segment<3>(0), y.segment<3>(3), t.rest, &g, nullptr, HessianKind::kNone);
+        return g;
+      };
+      VecN<6> g;
+      MatN<6> He, Hp;
+      stretch_shear_energy_w(w.segment<3>(0), w.segment<3>(3), t.rest, &g, &He, HessianKind::kExact);
+      stretch_shear_energy_w(w.segment<3>(0), w.segment<3>(3), t.rest, nullptr, &Hp, HessianKind::kProjected);
+      EXPECT_TRUE(near_rel(g, fd_gradient<6>(f, w, 1e-6), 1e-5)) << fab.name << " it " << it;
+      EXPECT_TRUE(near_rel(He, fd_jacobian<6, 6>(gf, w, 1e-6), 1e-5)) << fab.name << " it " << it;
+      EXPECT_TRUE(is_psd(Hp)) << fab.name << " it " << it;
+    }
+  }
+}
+
 TEST(StretchShearEnergy, ProjectedEqualsExactWhenStretchedAndUnsheared) {
   // |w| >= 1 in both directions and w_u . w_v = 0: the exact Hessian is already PSD.
   std::mt19937 rng(7);
