@@ -1,19 +1,20 @@
 #!/usr/bin/env python3
-"""Peer benchmark: gd-bench's drape/N and fold/N scenes in MuJoCo flex and PyBullet, timed
-interleaved with GarmentDynamics, one thread each.
+"""Peer benchmark: gd-bench's drape/N and fold/N scenes in MuJoCo flex, PyBullet and Newton's VBD
+cloth solver, timed interleaved with GarmentDynamics, one thread each.
 
 For each case, `gd-bench export` writes the exact benchmarked scene (mesh, pins, table, material;
-bench/scene_export.h); both peers are built from those files. Then R rounds, each running ours
-(`gd-bench --json ... --threads 1`), MuJoCo and PyBullet in turn for W untimed warm-up and S timed
-steps of dt = 5 ms. Reported per simulator: the median ms/step over the rounds, its ratio to ours
-(peer ms / our ms: > 1 means the peer is slower), and a sanity check of the state after the last
-round (non-finite values, max vertex speed, lowest z, edge strain against the rest shape), so a
-peer that explodes or stretches shows as such. Our own state comes from `gd-bench export
---simulate W+S` (the same steps, outside the timing). The mapping of the material onto each peer
-is in bench/peers/README.md and in `mapping` of the JSON output.
+bench/scene_export.h); every peer is built from those files. Then R rounds, each running ours
+(`gd-bench --json ... --threads 1`), MuJoCo, PyBullet and Newton VBD (warp's CPU device) in turn
+for W untimed warm-up and S timed steps of dt = 5 ms. Reported per simulator: the median ms/step
+over the rounds, its ratio to ours (peer ms / our ms: > 1 means the peer is slower), and a sanity
+check of the state after the last round (non-finite values, max vertex speed, lowest z, edge
+strain against the rest shape), so a peer that explodes or stretches shows as such. Our own state
+comes from `gd-bench export --simulate W+S` (the same steps, outside the timing). The mapping of
+the material onto each peer is in bench/peers/README.md and in `mapping` of the JSON output. A
+peer whose Python package is not installed is skipped (and said so).
 
     build/venv/bin/python bench/peers/run_peers.py [--cases drape/5000,fold/5000] [--rounds 3]
-        [--steps 10] [--warmup 3] [--json] [--png PATH] [--gd-bench PATH] [--peers mujoco,pybullet]
+        [--steps 10] [--warmup 3] [--json] [--png PATH] [--gd-bench PATH] [--peers mujoco,pybullet,vbd]
         [--pybullet-substeps 1|K|auto] [--peer-max-seconds 120] [--keep DIR]
 
 Results go to stdout (a table, or with --json exactly one JSON object); progress to stderr.
@@ -429,12 +430,236 @@ class PybulletSim:
         self.cid = None
 
 
+class NewtonVbdSim:
+    """The scene as one Newton cloth mesh (ModelBuilder.add_cloth_mesh) stepped by SolverVBD on
+    warp's CPU device: stable Neo-Hookean membrane triangles, dihedral-angle hinges, particle
+    contact with the table plane and, for fold, VBD's vertex-triangle / edge-edge self-contact."""
+
+    name = "vbd"
+    ITERATIONS = 10        # VBD's usual iteration count (SolverVBD's default, Newton's cloth examples)
+    CONTACT_KE = 1.0e5     # N/m, table and self-contact penalty (see params)
+    FRICTION_EPS_V = 1e-3  # m/s, our SolverOptions::friction_eps_v default (not in scene.json)
+
+    @staticmethod
+    def params(scene: Scene) -> dict:
+        m, meta = scene.meta["material"], scene.meta
+        stretch = 0.5 * (m["stretch_warp"] + m["stretch_weft"])
+        nu = meta["derived"]["poisson"]
+        d = meta["contact_distance"]
+        table = meta["table"]
+        return {
+            # 2D Lame pair of a membrane with E t = stretch and G t = shear (nu = stretch/(2 shear) - 1);
+            # Newton's stable Neo-Hookean membrane linearizes to exactly these (mu, lambda).
+            "tri_ke_mu": m["shear"],
+            "tri_ka_lambda": stretch * nu / (1 - nu * nu),
+            # Rayleigh beta k: Newton's membrane damping kd (C = F^T F rates, dC = 2 d(eps)) gives a
+            # stretch-rate stiffness 4 kd, ours beta stretch -> kd = beta stretch / 4.
+            "tri_kd": meta["damping"]["membrane"] * stretch / 4,
+            "bend": math.sqrt(m["bend_warp"] * m["bend_weft"]),
+            "bend_damping": meta["damping"]["bending"],
+            "density": m["density"],
+            "particle_radius": d,
+            "self_contact_margin": d,
+            "self_contact_gap": d,
+            "contact_ke": NewtonVbdSim.CONTACT_KE,
+            "soft_contact_mu": m["friction"],
+            "table_mu": table["friction"] ** 2 / m["friction"],
+        }
+
+    @staticmethod
+    def mapping(scene: Scene) -> dict:
+        p = NewtonVbdSim.params(scene)
+        sc = bool(scene.meta["self_contact"])
+        return {
+            "elements": "ModelBuilder.add_cloth_mesh of the rest shape (the flat pattern, moved to the pinned "
+                        "vertices or vertex 0), one triangle per exported triangle, one hinge per interior edge; "
+                        "state.particle_q then set to the initial shape",
+            "membrane": "stable Neo-Hookean membrane (VBD's triangle energy), linearizes to 2D Lame (mu, lambda)",
+            "tri_ke (mu)": p["tri_ke_mu"], "tri_ka (lambda)": p["tri_ka_lambda"],
+            "why_membrane": "mu = G t = shear, lambda = E t nu / (1 - nu^2) with E t = stretch, "
+                            "nu = stretch/(2 shear) - 1: small-strain stretch and shear equal ours (the same "
+                            "isotropic pair as MuJoCo's shell-equivalent E, nu)",
+            "tri_kd": p["tri_kd"],
+            "why_tri_kd": "Newton's membrane damping acts on the rate of C = F^T F; near rest its stretch-rate "
+                          "coefficient is 4 kd, so kd = beta_membrane x stretch / 4 (shear-rate damping is then "
+                          "2 kd = 1.35 x ours)",
+            "edge_ke": "per hinge: bend x |e| / (A1 + A2) [N m/rad per m of edge]",
+            "why_edge_ke": "Newton's hinge stores edge_ke |e| (theta - theta0)^2 / 2, ours "
+                           "bend |e|^2 theta^2 / (2 (A1 + A2)): equal per hinge (bend = sqrt(warp x weft))",
+            "edge_kd": f"per hinge: {p['bend_damping']} s x edge_ke (our bending Rayleigh coefficient)",
+            "mass": "add_cloth_mesh's lumped mass density x rest area / 3 per triangle corner (= ours; checked)",
+            "pins": "pinned vertices lose ParticleFlags.ACTIVE (not integrated, kept in place)",
+            "table": f"ground plane at the table height; particle_radius = {p['particle_radius']} m (our barrier "
+                     "activation distance d_hat), penalty ke = " + f"{p['contact_ke']:g} N/m, kd = 0",
+            "contact_ke": p["contact_ke"],
+            "why_contact_ke": "Newton's default 1e3 N/m lets the fold line's membrane forces push vertices through "
+                              "the table (fold/300: 1.8 mm under it); 1e5 N/m (Newton's stiff-sheet example) keeps "
+                              "them in the 1 mm band. Ours: IPC log barrier, no penalty",
+            "friction": {"soft_contact_mu (cloth-cloth)": p["soft_contact_mu"],
+                         "plane mu": p["table_mu"],
+                         "why": "VBD mixes particle and shape mu as a geometric mean: sqrt(0.266 x plane mu) = "
+                                "table friction",
+                         "friction_epsilon": NewtonVbdSim.FRICTION_EPS_V},
+            "self_contact": ({"particle_enable_self_contact": True, "margin": p["self_contact_margin"],
+                              "gap": p["self_contact_gap"],
+                              "why": "margin = our contact distance (pairs interact below it); gap = margin, the "
+                                     "top of Newton's advised 0.5-1x detection slack; detection before and after "
+                                     "the initial guess (default PRE_POST_INIT), DAT truncation (penetration-free)"}
+                             if sc else {"particle_enable_self_contact": False}),
+            "iterations": NewtonVbdSim.ITERATIONS,
+            "device": "warp 'cpu': kernels run serially on the calling thread (one thread); kernel compilation "
+                      "happens while building (a throw-away step on a second solver), outside the timing",
+            "step": "CollisionPipeline.collide (particle-plane) + SolverVBD.step, dt = scene dt",
+            "not_modelled": "anisotropy (one mu, lambda), our compression-softened Baraff-Witkin membrane "
+                            "(Neo-Hookean instead), nonlinear bending (kappa_n), air drag, barrier contact "
+                            "(penalty + log barrier inside margin/2 for self-contact, penalty for the table); "
+                            "DAT bounds a vertex's motion per step (self-contact only): 2 x 0.5 x 0.85 x "
+                            "(margin + gap) = 1.7 mm per 5 ms step, i.e. 0.34 m/s",
+        }
+
+    def __init__(self, scene: Scene):
+        import warp as wp
+
+        wp.config.quiet = True
+        import newton
+
+        self.wp, self.newton, self.scene = wp, newton, scene
+        self.device = "cpu"
+        meta = scene.meta
+        p = self.params(scene)
+        self.model = model = self._build(p)
+        # Kernels compile (or load from warp's cache) on first launch: do it here, with a throw-away
+        # solver on copies of the states, so that no timed step pays for it.
+        warm = self._solver(p)
+        pipe, contacts = self._pipeline()
+        s0, s1 = model.state(), model.state()
+        self._set_initial(s0)
+        s0.clear_forces()
+        pipe.collide(s0, contacts)
+        warm.step(s0, s1, model.control(), contacts, scene.dt)
+        wp.synchronize_device(self.device)
+        del warm, s0, s1
+        self.solver = self._solver(p)
+        self.pipe, self.contacts = self._pipeline()
+        self.state0, self.state1 = model.state(), model.state()
+        self.control = model.control()
+        self._set_initial(self.state0)
+        dev = np.abs(self.positions() - scene.x0).max()
+        if dev > 1e-6:  # float32 storage: ~1e-8 m
+            raise RuntimeError(f"Newton's initial particles are {dev:.3g} m off the exported ones")
+        self.cpu_s = 0.0
+        self.wall_s = 0.0
+
+    def _build(self, p: dict):
+        wp, newton, scene, meta = self.wp, self.newton, self.scene, self.scene.meta
+        b = newton.ModelBuilder(gravity=tuple(float(g) for g in meta["gravity"]))
+        table = meta["table"]
+        if table["present"]:
+            cfg = newton.ModelBuilder.ShapeConfig()
+            cfg.mu = p["table_mu"]
+            cfg.ke = p["contact_ke"]  # VBD averages it with model.soft_contact_ke (same value)
+            cfg.kd = 0.0
+            cfg.margin = 0.0
+            b.add_ground_plane(height=float(table["height"]), cfg=cfg)
+        off = scene.rest_offset()
+        b.add_cloth_mesh(pos=wp.vec3(*(float(c) for c in off)), rot=wp.quat_identity(), scale=1.0,
+                         vel=wp.vec3(0.0, 0.0, 0.0), vertices=[wp.vec3(*v) for v in scene.rest.tolist()],
+                         indices=scene.tris.ravel().tolist(), density=p["density"],
+                         tri_ke=p["tri_ke_mu"], tri_ka=p["tri_ka_lambda"], tri_kd=p["tri_kd"], tri_drag=0.0,
+                         tri_lift=0.0, edge_ke=p["bend"], edge_kd=0.0, particle_radius=p["particle_radius"])
+        b.color(include_bending=True)
+        model = b.finalize(device=self.device)
+        if model.particle_count != scene.n or model.tri_count != len(scene.tris):
+            raise RuntimeError(f"Newton built {model.particle_count} particles / {model.tri_count} triangles, "
+                               f"expected {scene.n} / {len(scene.tris)}")
+        # Per-hinge bending matched to ours: edge_ke = bend |e| / (A1 + A2), edge_kd = beta_b edge_ke.
+        e = model.edge_indices.numpy()  # [o0, o1, v1, v2]
+        rest = scene.rest
+        ke = np.zeros(len(e))
+        inner = (e[:, 0] >= 0) & (e[:, 1] >= 0)
+        ei = e[inner]
+        edge = rest[ei[:, 3]] - rest[ei[:, 2]]
+        a1 = 0.5 * np.linalg.norm(np.cross(rest[ei[:, 2]] - rest[ei[:, 0]], rest[ei[:, 3]] - rest[ei[:, 0]]), axis=1)
+        a2 = 0.5 * np.linalg.norm(np.cross(rest[ei[:, 2]] - rest[ei[:, 1]], rest[ei[:, 3]] - rest[ei[:, 1]]), axis=1)
+        ke[inner] = p["bend"] * np.linalg.norm(edge, axis=1) / (a1 + a2)
+        props = np.stack([ke, p["bend_damping"] * ke], axis=1).astype(np.float32)
+        model.edge_bending_properties = wp.array(props, dtype=model.edge_bending_properties.dtype, device=self.device)
+        # Masses: add_cloth_mesh lumps density x area / 3 per corner, as ours does.
+        mass = model.particle_mass.numpy()
+        ref = np.asarray(meta["vertex_mass"], dtype=float)
+        if np.abs(mass - ref).max() > 1e-5 * ref.max():
+            raise RuntimeError(f"Newton's lumped masses differ from ours by {np.abs(mass - ref).max():.3g} kg")
+        if scene.pins:
+            flags = model.particle_flags.numpy()
+            flags[scene.pins] &= ~int(newton.ParticleFlags.ACTIVE)
+            model.particle_flags = wp.array(flags, dtype=model.particle_flags.dtype, device=self.device)
+        model.soft_contact_ke = p["contact_ke"]
+        model.soft_contact_kd = 0.0
+        model.soft_contact_mu = p["soft_contact_mu"]
+        return model
+
+    def _solver(self, p: dict):
+        sc = bool(self.scene.meta["self_contact"])
+        kw = dict(particle_self_contact_margin=p["self_contact_margin"],
+                  particle_self_contact_gap=p["self_contact_gap"]) if sc else {}
+        return self.newton.solvers.SolverVBD(self.model, iterations=self.ITERATIONS,
+                                             friction_epsilon=self.FRICTION_EPS_V,
+                                             particle_enable_self_contact=sc, **kw)
+
+    def _pipeline(self):
+        pipe = self.newton.CollisionPipeline(self.model)
+        return pipe, pipe.contacts()
+
+    def _set_initial(self, state) -> None:
+        wp = self.wp
+        state.particle_q.assign(wp.array(self.scene.x0.astype(np.float32), dtype=wp.vec3, device=self.device))
+        state.particle_qd.zero_()
+
+    @property
+    def vertex_count(self) -> int:
+        return int(self.model.particle_count)
+
+    def step(self) -> None:
+        t, c = time.perf_counter(), time.process_time()
+        s0 = self.state0
+        s0.clear_forces()
+        self.pipe.collide(s0, self.contacts)
+        self.solver.step(s0, self.state1, self.control, self.contacts, self.scene.dt)
+        self.state0, self.state1 = self.state1, s0
+        self.wp.synchronize_device(self.device)
+        self.cpu_s += time.process_time() - c
+        self.wall_s += time.perf_counter() - t
+
+    def positions(self) -> np.ndarray:
+        return self.state0.particle_q.numpy().astype(float)
+
+    def info(self) -> dict:
+        return {"iterations": self.ITERATIONS, "self_contact": bool(self.scene.meta["self_contact"]),
+                "cpu_seconds_per_wall_second": (self.cpu_s / self.wall_s) if self.wall_s > 0 else None}
+
+    def close(self) -> None:
+        pass
+
+
 def make_peer(name: str, scene: Scene, substeps: int):
     if name == "mujoco":
         return MujocoSim(scene)
     if name == "pybullet":
         return PybulletSim(scene, substeps)
+    if name == "vbd":
+        return NewtonVbdSim(scene)
     raise ValueError(f"unknown peer '{name}'")
+
+
+PEERS = ("mujoco", "pybullet", "vbd")
+PEER_MODULES = {"mujoco": ("mujoco",), "pybullet": ("pybullet",), "vbd": ("newton", "warp")}
+
+
+def missing_modules(name: str) -> list[str]:
+    """The Python packages a peer needs that are not installed (then the peer is skipped)."""
+    import importlib.util
+
+    return [m for m in PEER_MODULES[name] if importlib.util.find_spec(m) is None]
 
 
 # --------------------------------------------------------------------------------------------
@@ -549,7 +774,8 @@ def run_case(case: str, args, gd_bench: Path, workdir: Path) -> dict:
     log(f"{case}: {scene.n} vertices, {len(scene.tris)} triangles, {len(scene.pins)} pinned")
     sims = [OURS] + args.peers
     substeps = PybulletSim.stable_substeps(scene) if args.pybullet_substeps == "auto" else int(args.pybullet_substeps)
-    label = {OURS: OURS, "mujoco": "mujoco", "pybullet": "pybullet"}
+    label = {OURS: OURS, "mujoco": "mujoco", "pybullet": "pybullet",
+             "vbd": f"newton vbd ({NewtonVbdSim.ITERATIONS} it)"}
     if substeps > 1:
         label["pybullet"] = f"pybullet x{substeps} substeps"
         log(f"{case}: PyBullet with {substeps} substeps per step ({args.pybullet_substeps})")
@@ -595,6 +821,7 @@ def run_case(case: str, args, gd_bench: Path, workdir: Path) -> dict:
             entry["build_seconds"] = median(builds)
             entry["info"] = rs[-1].info
             entry["mapping"] = (MujocoSim.mapping(scene) if s == "mujoco"
+                                else NewtonVbdSim.mapping(scene) if s == "vbd"
                                 else PybulletSim.mapping(scene, substeps))
         else:
             entry["info"] = rs[-1].info
@@ -635,6 +862,8 @@ def print_table(result: dict, file) -> None:
           "(ours: gd-bench export --simulate): max speed m/s, lowest z m, edge strain = length / rest length - 1 "
           "against the flat pattern; fold starts with the fold line's edges compressed, so min strain < 0 there)",
           file=file)
+    for p, why in result.get("skipped_peers", {}).items():
+        print(f"skipped peer {p}: {why}", file=file)
 
 
 def write_png(result: dict, path: Path) -> None:
@@ -650,7 +879,7 @@ def write_png(result: dict, path: Path) -> None:
             if s["name"] not in names:
                 names.append(s["name"])
     width = 0.8 / max(1, len(names))
-    colors = {OURS: "#1f77b4", "mujoco": "#ff7f0e", "pybullet": "#2ca02c"}
+    colors = {OURS: "#1f77b4", "mujoco": "#ff7f0e", "pybullet": "#2ca02c", "vbd": "#9467bd"}
     fig, ax = plt.subplots(figsize=(max(6, 2.5 * len(cases) + 2), 4.5))
     top, bottom = 0.0, math.inf
     labelled: set[str] = set()
@@ -696,11 +925,12 @@ def write_png(result: dict, path: Path) -> None:
 
 def versions() -> dict:
     v = {"python": sys.version.split()[0], "numpy": np.__version__}
-    for mod in ("mujoco", "pybullet"):
+    from importlib.metadata import version
+
+    for mod, dist in (("mujoco", None), ("pybullet", "pybullet"), ("newton", "newton"), ("warp", "warp-lang")):
         try:
-            if mod == "pybullet":
-                from importlib.metadata import version
-                v[mod] = version("pybullet")
+            if dist is not None:
+                v[mod] = version(dist)
             else:
                 v[mod] = __import__(mod).__version__
         except Exception as e:  # noqa: BLE001 - report, don't fail
@@ -716,7 +946,9 @@ def parse_args(argv=None):
     ap.add_argument("--steps", type=int, default=10, help="timed steps per simulator and round")
     ap.add_argument("--warmup", type=int, default=3, help="untimed warm-up steps before them")
     ap.add_argument("--gd-bench", help="gd-bench binary (default: build/bin/gd-bench or build-cpu/bin/gd-bench)")
-    ap.add_argument("--peers", default="mujoco,pybullet", help="comma-separated peers: mujoco, pybullet")
+    ap.add_argument("--peers", default="mujoco,pybullet",
+                    help="comma-separated peers: mujoco, pybullet, vbd (Newton's VBD cloth solver on warp's CPU "
+                         "device; opt-in: pip install -r bench/peers/requirements-vbd.txt); a peer whose package is not installed is skipped")
     ap.add_argument("--pybullet-substeps", default="1",
                     help="PyBullet substeps per 5 ms step: 1 (the same dt as ours; explicit springs at cotton's "
                          "stiffness then explode), an integer, or 'auto' (the explicit stability estimate)")
@@ -738,8 +970,8 @@ def parse_args(argv=None):
             ap.error(f"case '{c}' is not drape/<N> or fold/<N>")
     a.peers = [p.strip() for p in a.peers.split(",") if p.strip()]
     for p in a.peers:
-        if p not in ("mujoco", "pybullet"):
-            ap.error(f"unknown peer '{p}' (mujoco, pybullet)")
+        if p not in PEERS:
+            ap.error(f"unknown peer '{p}' ({', '.join(PEERS)})")
     if a.pybullet_substeps != "auto" and not (a.pybullet_substeps.isdigit() and int(a.pybullet_substeps) >= 1):
         ap.error("--pybullet-substeps: a positive integer or 'auto'")
     return a
@@ -759,12 +991,19 @@ def main(argv=None) -> int:
             "build it first (cmake --build BUILD --target gd-bench)")
         return 2
     log(f"gd-bench: {gd_bench}")
+    skipped = {}
+    for p in list(args.peers):
+        missing = missing_modules(p)
+        if missing:
+            skipped[p] = (f"{', '.join(missing)} not installed (pip install -r bench/peers/requirements.txt)")
+            log(f"skipping peer {p}: {skipped[p]}")
+            args.peers.remove(p)
     workdir = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="gd-peers-"))
     workdir.mkdir(parents=True, exist_ok=True)
     result = {"settings": {"cases": args.case_list, "rounds": args.rounds, "steps": args.steps,
                            "warmup": args.warmup, "threads": 1, "dt": None, "gd_bench": str(gd_bench),
-                           "pybullet_substeps": args.pybullet_substeps},
-              "versions": versions(), "cases": []}
+                           "pybullet_substeps": args.pybullet_substeps, "peers": args.peers},
+              "versions": versions(), "skipped_peers": skipped, "cases": []}
     t0 = time.perf_counter()
     try:
         for case in args.case_list:

@@ -198,3 +198,21 @@ def test_runner_json_table_and_png(tmp_path: Path) -> None:
     assert float(rows["mujoco"][3]) > 0
     assert "pybullet build time" not in r.stdout
     assert png.read_bytes()[:8] == PNG_MAGIC and png.stat().st_size > 5000
+
+
+@needs_gd_bench
+def test_vbd_peer_runs_the_same_scene(tmp_path: Path) -> None:
+    """The optional Newton VBD peer (bench/peers/requirements-vbd.txt): skipped where newton is not installed."""
+    pytest.importorskip("newton", exc_type=ImportError)
+    cmd = [sys.executable, str(RUNNER), "--gd-bench", str(GD_BENCH), "--cases", "drape/300", "--peers", "vbd",
+           "--rounds", "1", "--steps", "2", "--warmup", "1", "--json"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    (case,) = json.loads(r.stdout)["cases"]
+    sims = {s["simulator"]: s for s in case["simulators"]}
+    assert list(sims) == ["garmentdynamics", "vbd"]
+    vbd = sims["vbd"]
+    assert vbd["status"] == "ok" and vbd["vertices"] == case["vertices"] and vbd["ms_per_step"] > 0
+    # The pinned square swings down under gravity and stays finite; the mapping is reported.
+    assert vbd["state"]["finite"] and vbd["state"]["lowest_z"] < 0.6 and vbd["state"]["max_speed"] > 0
+    assert vbd["mapping"]
