@@ -4,7 +4,7 @@ cloth solver, timed interleaved with GarmentDynamics, one thread each.
 
 For each case, `gd-bench export` writes the exact benchmarked scene (mesh, pins, table, material;
 bench/scene_export.h); every peer is built from those files. Then R rounds, each running ours
-(`gd-bench --json ... --threads 1`), MuJoCo, PyBullet and Newton VBD (warp's CPU device) in turn
+(`gd-bench --json ... --threads 1`), MuJoCo, PyBullet and (opt-in, `--peers ...,vbd`) Newton VBD on warp's CPU device in turn
 for W untimed warm-up and S timed steps of dt = 5 ms. Reported per simulator: the median ms/step
 over the rounds, its ratio to ours (peer ms / our ms: > 1 means the peer is slower), and a sanity
 check of the state after the last round (non-finite values, max vertex speed, lowest z, edge
