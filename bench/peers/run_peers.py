@@ -995,7 +995,8 @@ def main(argv=None) -> int:
     for p in list(args.peers):
         missing = missing_modules(p)
         if missing:
-            skipped[p] = (f"{', '.join(missing)} not installed (pip install -r bench/peers/requirements.txt)")
+            req = "requirements-vbd.txt" if p == "vbd" else "requirements.txt"
+            skipped[p] = f"{', '.join(missing)} not installed (pip install -r bench/peers/{req})"
             log(f"skipping peer {p}: {skipped[p]}")
             args.peers.remove(p)
     workdir = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="gd-peers-"))
