@@ -46,6 +46,23 @@ GD_HD RegionParam make(Real a, Real b, Real c, Real d, Real e0, Real e1, Real e2
   return p;
 }
 
+/// project_psd of H's leading dim x dim block (the rest of H is zero): the reduced Hessian's
+/// size is 2 to 5 with the region, and its zero padding would only cost eigen iterations.
+template <int K>
+GD_HD void project_leading_block(MatN<5>* H) {
+  MatN<K> h = H->template topLeftCorner<K, K>();
+  project_psd<K>(&h);
+  H->template topLeftCorner<K, K>() = h;
+}
+GD_HD void project_psd_leading(MatN<5>* H, int dim) {
+  switch (dim) {
+    case 1: (*H)(0, 0) = (*H)(0, 0) > 0 ? (*H)(0, 0) : Real(0); break;
+    case 2: project_leading_block<2>(H); break;
+    case 3: project_leading_block<3>(H); break;
+    case 4: project_leading_block<4>(H); break;
+    default: project_psd<5>(H); break;
+  }
+}
 }  // namespace barrier_hessian_detail
 
 /// The structure of a point-triangle region, vertex order (p, t0, t1, t2), r = p - closest point.
@@ -186,7 +203,7 @@ GD_HD void projected_barrier_hessian(const Vec3 x[4], const RegionParam& R, Real
       for (int k = 0; k < m; ++k) v += kb * D * bz[k][i] * bz[k][l];
       Hr(m + i, m + l) = v;
     }
-  if (m > 0) project_psd<5>(&Hr);
+  if (m > 0) barrier_hessian_detail::project_psd_leading(&Hr, m + nz);
   // Map back: H = Bm Hr Bmᵀ, Bm's columns the 12-vectors of the basis.
   Eigen::Matrix<Real, 12, 5> Bm = Eigen::Matrix<Real, 12, 5>::Zero();
   for (int k = 0; k < m; ++k)
