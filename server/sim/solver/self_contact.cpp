@@ -71,6 +71,8 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
     bp_->find(x0, x1, dhat_ + slack_, &raw_);
     bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++queries_;
+    raw_stamp_.assign(raw_.vf.size() + raw_.ee.size(), -1);  // new pairs: no distance known
+    raw_dist_.resize(raw_stamp_.size());
   }
   motion_lo_.resize(x0.size());
   motion_hi_.resize(x0.size());
@@ -106,13 +108,16 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
     }
   }
   cand_.clear();
+  cand_raw_.clear();
   const size_t total = std::count(keep_.begin(), keep_.end(), 1);
   cand_.v.reserve(4 * total), cand_.type.reserve(total), cand_.kappa.reserve(total), cand_.eps_x.reserve(total);
+  cand_raw_.reserve(total);
   for (int c = 0; c < nvf; ++c) {
     if (!keep_[c]) continue;
     const auto& p = raw_.vf[c];
     const int v[4] = {p[0], d_.tris[3 * p[1]], d_.tris[3 * p[1] + 1], d_.tris[3 * p[1] + 2]};
     cand_.push(v, 0, kappa_scale_ * kappa_per_mass_ * d_.mass[v[0]], 0.0);
+    cand_raw_.push_back(c);
   }
   for (int c = 0; c < nee; ++c) {
     if (!keep_[nvf + c]) continue;
@@ -122,20 +127,31 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
     const int v[4] = {a[0], a[1], b[0], b[1]};
     const double m = 0.25 * (d_.mass[v[0]] + d_.mass[v[1]] + d_.mass[v[2]] + d_.mass[v[3]]);
     cand_.push(v, 1, kappa_scale_ * kappa_per_mass_ * m, 1e-3 * edge_len2_[p[0]] * edge_len2_[p[1]]);
+    cand_raw_.push_back(nvf + c);
   }
 }
 
 void SelfContact::select_active(const std::vector<double>& x, const std::vector<int>& fixed) {
   active_.clear();
   ContactPairs kept;
+  std::vector<int> kept_raw;
   dropped_ = 0;
+  if (x != dist_x_) dist_x_ = x, ++dist_gen_;  // distances known so far were measured elsewhere
   // The distances in parallel (the costly part), then the lists in candidate order.
   const int n = cand_.size();
   dist_.resize(n);
 #pragma omp parallel for schedule(static) if (n >= kParallelPairs)
   for (int c = 0; c < n; ++c) {
     const int* v = &cand_.v[4 * c];
-    dist_[c] = fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]] ? -1.0 : pair_distance(x, v, cand_.type[c]);
+    const int r = cand_raw_[c];  // each raw pair is at most one candidate: no two threads share r
+    if (fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]]) {
+      dist_[c] = -1.0;
+    } else if (raw_stamp_[r] == dist_gen_) {
+      dist_[c] = raw_dist_[r];
+    } else {
+      dist_[c] = raw_dist_[r] = pair_distance(x, v, cand_.type[c]);
+      raw_stamp_[r] = dist_gen_;
+    }
   }
   for (int c = 0; c < n; ++c) {
     const int* v = &cand_.v[4 * c];
@@ -146,9 +162,11 @@ void SelfContact::select_active(const std::vector<double>& x, const std::vector<
       continue;
     }
     kept.push(v, cand_.type[c], cand_.kappa[c], cand_.eps_x[c]);
+    kept_raw.push_back(cand_raw_[c]);
     if (dist < dhat_) active_.push(v, cand_.type[c], cand_.kappa[c], cand_.eps_x[c]);
   }
   cand_ = std::move(kept);
+  cand_raw_ = std::move(kept_raw);
 }
 
 void SelfContact::set_kappa_scale(Real s) {

@@ -50,7 +50,9 @@ class SelfContact {
   void find(const std::vector<double>& x0, const std::vector<double>& x1);
   /// Active pairs: candidates closer than dhat at x with at least one free vertex. Pairs
   /// already at zero distance (driven there by kinematic vertices) are dropped from both lists
-  /// and counted: the untangling fail-safe handles them.
+  /// and counted: the untangling fail-safe handles them. A pair's distance measured at these
+  /// same positions before (a Newton iterate's contacts, then the candidates along its
+  /// direction) is reused while the broad phase's answer is the same.
   void select_active(const std::vector<double>& x, const std::vector<int>& fixed);
   /// Lagged friction frames of the active pairs at x_t.
   void build_friction(const std::vector<double>& x_t);
@@ -95,7 +97,12 @@ class SelfContact {
   std::vector<Eigen::Vector2i> tri_raw_;  ///< count_intersections' triangle pairs (margin slack)
   std::vector<double> tri_query_x_;       ///< positions of that query
   ContactPairs cand_, active_;
+  std::vector<int> cand_raw_;  ///< per candidate: its index in raw_ (vf pairs, then ee pairs)
   std::vector<double> dist_;  ///< select_active's per-candidate distances
+  std::vector<double> raw_dist_;  ///< per raw pair: its distance at dist_x_ when raw_stamp_ == dist_gen_
+  std::vector<int> raw_stamp_;
+  std::vector<double> dist_x_;  ///< the positions of the last select_active
+  int dist_gen_ = 0;            ///< bumped when select_active sees new positions
   FrictionPairs friction_;
   std::vector<double> fr_scratch_;  ///< build_friction's per-pair results
   int dropped_ = 0;

@@ -95,6 +95,33 @@ TEST(SelfContactBroadPhase, SmallMotionsReuseTheQueryAndMissNothing) {
   EXPECT_EQ(sc.broad_phase_reuses(), 4);
 }
 
+/// The active and candidate lists of a SelfContact that has seen `history` (find, then
+/// select_active at the first positions, for each motion) equal a fresh instance's at the last.
+TEST(SelfContactBroadPhase, DistancesReusedAtTheSamePositionsGiveTheFreshLists) {
+  const Folded f = folded_sheet();
+  const std::vector<int> fixed(f.data.n, 0);
+  SelfContact sc(f.data, kDhat, 1.0);
+  const double within = 0.2 * kBroadPhaseSlack * kDhat;
+  std::vector<double> base = f.x;
+  for (size_t k = 2; k < base.size(); k += 3) base[k] *= 0.4;  // the flap 0.6 mm above the base: in contact
+  std::vector<double> x = base;
+  for (unsigned seed = 1; seed <= 4; ++seed) {
+    const std::vector<double> x_next = jiggled(base, within, seed);  // iterates near base: one query
+    sc.find(x, x_next);       // a Newton direction from x ...
+    sc.select_active(x, fixed);
+    sc.find(x, jiggled(x, within, 50 + seed));  // ... then another from the same x: distances reused
+    sc.select_active(x, fixed);
+    SelfContact ref(f.data, kDhat, 1.0);
+    ref.find(x, jiggled(x, within, 50 + seed));
+    ref.select_active(x, fixed);
+    EXPECT_EQ(as_set(sc.active()), as_set(ref.active())) << "seed " << seed;
+    EXPECT_EQ(as_set(sc.candidates()), as_set(ref.candidates())) << "seed " << seed;
+    ASSERT_GT(sc.active().size(), 50);
+    x = x_next;  // the next iterate: new positions, distances measured anew
+  }
+  EXPECT_EQ(sc.broad_phase_queries(), 1);
+}
+
 TEST(SelfContactBroadPhase, AMotionBeyondTheSlackRunsANewQuery) {
   const Folded f = folded_sheet();
   SelfContact sc(f.data, kDhat, 1.0);
