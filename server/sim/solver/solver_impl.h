@@ -667,7 +667,7 @@ class Solver final : public SolverBase {
     stiffen_pressed_pairs();  // before the pairs go to the backend
     const ContactPairs& a = self_->active();
     act_.upload(a);
-    Exec::resize(act_H_, kPairBlockValues * static_cast<size_t>(act_.n));
+    Exec::resize(act_H_, 144 * static_cast<size_t>(act_.n));
     Exec::resize(act_gd_, 48 * static_cast<size_t>(act_.n));
     upload_candidates();  // select_active drops pairs already at zero distance
   }
@@ -695,7 +695,7 @@ class Solver final : public SolverBase {
     Exec::upload(fr_w_, f.w);
     Exec::upload(fr_T_, f.T);
     Exec::upload(fr_lambda_, f.lambda);
-    Exec::resize(fr_H_, kPairBlockValues * static_cast<size_t>(n_fr_));
+    Exec::resize(fr_H_, 144 * static_cast<size_t>(n_fr_));
     Exec::resize(fr_gd_, 48 * static_cast<size_t>(n_fr_));
   }
 
@@ -929,7 +929,7 @@ class Solver final : public SolverBase {
       live[c] = 0;
       if (V.fixed[vs[0]] && V.fixed[vs[1]] && V.fixed[vs[2]] && V.fixed[vs[3]]) {  // as select_active: no free vertex
         if (want_h)
-          for (int k = 0; k < kPairBlockValues; ++k) HA[kPairBlockValues * c + k] = 0.0;
+          for (int k = 0; k < 144; ++k) HA[144 * c + k] = 0.0;
         return 0.0;
       }
       Vec12 ge;
@@ -937,14 +937,14 @@ class Solver final : public SolverBase {
       const double ec = detail::pair_barrier(P, L, c, x, &ge, want_h ? &He : nullptr);
       if (ec == 0.0 && !want_h) return 0.0;  // beyond dhat: no gradient
       live[c] = 1;
-      store_pair(V, L.v + 4 * c, ge, want_h ? &He : nullptr, HA + kPairBlockValues * c, GA + 48 * c);
+      store_pair(V, L.v + 4 * c, ge, want_h ? &He : nullptr, HA + 144 * c, GA + 48 * c);
       return ec;
     }, Exec::kParallelMinHeavy);
     e += Exec::sum_effects(V.n_fr, [=] GD_HD_LAMBDA(int k) {
       Vec12 ge;
       Mat12 He;
       const double ek = detail::pair_friction(V, P, k, x, &ge, want_h ? &He : nullptr);
-      store_pair(V, V.fr_v + 4 * k, ge, want_h ? &He : nullptr, HF + kPairBlockValues * k, GF + 48 * k);
+      store_pair(V, V.fr_v + 4 * k, ge, want_h ? &He : nullptr, HF + 144 * k, GF + 48 * k);
       return ek;
     }, Exec::kParallelMinHeavy);
     Exec::for_each(L.n, [=] GD_HD_LAMBDA(int c) {
@@ -957,9 +957,9 @@ class Solver final : public SolverBase {
   /// Loops that add into shared rows without colouring: serial on the CPU, atomics on the GPU.
   static constexpr int kSerialOnCpu = Exec::kColoring ? 0x7fffffff : 0;
 
-  /// Splits a pair's gradient and Hessian (Dirichlet rows/columns dropped): the six blocks above
-  /// the diagonal into Hpair (kPairBlockValues, pair_blocks.h; the blocks below are their
-  /// transposes), gradient and diagonal blocks into gd (12 + 4 x 9 values) for add_pair.
+  /// Splits a pair's gradient and Hessian (Dirichlet rows/columns dropped): off-diagonal blocks
+  /// into Hpair (row-major 12x12, diagonal blocks zero), gradient and diagonal blocks into gd
+  /// (12 + 4 x 9 values) for add_pair.
   GD_HD static void store_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12* Hp,
                                double* Hpair, double* gd) {
     for (int a = 0; a < 4; ++a) {
@@ -967,13 +967,14 @@ class Solver final : public SolverBase {
       for (int c = 0; c < 3; ++c) gd[3 * a + c] = fa ? 0.0 : ge(3 * a + c);
       if (!Hp) continue;
       const Mat12& He = *Hp;
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) gd[12 + 9 * a + 3 * r + c] = fa ? 0.0 : He(3 * a + r, 3 * a + c);
-      for (int b = a + 1; b < 4; ++b) {
+      for (int b = 0; b < 4; ++b) {
         const bool keep = !fa && !V.fixed[vs[b]];
-        double* blk = Hpair + pair_block_offset(a, b);
         for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) blk[3 * r + c] = keep ? He(3 * a + r, 3 * b + c) : 0.0;
+          for (int c = 0; c < 3; ++c) {
+            const double h = keep ? He(3 * a + r, 3 * b + c) : 0.0;
+            Hpair[36 * a + 12 * r + 3 * b + c] = a == b ? 0.0 : h;
+            if (a == b) gd[12 + 9 * a + 3 * r + c] = h;
+          }
       }
     }
   }
@@ -1196,13 +1197,11 @@ class Solver final : public SolverBase {
         auto add_pairs = [&](const std::vector<int>& vs, const Vec<double>& Hs) {
           for (size_t c = 0; c < vs.size() / 4; ++c)
             for (int a = 0; a < 4; ++a)
-              for (int b = a + 1; b < 4; ++b)
+              for (int b = 0; b < 4; ++b)
                 for (int r = 0; r < 3; ++r)
-                  for (int k = 0; k < 3; ++k) {  // block (a, b) and its transpose (b, a)
-                    const double h = Hs[kPairBlockValues * c + pair_block_offset(a, b) + 3 * r + k];
-                    if (h == 0.0) continue;
-                    trip.emplace_back(3 * vs[4 * c + a] + r, 3 * vs[4 * c + b] + k, h);
-                    trip.emplace_back(3 * vs[4 * c + b] + k, 3 * vs[4 * c + a] + r, h);
+                  for (int k = 0; k < 3; ++k) {
+                    const double h = Hs[144 * c + 36 * a + 12 * r + 3 * b + k];
+                    if (h != 0.0) trip.emplace_back(3 * vs[4 * c + a] + r, 3 * vs[4 * c + b] + k, h);
                   }
         };
         add_pairs(self_->active().v, act_H_);
