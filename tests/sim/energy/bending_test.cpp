@@ -46,6 +46,16 @@ Vec12 folded_hinge(Real L, Real fold) {
   return stack4(x0, x1, x2, x3);
 }
 
+// The rest data of a flat hinge of size L in fabric `fab` (the tests' reference hinge).
+HingeRest flat_rest(Real L, const test::Fabric& fab, Real kappa_n, Real theta0) {
+  HingeRest r;
+  r.theta0 = theta0;
+  r.coef = hinge_rest_coef(Vec3(0, 0, 0), Vec3(L, 0, 0), Vec3(0.4 * L, L, 0), Vec3(0.5 * L, -L, 0), &r.area);
+  r.stiffness = fab.bending;
+  r.kappa_n = kappa_n;
+  return r;
+}
+
 // A random, non-degenerate hinge of size ~L with |θ| < 2.8 (away from the ±π cut).
 Vec12 random_hinge(std::mt19937& rng, Real L) {
   std::uniform_real_distribution<Real> u(-1, 1);
@@ -118,12 +128,7 @@ TEST(BendingEnergy, GradientAndHessianMatchFiniteDifferences) {
       for (int it = 0; it < 12; ++it) {
         const Real L = 0.01 * (1 + 0.5 * u(rng));
         const Vec12 x = random_hinge(rng, L);
-        HingeRest r;
-        r.theta0 = (it % 3 == 0) ? 0.0 : 0.5 * u(rng);
-        r.coef = hinge_rest_coef(Vec3(0, 0, 0), Vec3(L, 0, 0), Vec3(0.4 * L, L, 0),
-                                 Vec3(0.5 * L, -L, 0), &r.area);
-        r.stiffness = fab.bending;
-        r.kappa_n = kappa_n;
+        const HingeRest r = flat_rest(L, fab, kappa_n, (it % 3 == 0) ? 0.0 : 0.5 * u(rng));
         auto f = [&](const Vec12& y) {
           return bending_energy(seg(y, 0), seg(y, 1), seg(y, 2), seg(y, 3), r, nullptr, nullptr,
                                 HessianKind::kNone);
@@ -173,11 +178,7 @@ TEST(BendingEnergy, RankOneFormEqualsTheProjectedHessian) {
       for (int it = 0; it < 8; ++it) {
         const Real L = 0.01 * (1 + 0.5 * u(rng));
         const Vec12 x = random_hinge(rng, L);
-        HingeRest r;
-        r.theta0 = 0.5 * u(rng);
-        r.coef = hinge_rest_coef(Vec3(0, 0, 0), Vec3(L, 0, 0), Vec3(0.4 * L, L, 0), Vec3(0.5 * L, -L, 0), &r.area);
-        r.stiffness = fab.bending;
-        r.kappa_n = kappa_n;
+        const HingeRest r = flat_rest(L, fab, kappa_n, 0.5 * u(rng));
         Vec12 g, g1, gth;
         Mat12 Hp;
         Real c = -1;
