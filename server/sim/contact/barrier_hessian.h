@@ -47,7 +47,8 @@ GD_HD RegionParam make(Real a, Real b, Real c, Real d, Real e0, Real e1, Real e2
 }
 
 /// project_psd of H's leading dim x dim block (the rest of H is zero): the reduced Hessian's
-/// size is 2 to 5 with the region, and its zero padding would only cost eigen iterations.
+/// size is 2 to 5 with the region (m >= 1 feature directions plus at least c), and its zero
+/// padding would only cost eigen iterations.
 template <int K>
 GD_HD void project_leading_block(MatN<5>* H) {
   MatN<K> h = H->template topLeftCorner<K, K>();
@@ -56,7 +57,6 @@ GD_HD void project_leading_block(MatN<5>* H) {
 }
 GD_HD void project_psd_leading(MatN<5>* H, int dim) {
   switch (dim) {
-    case 1: (*H)(0, 0) = (*H)(0, 0) > 0 ? (*H)(0, 0) : Real(0); break;
     case 2: project_leading_block<2>(H); break;
     case 3: project_leading_block<3>(H); break;
     case 4: project_leading_block<4>(H); break;
