@@ -52,14 +52,42 @@ SelfContact::SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass)
   bp_ = make_embree_broad_phase(d_.tris, edges_, d_.n);
 }
 
-bool SelfContact::covered_by_last_query(const std::vector<double>& x0, const std::vector<double>& x1) const {
-  if (query_lo_.size() != x0.size() || x1.size() != x0.size()) return false;
-  const double r = 0.5 * slack_;
-  for (size_t k = 0; k < x0.size(); ++k) {
-    const double lo = query_lo_[k] - r, hi = query_hi_[k] + r;
-    if (!(x0[k] >= lo && x0[k] <= hi && x1[k] >= lo && x1[k] <= hi)) return false;  // NaN: not covered
+namespace {
+
+/// Whether some translation t moves every box [lo1, hi1] (per coordinate, 3 per vertex) into its
+/// [lo0 - r, hi0 + r]: per axis, the spread of the boxes' shifts, max(hi1 - hi0) - min(lo1 - lo0),
+/// is at most 2r. A translation changes no distance, so primitives within some distance of each
+/// other in the new boxes had boxes within that distance + 2r in the old ones. NaN: false.
+bool within_translated_boxes(const std::vector<double>& lo0, const std::vector<double>& hi0, const double* lo1,
+                             const double* hi1, size_t size, double r) {
+  if (lo0.size() != size || hi0.size() != size || size % 3 != 0) return false;
+  for (int d = 0; d < 3; ++d) {
+    double up = -std::numeric_limits<double>::infinity(), down = std::numeric_limits<double>::infinity();
+    bool finite = true;
+    for (size_t k = d; k < size; k += 3) {
+      const double a = hi1[k] - hi0[k], b = lo1[k] - lo0[k];
+      finite = finite && std::isfinite(a) && std::isfinite(b);
+      up = std::max(up, a);
+      down = std::min(down, b);
+    }
+    if (!finite || !(up - down <= 2 * r)) return false;
   }
   return true;
+}
+
+}  // namespace
+
+bool SelfContact::covered_by_last_query(const std::vector<double>& x0, const std::vector<double>& x1) {
+  if (x1.size() != x0.size()) return false;
+  motion_lo_.resize(x0.size());
+  motion_hi_.resize(x0.size());
+  bool finite = true;  // std::min/max would drop a NaN from the boxes
+  for (size_t k = 0; k < x0.size(); ++k) {
+    finite = finite && std::isfinite(x0[k]) && std::isfinite(x1[k]);
+    motion_lo_[k] = std::min(x0[k], x1[k]);
+    motion_hi_[k] = std::max(x0[k], x1[k]);
+  }
+  return finite && within_translated_boxes(query_lo_, query_hi_, motion_lo_.data(), motion_hi_.data(), x0.size(), 0.5 * slack_);
 }
 
 void SelfContact::find(const std::vector<double>& x0, const std::vector<double>& x1) {
@@ -73,12 +101,6 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
     ++queries_;
     raw_stamp_.assign(raw_.vf.size() + raw_.ee.size(), -1);  // new pairs: no distance known
     raw_dist_.resize(raw_stamp_.size());
-  }
-  motion_lo_.resize(x0.size());
-  motion_hi_.resize(x0.size());
-  for (size_t k = 0; k < x0.size(); ++k) {
-    motion_lo_[k] = std::min(x0[k], x1[k]);
-    motion_hi_[k] = std::max(x0[k], x1[k]);
   }
   if (!reuse) query_lo_ = motion_lo_, query_hi_ = motion_hi_;  // what later motions are checked against
   // Keep the pairs whose boxes of this motion, inflated by dhat, overlap: what a query with
@@ -215,13 +237,10 @@ void SelfContact::build_friction(const std::vector<double>& x_t) {
 }
 
 int SelfContact::count_intersections(const std::vector<double>& x) {
-  // Triangle pairs from a query with margin slack at the positions of its time, reused while no
-  // vertex has moved more than slack/2 from there (as in find()): a pair whose triangles touch
-  // at x had boxes within slack of each other then.
-  bool covered = tri_query_x_.size() == x.size();
-  const double r = 0.5 * slack_;
-  for (size_t k = 0; covered && k < x.size(); ++k) covered = std::abs(x[k] - tri_query_x_[k]) <= r;  // NaN: false
-  if (!covered) {
+  // Triangle pairs from a query with margin slack at the positions of its time, reused while every
+  // vertex stays within slack/2 of its place there after some common translation (as in find()):
+  // a pair whose triangles touch at x had boxes within slack of each other then.
+  if (!within_translated_boxes(tri_query_x_, tri_query_x_, x.data(), x.data(), x.size(), 0.5 * slack_)) {
     const auto t0 = std::chrono::steady_clock::now();
     bp_->triangle_pairs(x, x, slack_, &tri_raw_);
     bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -43,10 +43,11 @@ class SelfContact {
 
   /// Candidates: pairs that can come within dhat while moving linearly from x0 to x1.
   /// The broad phase runs with a margin of dhat + slack (slack = kBroadPhaseSlack x dhat), so its
-  /// candidates stay a superset for every later motion that keeps each vertex within slack/2 of
-  /// the box it swept in that query (two primitives within dhat then had boxes within dhat +
-  /// slack); such a motion reuses them without a new query (Newton iterations of a step, and
-  /// steps of cloth moving less than slack/2 from where the query saw it).
+  /// candidates stay a superset for every later motion that, after one common translation, keeps
+  /// each vertex within slack/2 of the box it swept in that query (two primitives within dhat
+  /// then had boxes within dhat + slack; a translation changes no distance); such a motion reuses
+  /// them without a new query (Newton iterations of a step, cloth moving less than slack/2 from
+  /// where the query saw it, and cloth falling or carried as a whole).
   void find(const std::vector<double>& x0, const std::vector<double>& x1);
   /// Active pairs: candidates closer than dhat at x with at least one free vertex. Pairs
   /// already at zero distance (driven there by kinematic vertices) are dropped from both lists
@@ -58,7 +59,8 @@ class SelfContact {
   void build_friction(const std::vector<double>& x_t);
 
   /// Number of intersecting triangle pairs (exact test over broad-phase candidates; the triangle
-  /// query, with margin slack, is reused while every vertex stays within slack/2 of its place).
+  /// query, with margin slack, is reused while every vertex stays within slack/2 of its place
+  /// after one common translation).
   int count_intersections(const std::vector<double>& x);
   /// Runs the untangling fail-safe on x (free vertices only); returns pairs left.
   int untangle(std::vector<double>* x, const std::vector<int>& fixed);
@@ -86,8 +88,9 @@ class SelfContact {
   std::unique_ptr<BroadPhase> bp_;
   std::vector<Eigen::Vector2i> edges_;
   std::vector<double> edge_len2_;  ///< rest squared edge lengths (mollifier)
-  /// Whether every vertex's motion x0 -> x1 stays within slack/2 of its box in the last query.
-  bool covered_by_last_query(const std::vector<double>& x0, const std::vector<double>& x1) const;
+  /// Sets motion_lo_/motion_hi_ to the boxes of x0 -> x1 and returns whether, after some common
+  /// translation, every vertex's box stays within slack/2 of its box in the last query.
+  bool covered_by_last_query(const std::vector<double>& x0, const std::vector<double>& x1);
 
   ContactCandidates raw_;
   Real slack_;
@@ -111,6 +114,6 @@ class SelfContact {
 };
 
 /// Extra broad-phase margin as a fraction of dhat (SelfContact::find).
-inline constexpr Real kBroadPhaseSlack = 1.0;
+inline constexpr Real kBroadPhaseSlack = 2.0;
 
 }  // namespace gd::sim

@@ -1,6 +1,6 @@
-// SelfContact's broad-phase reuse: motions that stay within slack/2 of the last query's boxes
-// reuse its candidates, which still contain every pair a fresh query would report; a larger
-// motion runs a new query.
+// SelfContact's broad-phase reuse: motions that, after one common translation, stay within
+// slack/2 of the last query's boxes reuse its candidates, which still contain every pair a fresh
+// query would report; a larger motion runs a new query.
 #include "sim/solver/self_contact.h"
 
 #include <gtest/gtest.h>
@@ -95,6 +95,39 @@ TEST(SelfContactBroadPhase, SmallMotionsReuseTheQueryAndMissNothing) {
   EXPECT_EQ(sc.broad_phase_reuses(), 4);
 }
 
+/// x moved rigidly by t.
+std::vector<double> translated(std::vector<double> x, const Vec3& t) {
+  for (size_t k = 0; k < x.size(); ++k) x[k] += t[static_cast<int>(k % 3)];
+  return x;
+}
+
+// Cloth falling or carried as a whole: far beyond slack/2 in absolute terms, within it after the
+// common translation.
+TEST(SelfContactBroadPhase, TranslatedMotionsReuseTheQueryAndMissNothing) {
+  const Folded f = folded_sheet();
+  SelfContact sc(f.data, kDhat, 1.0);
+  sc.find(f.x, f.x);
+  ASSERT_EQ(sc.broad_phase_queries(), 1);
+  const double within = 0.2 * kBroadPhaseSlack * kDhat;  // jiggle: each end within +-slack/5 ...
+  for (unsigned seed = 1; seed <= 4; ++seed) {
+    const Vec3 t0(0.01 * seed, -0.02, -0.03 * seed), t1 = t0 + Vec3(0.3, 0.1, -0.2) * kBroadPhaseSlack * kDhat;
+    // ... and the ends 0.37 slack apart by translation: every box spread over < slack
+    const std::vector<double> x0 = jiggled(translated(f.x, t0), within, seed);
+    const std::vector<double> x1 = jiggled(translated(f.x, t1), within, 100 + seed);
+    sc.find(x0, x1);
+    EXPECT_EQ(sc.broad_phase_queries(), 1) << "seed " << seed;
+    const std::set<Quad> have = as_set(sc.candidates()), need = fresh(f.data, x0, x1);
+    ASSERT_GT(need.size(), 100u);
+    for (const Quad& q : need) EXPECT_TRUE(have.count(q)) << "missed type " << q[0] << " " << q[1] << " " << q[2];
+    EXPECT_EQ(have, need) << "seed " << seed;  // the filtered list is exactly what a query with margin dhat gives
+  }
+  // One vertex moving relative to the rest by more than the slack: a new query.
+  std::vector<double> x1 = translated(f.x, Vec3(0.05, 0, 0));
+  x1[3 * 7 + 2] += 1.2 * kBroadPhaseSlack * kDhat;
+  sc.find(translated(f.x, Vec3(0.05, 0, 0)), x1);
+  EXPECT_EQ(sc.broad_phase_queries(), 2);
+}
+
 /// The active and candidate lists of a SelfContact that has seen `history` (find, then
 /// select_active at the first positions, for each motion) equal a fresh instance's at the last.
 TEST(SelfContactBroadPhase, DistancesReusedAtTheSamePositionsGiveTheFreshLists) {
@@ -127,7 +160,7 @@ TEST(SelfContactBroadPhase, AMotionBeyondTheSlackRunsANewQuery) {
   SelfContact sc(f.data, kDhat, 1.0);
   sc.find(f.x, f.x);
   std::vector<double> x1 = f.x;
-  x1[3 * 7 + 2] += 0.6 * kBroadPhaseSlack * kDhat;  // one vertex, one coordinate, past slack/2
+  x1[3 * 7 + 2] += 1.2 * kBroadPhaseSlack * kDhat;  // one vertex, one coordinate: its box spreads past the slack
   sc.find(f.x, x1);
   EXPECT_EQ(sc.broad_phase_queries(), 2);
   std::vector<double> bad = f.x;
@@ -153,6 +186,9 @@ TEST(SelfContactBroadPhase, IntersectionCountReusesItsQueryAndAgreesWithAFreshOn
     const std::vector<double> x = jiggled(f.x, 0.45 * kBroadPhaseSlack * kDhat, seed);
     SelfContact fresh_instance(f.data, kDhat, 1.0);
     EXPECT_EQ(reused.count_intersections(x), fresh_instance.count_intersections(x)) << "seed " << seed;
+    const std::vector<double> moved = translated(x, Vec3(0.1, -0.05, 0.2) * seed);  // carried as a whole
+    SelfContact fresh_moved(f.data, kDhat, 1.0);
+    EXPECT_EQ(reused.count_intersections(moved), fresh_moved.count_intersections(moved)) << "seed " << seed;
   }
   EXPECT_EQ(reused.broad_phase_queries(), queries);
 }
