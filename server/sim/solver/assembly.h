@@ -1,0 +1,216 @@
+#pragma once
+/// \file
+/// Assembly: L(x), its gradient and the PSD-projected block Hessian; element loops coloured on the
+/// CPU, atomic on the GPU; self-contact pairs into per-pair storage.
+/// Member functions of Solver<Exec> (solver_impl.h), written once for every backend.
+
+#include "sim/solver/solver_impl.h"
+
+namespace gd::sim {
+
+/// L at x_ with its gradient g_ and projected Hessian vals_ (the active pairs' off-diagonal
+/// blocks in act_H_/fr_H_).
+template <class Exec>
+double Solver<Exec>::assemble() {
+  return evaluate(x_, g_, true);
+}
+
+/// L(xs), its gradient into gs and, when `hessian` (xs must be x_), the PSD-projected Hessian
+/// into vals_. Dirichlet rows are left zero (identity is implied in the matrix-vector product).
+/// Self-contact pairs: the active ones (selected at x_) with the Hessian, the candidates
+/// otherwise (a line-search trial point: every pair within dhat of it is a candidate).
+template <class Exec>
+double Solver<Exec>::evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessian) {
+  if (hessian) Exec::fill(vals_, 0.0);
+  Exec::fill(gs, 0.0);
+  const detail::View V = view();
+  const detail::Params P = P_;
+  const double* x = Exec::ptr(xs);
+  double* g = Exec::ptr(gs);
+  double* H = hessian ? Exec::ptr(vals_) : nullptr;
+  double e = Exec::sum_effects(n_, [=] GD_HD_LAMBDA(int i) {
+    if (V.fixed[i]) return 0.0;
+    Vec3 gi;
+    Mat3 Hi;
+    const double ei = detail::vertex_terms(V, P, i, detail::load3(x, i), &gi, H ? &Hi : nullptr);
+    detail::store3(g, i, gi);
+    if (H) {
+      double* b = H + 9 * V.diag[i];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) b[3 * r + c] = Hi(r, c);
+    }
+    return ei;
+  }, Exec::kParallelMinHeavy);
+  e += sum_elements(data_->tri_colors, V.nt, [=] GD_HD_LAMBDA(int t) {
+    Vec9 ge;
+    Mat9 He;
+    const double et = detail::triangle_terms(V, P, t, x, &ge, H ? &He : nullptr);
+    scatter<3>(V, V.tris + 3 * t, V.tri_slots + 9 * t, ge, He, g, H);
+    return et;
+  });
+  e += sum_elements(data_->hinge_colors, V.nh, [=] GD_HD_LAMBDA(int h) {
+    Vec12 ge;
+    if (P.bending_exact_projected) {
+      Mat12 He;
+      const double eh = detail::hinge_terms(V, P, h, x, &ge, H ? &He : nullptr);
+      scatter<4>(V, V.hinges + 4 * h, V.hinge_slots + 16 * h, ge, He, g, H);
+      return eh;
+    }
+    detail::HingeHessian He;
+    const double eh = detail::hinge_terms_rank2(V, P, h, x, &ge, H ? &He : nullptr);
+    scatter_rank2(V, V.hinges + 4 * h, V.hinge_slots + 16 * h, ge, He, g, H);
+    return eh;
+  });
+  if (self_) e += evaluate_pairs(x, g, H);
+  return e;
+}
+
+/// The self-contact pairs' share of evaluate(): the pair terms in parallel into per-pair storage,
+/// then their gradient (and diagonal blocks) added into shared rows (serial on the CPU, atomics
+/// on the GPU). The off-diagonal blocks stay with the pair until merge_pair_blocks.
+template <class Exec>
+double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
+  const detail::View V = view();
+  const detail::Params P = P_;
+  const bool want_h = H != nullptr;
+  const detail::PairView L = want_h ? V.act : V.cand;
+  if (!want_h && cand_gd_.size() < 48 * static_cast<size_t>(L.n)) Exec::resize(cand_gd_, 48 * static_cast<size_t>(L.n));
+  if (live_.size() < static_cast<size_t>(std::max(L.n, V.n_fr))) Exec::resize(live_, static_cast<size_t>(std::max(L.n, V.n_fr)));
+  int* live = Exec::ptr(live_);  // candidates beyond dhat (most of them) add nothing
+  double* HA = Exec::ptr(act_H_);
+  double* HF = Exec::ptr(fr_H_);
+  double* GA = want_h ? Exec::ptr(act_gd_) : Exec::ptr(cand_gd_);
+  double* GF = Exec::ptr(fr_gd_);
+  double e = Exec::sum_effects(L.n, [=] GD_HD_LAMBDA(int c) {
+    const int* vs = L.v + 4 * c;
+    live[c] = 0;
+    if (V.fixed[vs[0]] && V.fixed[vs[1]] && V.fixed[vs[2]] && V.fixed[vs[3]]) {  // as select_active: no free vertex
+      if (want_h)
+        for (int k = 0; k < 144; ++k) HA[144 * c + k] = 0.0;
+      return 0.0;
+    }
+    Vec12 ge;
+    Mat12 He;
+    const double ec = detail::pair_barrier(P, L, c, x, &ge, want_h ? &He : nullptr);
+    if (ec == 0.0 && !want_h) return 0.0;  // beyond dhat: no gradient
+    live[c] = 1;
+    store_pair(V, L.v + 4 * c, ge, want_h ? &He : nullptr, HA + 144 * c, GA + 48 * c);
+    return ec;
+  }, Exec::kParallelMinHeavy);
+  e += Exec::sum_effects(V.n_fr, [=] GD_HD_LAMBDA(int k) {
+    Vec12 ge;
+    Mat12 He;
+    const double ek = detail::pair_friction(V, P, k, x, &ge, want_h ? &He : nullptr);
+    store_pair(V, V.fr_v + 4 * k, ge, want_h ? &He : nullptr, HF + 144 * k, GF + 48 * k);
+    return ek;
+  }, Exec::kParallelMinHeavy);
+  Exec::for_each(L.n, [=] GD_HD_LAMBDA(int c) {
+    if (live[c]) add_pair(V, L.v + 4 * c, GA + 48 * c, g, H);
+  }, kSerialOnCpu);
+  Exec::for_each(V.n_fr, [=] GD_HD_LAMBDA(int k) { add_pair(V, V.fr_v + 4 * k, GF + 48 * k, g, H); }, kSerialOnCpu);
+  return e;
+}
+
+/// Splits a pair's gradient and Hessian (Dirichlet rows/columns dropped): off-diagonal blocks
+/// into Hpair (row-major 12x12, diagonal blocks zero), gradient and diagonal blocks into gd
+/// (12 + 4 x 9 values) for add_pair.
+template <class Exec>
+GD_HD void Solver<Exec>::store_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12* Hp,
+                                    double* Hpair, double* gd) {
+  for (int a = 0; a < 4; ++a) {
+    const bool fa = V.fixed[vs[a]];
+    for (int c = 0; c < 3; ++c) gd[3 * a + c] = fa ? 0.0 : ge(3 * a + c);
+    if (!Hp) continue;
+    const Mat12& He = *Hp;
+    for (int b = 0; b < 4; ++b) {
+      const bool keep = !fa && !V.fixed[vs[b]];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) {
+          const double h = keep ? He(3 * a + r, 3 * b + c) : 0.0;
+          Hpair[36 * a + 12 * r + 3 * b + c] = a == b ? 0.0 : h;
+          if (a == b) gd[12 + 9 * a + 3 * r + c] = h;
+        }
+    }
+  }
+}
+
+/// Adds a stored pair's gradient and diagonal blocks into g and the block matrix (H null: the
+/// gradient only).
+template <class Exec>
+GD_HD void Solver<Exec>::add_pair(const detail::View& V, const int* vs, const double* gd, double* g, double* H) {
+  for (int a = 0; a < 4; ++a) {
+    if (V.fixed[vs[a]]) continue;
+    for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, gd[3 * a + c]);
+    if (!H) continue;
+    double* blk = H + 9 * V.diag[vs[a]];
+    for (int k = 0; k < 9; ++k) Exec::add(blk + k, gd[12 + 9 * a + k]);
+  }
+}
+
+template <class Exec>
+template <int K>
+GD_HD void Solver<Exec>::scatter(const detail::View& V, const int* vs, const int* slots, const VecN<3 * K>& ge,
+                                 const MatN<3 * K>& He, double* g, double* H) {
+  for (int a = 0; a < K; ++a) {
+    if (V.fixed[vs[a]]) continue;
+    for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, ge(3 * a + c));
+    if (!H) continue;
+    for (int b = 0; b < K; ++b) {
+      if (V.fixed[vs[b]]) continue;
+      double* blk = H + 9 * slots[K * a + b];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) Exec::add(blk + 3 * r + c, He(3 * a + r, 3 * b + c));
+    }
+  }
+}
+
+/// scatter<4> for a hinge Hessian in factored form: block (a, b) += cu u_a u_bᵀ + cw w_a w_bᵀ.
+template <class Exec>
+GD_HD void Solver<Exec>::scatter_rank2(const detail::View& V, const int* vs, const int* slots, const Vec12& ge,
+                                       const detail::HingeHessian& He, double* g, double* H) {
+  for (int a = 0; a < 4; ++a) {
+    if (V.fixed[vs[a]]) continue;
+    for (int c = 0; c < 3; ++c) Exec::add(g + 3 * vs[a] + c, ge(3 * a + c));
+    if (!H) continue;
+    const Vec3 su = He.cu * He.u.segment<3>(3 * a), sw = He.cw * He.w.segment<3>(3 * a);
+    for (int b = 0; b < 4; ++b) {
+      if (V.fixed[vs[b]]) continue;
+      const Vec3 ub = He.u.segment<3>(3 * b), wb = He.w.segment<3>(3 * b);
+      double* blk = H + 9 * slots[4 * a + b];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) Exec::add(blk + 3 * r + c, su(r) * ub(c) + sw(r) * wb(c));
+    }
+  }
+}
+
+/// Sum of f over an element loop that scatters into shared rows: on the CPU colour by colour,
+/// a colour's chunks in parallel and each chunk's elements in mesh order (SceneData's
+/// Coloring); all at once with atomics on the GPU.
+template <class Exec>
+template <class F>
+double Solver<Exec>::sum_elements(const Coloring& coloring, int count, const F& f) {
+  if constexpr (Exec::kColoring) {
+    GD_DEMAND(coloring.elements == count, "element colouring built for another mesh");
+    const Coloring* C = &coloring;
+    const int* chunks = coloring.chunks.data();
+    // Each chunk's energy into its own slot, summed in chunk order: the same bits at any
+    // thread count (an OpenMP reduction would sum in an order that depends on it).
+    chunk_energy_.resize(coloring.chunks.size());
+    double* ce = chunk_energy_.data();
+    for (int c = 0; c < coloring.colors(); ++c) {
+      const int begin = coloring.offsets[c];
+      Exec::for_each(coloring.offsets[c + 1] - begin, [=](int k) {
+        double s = 0;
+        for (int i = C->first(chunks[begin + k]); i < C->last(chunks[begin + k]); ++i) s += f(i);
+        ce[begin + k] = s;
+      }, std::max(2, Exec::kParallelMinHeavy / C->chunk));
+    }
+    double e = 0;
+    for (double v : chunk_energy_) e += v;
+    return e;
+  } else {
+    return Exec::sum_effects(count, f, Exec::kParallelMinHeavy);
+  }
+}
+
+}  // namespace gd::sim

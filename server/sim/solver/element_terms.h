@@ -1,0 +1,317 @@
+#pragma once
+/// \file
+/// The solver's per-vertex, per-element and per-pair terms over flat arrays: inline
+/// host-device functions (GD_HD) that the CPU loops and the CUDA kernels of Solver<Exec> both call,
+/// with the Params and View they read. Part of solver_impl.h.
+
+#include <cmath>
+
+#include "sim/energy/bending.h"
+#include "sim/energy/damping.h"
+#include "sim/energy/drag.h"
+#include "sim/energy/gravity.h"
+#include "sim/energy/grip_spring.h"
+#include "sim/energy/inertia.h"
+#include "sim/energy/mass_damping.h"
+#include "sim/energy/psd_project.h"
+#include "sim/energy/stretch_shear.h"
+#include "sim/energy/table_barrier.h"
+#include "sim/energy/table_friction.h"
+#include "sim/contact/barrier.h"
+#include "sim/contact/ccd.h"
+#include "sim/contact/collider.h"
+#include "sim/contact/friction.h"
+
+namespace gd::sim {
+
+namespace detail {
+
+GD_HD Vec3 load3(const double* p, int i) { return Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2]); }
+GD_HD void store3(double* p, int i, const Vec3& v) {
+  p[3 * i] = v.x();
+  p[3 * i + 1] = v.y();
+  p[3 * i + 2] = v.z();
+}
+
+/// Scalars every element kernel needs, passed by value into kernels.
+struct Params {
+  Real h = 0;
+  Vec3 gravity = Vec3::Zero();
+  bool quasi_static = false;
+  bool table = false;
+  Vec3 table_n = Vec3::UnitZ();
+  Real table_offset = 0, dhat = 0, kappa_per_mass = 0, table_mu = 0, friction_eps = 0;
+  Real air_density = 0, drag_cd = 0, drag_linear = 0, drag_tangent_ratio = 0;
+  Real beta_membrane = 0, beta_bend = 0, alpha_mass = 0;
+  bool bending_exact_projected = false;
+  HessianKind contact_hessian = HessianKind::kGaussNewton;  ///< self-contact pairs
+  bool self_contact = false;
+  Real dhat_self = 0, mu_self = 0;
+  /// Smallest gap CCD lets a self-contact pair close to, m (kCcdFloorFraction * dhat_self).
+  Real ccd_floor = 0;
+  Real kin_stiffness = 30;  // SceneOptions::grip_stiffness
+  Real kin_force_max = INFINITY;  // N, SceneOptions::grip_force_limit
+  Real membrane_ref = 0;  // N/m, the material's largest stretch stiffness
+};
+
+/// A list of contact pairs: 4 vertices, type (0 VF, 1 EE), barrier stiffness, EE mollifier.
+struct PairView {
+  int n = 0;
+  const int* v = nullptr;
+  const int* type = nullptr;
+  const double* kappa = nullptr;
+  const double* eps = nullptr;
+};
+
+/// Raw pointers into the backend's arrays (host or device), copied into kernels.
+struct View {
+  int n = 0, nt = 0, nh = 0;
+  const double* mass;
+  const int* tris;
+  const StretchShearRest* tri_rest;
+  const int* hinges;
+  const HingeRest* hinge_rest;
+  const double* hinge_grad_t;  // per hinge: the dihedral angle's gradient at x_t (12), for damping
+  const int* row_ptr;
+  const int* cols;
+  const int* diag;
+  const int* tri_slots;
+  const int* hinge_slots;
+  const int* fixed;      // 1 for Dirichlet vertices
+  const double* x_t;     // positions at step start
+  const double* v_t;     // velocities at step start
+  const double* f_ext;   // external forces, N (3 per vertex)
+  const int* kin;            // 1 for kinematic vertices held by a spring (self-contact mode)
+  const double* kin_target;  // their targets at the end of the step (3 per vertex)
+  // kinematic colliders: shape, poses (R0 row-major, t0, R1, t1: 24 doubles), friction, meshes
+  int n_col = 0;
+  const ColliderShape* col_shape;
+  const double* col_pose;
+  const double* col_mu;
+  ColliderMeshView col_mesh;
+  // self-contact: candidate pairs (line search, CCD), active pairs (Hessian), lagged friction
+  PairView cand, act;
+  int n_fr = 0;
+  const int* fr_v;
+  const double* fr_w;
+  const double* fr_T;
+  const double* fr_lambda;
+};
+
+/// Self-contact barrier of pair c of a list (vertex-face or edge-edge), PSD-projected Hessian.
+GD_HD Real pair_barrier(const Params& P, const PairView& L, int c, const double* x, Vec12* g, Mat12* H) {
+  const int* v = L.v + 4 * c;
+  const Vec3 a = load3(x, v[0]), b = load3(x, v[1]), q = load3(x, v[2]), d = load3(x, v[3]);
+  return L.type[c] == 0
+             ? vf_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], g, H, P.contact_hessian)
+             : ee_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], L.eps[c], g, H, P.contact_hessian);
+}
+
+/// Lagged cloth-cloth friction of friction pair k.
+GD_HD Real pair_friction(const View& V, const Params& P, int k, const double* x, Vec12* g, Mat12* H) {
+  const int* v = V.fr_v + 4 * k;
+  Vec12 xs, ys;
+  for (int a = 0; a < 4; ++a) {
+    xs.segment<3>(3 * a) = load3(x, v[a]);
+    ys.segment<3>(3 * a) = load3(V.x_t, v[a]);
+  }
+  const VecN<4> w(V.fr_w[4 * k], V.fr_w[4 * k + 1], V.fr_w[4 * k + 2], V.fr_w[4 * k + 3]);
+  const Eigen::Map<const Eigen::Matrix<Real, 3, 2>> T(V.fr_T + 6 * k);
+  return contact_friction_energy(xs, ys, w, T, P.mu_self, V.fr_lambda[k], P.friction_eps, g, H);
+}
+
+/// Inertia target x_hat = x_t + h v_t (gravity is its own energy).
+GD_HD Vec3 inertia_target(const View& V, const Params& P, int i) {
+  const Vec3 xt = load3(V.x_t, i);
+  return P.quasi_static ? xt : Vec3(xt + P.h * load3(V.v_t, i));
+}
+
+/// Stiffness of the grip spring of a held vertex of mass m, N/m: far stiffer than its inertia and
+/// the membrane (SceneOptions::grip_stiffness).
+GD_HD Real grip_stiffness(const Params& P, Real m) { return P.kin_stiffness * (m / (P.h * P.h) + P.membrane_ref); }
+
+/// Per-vertex terms: inertia, gravity, mass damping, table barrier, lagged friction and grip springs.
+GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Vec3* g, Mat3* H) {
+  const Real m = V.mass[i];
+  const Vec3 xt = load3(V.x_t, i);
+  Vec3 gi;
+  Mat3 Hi;
+  Real e = inertia_energy(x, inertia_target(V, P, i), m, P.h, g ? &gi : nullptr, H ? &Hi : nullptr);
+  Vec3 gk;
+  e += gravity_energy(x, m, P.gravity, g ? &gk : nullptr);
+  const Vec3 f = load3(V.f_ext, i);
+  e -= f.dot(x);  // external load: potential -f.x
+  if (g) *g = gi + gk - f;
+  if (H) *H = Hi;
+  Real hd = 0;
+  e += mass_damping_energy(x, xt, m, P.alpha_mass, P.h, g ? &gk : nullptr, H ? &hd : nullptr);
+  if (g) *g += gk;
+  if (H) *H += hd * Mat3::Identity();
+  if (V.kin[i]) {  // stiff spring to the kinematic target, far stiffer than inertia and membrane
+    Mat3 Hk;
+    e += grip_spring_energy(x, load3(V.kin_target, i), grip_stiffness(P, m), P.kin_force_max, g ? &gk : nullptr,
+                            H ? &Hk : nullptr);
+    if (g) *g += gk;
+    if (H) *H += Hk;
+  }
+  if (!V.fixed[i]) {  // kinematic colliders: barrier at the end pose, friction lagged
+    for (int c = 0; c < V.n_col; ++c) {
+      const double* q = V.col_pose + 24 * c;
+      const Mat3 R0 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q);
+      const Vec3 t0(q[9], q[10], q[11]);
+      const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+      const Vec3 t1(q[21], q[22], q[23]);
+      const Real kappa = P.kappa_per_mass * m;
+      Mat3 Hc;
+      e += point_collider_energy(x, R1, t1, V.col_shape[c], 0.0, P.dhat, kappa, g ? &gk : nullptr, H ? &Hc : nullptr,
+                                 HessianKind::kProjected, &V.col_mesh);
+      if (g) *g += gk;
+      if (H) *H += Hc;
+      if (V.col_mu[c] > 0) {
+        const ColliderContactFrame f =
+            collider_contact_frame(xt, R0, t0, R1, t1, V.col_shape[c], 0.0, P.dhat, kappa, &V.col_mesh);
+        if (f.lambda > 0) {
+          e += point_collider_friction(x, xt, f.surface_displacement, f.T, V.col_mu[c], f.lambda, P.friction_eps,
+                                       g ? &gk : nullptr, H ? &Hc : nullptr);
+          if (g) *g += gk;
+          if (H) *H += Hc;
+        }
+      }
+    }
+  }
+  if (P.table && !V.fixed[i]) {
+    const Real kappa = P.kappa_per_mass * m;
+    Mat3 Hb;
+    e += plane_barrier_energy(x, P.table_n, P.table_offset, P.dhat, kappa, g ? &gk : nullptr, H ? &Hb : nullptr);
+    if (g) *g += gk;
+    if (H) *H += Hb;
+    // Friction with the normal force lagged at the start of the step.
+    const Real dt = P.table_n.dot(xt) - P.table_offset;
+    if (P.table_mu > 0 && dt < P.dhat) {
+      const Real lambda = plane_barrier_force_magnitude(dt, P.dhat, kappa);
+      Eigen::Matrix<Real, 3, 2> T;
+      plane_tangent_basis(P.table_n, &T);
+      e += plane_friction_energy(x, xt, T, P.table_mu, lambda, P.friction_eps, g ? &gk : nullptr, H ? &Hb : nullptr);
+      if (g) *g += gk;
+      if (H) *H += Hb;
+    }
+  }
+  return e;
+}
+
+/// Triangle terms: anisotropic stretch/shear, strain-rate damping and air drag.
+GD_HD Real triangle_terms(const View& V, const Params& P, int t, const double* x, Vec9* g, Mat9* H) {
+  const int i0 = V.tris[3 * t], i1 = V.tris[3 * t + 1], i2 = V.tris[3 * t + 2];
+  const Vec3 x0 = load3(x, i0), x1 = load3(x, i1), x2 = load3(x, i2);
+  const StretchShearRest& r = V.tri_rest[t];
+  Vec9 ge;
+  Mat9 He;
+  // Membrane stretch/shear and its damping, summed in (w_u, w_v) space and mapped to the
+  // positions once.
+  Vec3 wu, wv;
+  deformation_columns(x0, x1, x2, r.Dm_inv, &wu, &wv);
+  VecN<6> gw, gwd;
+  MatN<6> Hw, Hwd;
+  Real e = stretch_shear_energy_w(wu, wv, r, g ? &gw : nullptr, H ? &Hw : nullptr, HessianKind::kProjected);
+  const Vec3 y0 = load3(V.x_t, i0), y1 = load3(V.x_t, i1), y2 = load3(V.x_t, i2);
+  if (P.beta_membrane > 0) {
+    Vec3 wu_t, wv_t;
+    deformation_columns(y0, y1, y2, r.Dm_inv, &wu_t, &wv_t);
+    e += membrane_damping_energy_w(wu, wv, wu_t, wv_t, r, P.beta_membrane, P.h, g ? &gwd : nullptr,
+                                   H ? &Hwd : nullptr);
+    if (g) gw += gwd;
+    if (H) Hw += Hwd;
+  }
+  if (g || H) {
+    Vec3 cu, cv;
+    membrane_weights(r.Dm_inv, &cu, &cv);
+    if (g) membrane_map_gradient(cu, cv, gw.segment<3>(0), gw.segment<3>(3), g);
+    if (H) membrane_map_hessian(cu, cv, Hw, H);
+  }
+  if (P.air_density > 0 && !P.quasi_static) {
+    const Vec3 nrm = (y1 - y0).cross(y2 - y0);
+    const Real len = nrm.norm();
+    if (len > 0) {
+      const Vec3 n = nrm / len;
+      const Vec3 vc = (load3(V.v_t, i0) + load3(V.v_t, i1) + load3(V.v_t, i2)) / 3.0;
+      const Real cn = drag_normal_coefficient(P.air_density, P.drag_cd, fabs(vc.dot(n)), P.drag_linear);
+      const Vec3 c_prev = (y0 + y1 + y2) / 3.0;
+      e += drag_energy(x0, x1, x2, c_prev, n, r.area, cn, cn * P.drag_tangent_ratio, P.h, g ? &ge : nullptr,
+                       H ? &He : nullptr);
+      if (g) *g += ge;
+      if (H) *H += He;
+    }
+  }
+  return e;
+}
+
+/// A hinge's Hessian as two rank-one terms, cu u uᵀ + cw w wᵀ: bending's Gauss-Newton term
+/// (u = ∇θ) and curvature-rate damping (w = ∇θ at the step start). Assembled block by block
+/// without forming the 12x12 matrix (Solver::scatter_rank2).
+struct HingeHessian {
+  Vec12 u, w;
+  Real cu = 0, cw = 0;
+};
+
+/// Hinge terms with the Hessian in factored form (the default Gauss-Newton bending Hessian):
+/// the same energy, gradient and, summed out, Hessian as hinge_terms with kProjected.
+GD_HD Real hinge_terms_rank2(const View& V, const Params& P, int h, const double* x, Vec12* g, HingeHessian* H) {
+  const int* hv = V.hinges + 4 * h;
+  const HingeRest& r = V.hinge_rest[h];
+  Vec12 xs, gth;
+  Real d2E;
+  for (int k = 0; k < 4; ++k) xs.segment<3>(3 * k) = load3(x, hv[k]);
+  Real e = bending_energy_rank1(xs.segment<3>(0), xs.segment<3>(3), xs.segment<3>(6), xs.segment<3>(9), r, g,
+                                H ? &H->u : &gth, H ? &H->cu : &d2E);
+  if (H) H->cw = 0, H->w.setZero();  // no damping: a zero term (w must not hold garbage)
+  if (P.beta_bend > 0) {
+    Vec12 ys;
+    for (int k = 0; k < 4; ++k) ys.segment<3>(3 * k) = load3(V.x_t, hv[k]);
+    const Eigen::Map<const Vec12> gt(V.hinge_grad_t + 12 * h);
+    Vec12 ge;
+    e += bending_damping_energy(xs, ys, gt, r, P.beta_bend, P.h, g ? &ge : nullptr, nullptr);
+    if (g) *g += ge;
+    if (H) {
+      H->w = gt;
+      H->cw = bending_damping_coef(r, P.beta_bend, P.h);
+    }
+  }
+  return e;
+}
+
+/// Hinge terms: nonlinear bending and curvature-rate damping, the Hessian as a 12x12 matrix
+/// (with the projected exact bending Hessian; hinge_terms_rank2 otherwise).
+GD_HD Real hinge_terms(const View& V, const Params& P, int h, const double* x, Vec12* g, Mat12* H) {
+  const int* hv = V.hinges + 4 * h;
+  const HingeRest& r = V.hinge_rest[h];
+  Vec12 xs;
+  for (int k = 0; k < 4; ++k) xs.segment<3>(3 * k) = load3(x, hv[k]);
+  Real e = bending_energy(xs.segment<3>(0), xs.segment<3>(3), xs.segment<3>(6), xs.segment<3>(9), r, g, H,
+                          P.bending_exact_projected ? HessianKind::kExact : HessianKind::kProjected);
+  if (H && P.bending_exact_projected) project_psd<12>(H);
+  if (P.beta_bend > 0) {
+    Vec12 ys;
+    for (int k = 0; k < 4; ++k) ys.segment<3>(3 * k) = load3(V.x_t, hv[k]);
+    const Eigen::Map<const Vec12> gt(V.hinge_grad_t + 12 * h);
+    Vec12 ge;
+    Mat12 He;
+    e += bending_damping_energy(xs, ys, gt, r, P.beta_bend, P.h, g ? &ge : nullptr, H ? &He : nullptr);
+    if (g) *g += ge;
+    if (H) *H += He;
+  }
+  return e;
+}
+
+/// The dihedral angle's gradient at the step start, which curvature-rate damping holds fixed
+/// through the step (computed once per step instead of at every evaluation).
+GD_HD void hinge_step_start(const View& V, int h, double* grad_t) {
+  const int* hv = V.hinges + 4 * h;
+  Vec12 gt;
+  dihedral_angle_derivatives(load3(V.x_t, hv[0]), load3(V.x_t, hv[1]), load3(V.x_t, hv[2]), load3(V.x_t, hv[3]), &gt,
+                             nullptr);
+  for (int k = 0; k < 12; ++k) grad_t[12 * h + k] = gt(k);
+}
+
+}  // namespace detail
+
+}  // namespace gd::sim

@@ -1,0 +1,197 @@
+#pragma once
+/// \file
+/// The linear solve of each Newton iteration: the block matrix-vector product, the contact
+/// couplings merged into a block CSR, PCG with the preconditioner, and sparse LDLT on the CPU.
+/// Member functions of Solver<Exec> (solver_impl.h), written once for every backend.
+
+#include "sim/solver/solver_impl.h"
+
+namespace gd::sim {
+
+/// y = A x over free vertices (Dirichlet rows and columns act as identity / zero).
+template <class Exec>
+void Solver<Exec>::spmv(const Vec<double>& xs, Vec<double>& ys) {
+  const detail::View V = view();
+  const double* x = Exec::ptr(xs);
+  const double* A = Exec::ptr(vals_);
+  double* y = Exec::ptr(ys);
+  const bool couplings = self_ != nullptr;
+  const int* crp = Exec::ptr(cpl_row_ptr_);
+  const int* ccols = Exec::ptr(cpl_cols_);
+  const double* cvals = Exec::ptr(cpl_vals_);
+  Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+    double acc[3] = {0, 0, 0};
+    if (V.fixed[i]) {
+      detail::store3(y, i, detail::load3(x, i));
+      return;
+    }
+    auto add_row = [&](const int* rp, const int* cols, const double* vals) {
+      for (int k = rp[i]; k < rp[i + 1]; ++k) {
+        const int j = cols[k];
+        if (V.fixed[j]) continue;
+        const double* b = vals + 9 * k;
+        const double* xj = x + 3 * j;
+        for (int r = 0; r < 3; ++r) acc[r] += b[3 * r] * xj[0] + b[3 * r + 1] * xj[1] + b[3 * r + 2] * xj[2];
+      }
+    };
+    add_row(V.row_ptr, V.cols, A);
+    if (couplings) add_row(crp, ccols, cvals);  // contact pairs' off-diagonal blocks
+    y[3 * i] = acc[0], y[3 * i + 1] = acc[1], y[3 * i + 2] = acc[2];
+  }, Exec::kParallelMinHeavy);
+}
+
+/// The pairs' off-diagonal blocks summed per coupled (row, column) vertex pair into a block CSR
+/// (cpl_*), once per linear solve, on the host. The layers of a garment lying flat make ~8
+/// contact pairs per vertex that share most of their vertex pairs, so each PCG iteration then
+/// touches every coupling once instead of once per pair that contains it, rows are gathered
+/// without atomics, and the preconditioner sees the couplings as a matrix. (On CUDA the pairs'
+/// Hessians travel to the host and the CSR back: a device-side merge is still to come.)
+template <class Exec>
+void Solver<Exec>::merge_pair_blocks() {
+  const ContactPairs& act = self_->active();
+  const FrictionPairs& fr = self_->friction();
+  const double* HA = nullptr;
+  const double* HF = nullptr;
+  if constexpr (std::is_same_v<Exec, CpuExec>) {
+    HA = act_H_.data();
+    HF = fr_H_.data();
+  } else {
+    Exec::download(host_act_H_, act_H_);
+    Exec::download(host_fr_H_, fr_H_);
+    HA = host_act_H_.data();
+    HF = host_fr_H_.data();
+  }
+  gd::sim::merge_pair_blocks(n_, kin_fixed_host_.data(),
+                             {PairHessians{act.size(), act.v.data(), HA}, PairHessians{fr.size(), fr.v.data(), HF}},
+                             &cpl_h_);
+  Exec::take(cpl_row_ptr_, cpl_h_.row_ptr);
+  Exec::take(cpl_cols_, cpl_h_.cols);
+  Exec::take(cpl_vals_, cpl_h_.vals);
+}
+
+/// Before a linear solve: the contact couplings as a matrix, then the preconditioner's setup.
+template <class Exec>
+void Solver<Exec>::prepare_linear_solve() {
+  if (opt_.linear_solver == LinearSolverKind::kDirect && std::is_same_v<Exec, CpuExec>) return;
+  if (self_) merge_pair_blocks();
+  BlockMatrixView A{n_, Exec::ptr(row_ptr_), Exec::ptr(cols_), Exec::ptr(diag_), Exec::ptr(vals_), Exec::ptr(fixed_)};
+  if (self_) {
+    A.cpl_row_ptr = Exec::ptr(cpl_row_ptr_);
+    A.cpl_cols = Exec::ptr(cpl_cols_);
+    A.cpl_vals = Exec::ptr(cpl_vals_);
+  }
+  A.x = Exec::ptr(x_);
+  precond_->setup(A);
+  if (estimator_) estimator_->setup(A);
+  precond_ready_ = true;
+}
+
+/// Solves H dx = -g. Returns the iterations spent (1 for the direct solver).
+template <class Exec>
+int Solver<Exec>::solve_linear(double first_step) {
+  if constexpr (std::is_same_v<Exec, CpuExec>) {
+    if (opt_.linear_solver == LinearSolverKind::kDirect) return solve_direct();
+  }
+  return solve_pcg(first_step);
+}
+
+/// PCG on H dx = -g with the preconditioner set up by prepare_linear_solve.
+template <class Exec>
+int Solver<Exec>::solve_pcg(double first_step) {
+  // With MAS, z = P⁻¹r estimates the correction PCG has still to make (as in converged()):
+  // stop once it is a fraction of what the Newton rule will accept (pcg_newton_fraction), so the
+  // linear solve is no more exact than the Newton iteration needs. In the first Newton iteration
+  // the step built so far stands for the first step (it only grows, so the test stays strict).
+  const bool newton_stop = residual_rule() && opt_.pcg_newton_fraction > 0 && precond_->estimates_smooth_modes();
+  Exec::fill(dx_, 0.0);
+  copy(g_, r_);
+  scale(-1.0, r_);  // r = -g (free rows; Dirichlet rows of g are zero)
+  const double r0 = std::sqrt(dot(r_, r_));
+  if (r0 == 0.0) return 0;
+  precond_->apply(Exec::ptr(r_), Exec::ptr(z_));
+  copy(z_, p_);
+  double rz = dot(r_, z_);
+  int it = 0;
+  while (it < opt_.pcg_max_iters) {
+    spmv(p_, ap_);
+    const double pap = dot(p_, ap_);
+    if (!(pap > 0)) break;
+    const double a = rz / pap;
+    axpy(a, p_, dx_);
+    axpy(-a, ap_, r_);
+    ++it;
+    if (std::sqrt(dot(r_, r_)) <= opt_.pcg_tol * r0) break;
+    precond_->apply(Exec::ptr(r_), Exec::ptr(z_));
+    if (newton_stop) {
+      const double target = residual_threshold(first_step > 0 ? first_step : rms_velocity(dx_));
+      if (rms_velocity(z_) <= opt_.pcg_newton_fraction * target) break;
+    }
+    const double rz_new = dot(r_, z_);
+    const double beta = rz_new / rz;
+    rz = rz_new;
+    xpby(z_, beta, p_);  // p = z + beta p
+  }
+  return it;
+}
+
+/// Sparse LDLT on the CPU (validation and small scenes).
+template <class Exec>
+int Solver<Exec>::solve_direct() {
+  if constexpr (std::is_same_v<Exec, CpuExec>) {
+    const SceneData& d = *data_;
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(9 * d.cols.size());
+    for (int i = 0; i < n_; ++i) {
+      if (kin_fixed_host_[i]) {
+        for (int c = 0; c < 3; ++c) trip.emplace_back(3 * i + c, 3 * i + c, 1.0);
+        continue;
+      }
+      for (int k = d.row_ptr[i]; k < d.row_ptr[i + 1]; ++k) {
+        const int j = d.cols[k];
+        if (kin_fixed_host_[j]) continue;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) trip.emplace_back(3 * i + r, 3 * j + c, vals_[9 * k + 3 * r + c]);
+      }
+    }
+    if (self_) {
+      auto add_pairs = [&](const std::vector<int>& vs, const Vec<double>& Hs) {
+        for (size_t c = 0; c < vs.size() / 4; ++c)
+          for (int a = 0; a < 4; ++a)
+            for (int b = 0; b < 4; ++b)
+              for (int r = 0; r < 3; ++r)
+                for (int k = 0; k < 3; ++k) {
+                  const double h = Hs[144 * c + 36 * a + 12 * r + 3 * b + k];
+                  if (h != 0.0) trip.emplace_back(3 * vs[4 * c + a] + r, 3 * vs[4 * c + b] + k, h);
+                }
+      };
+      add_pairs(self_->active().v, act_H_);
+      add_pairs(self_->friction().v, fr_H_);
+    }
+    Eigen::SparseMatrix<double> A(3 * n_, 3 * n_);
+    A.setFromTriplets(trip.begin(), trip.end());
+    // The mesh pattern is fixed, but contact pairs add entries that change from one solve to the
+    // next: a factorisation on a stale analysis reads outside the matrix.
+    if (!ldlt_analyzed_ || self_) {
+      ldlt_.analyzePattern(A);
+      ldlt_analyzed_ = true;
+    }
+    ldlt_.factorize(A);
+    Eigen::Map<const Eigen::VectorXd> g(g_.data(), 3 * n_);
+    Eigen::Map<Eigen::VectorXd> dx(dx_.data(), 3 * n_);
+    if (ldlt_.info() != Eigen::Success) {
+      if (self_) merge_pair_blocks();
+      BlockMatrixView A{n_, Exec::ptr(row_ptr_), Exec::ptr(cols_), Exec::ptr(diag_), Exec::ptr(vals_),
+                        Exec::ptr(fixed_)};
+      if (self_) A.cpl_row_ptr = cpl_row_ptr_.data(), A.cpl_cols = cpl_cols_.data(), A.cpl_vals = cpl_vals_.data();
+      A.x = x_.data();
+      precond_->setup(A);
+      return solve_pcg(0);
+    }
+    dx = ldlt_.solve(-g);
+    return 1;
+  } else {
+    return solve_pcg(0);
+  }
+}
+
+}  // namespace gd::sim

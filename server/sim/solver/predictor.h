@@ -1,0 +1,112 @@
+#pragma once
+/// \file
+/// Start of a step (lagged data, Dirichlet targets, the inertial predictor and its contacts),
+/// acceptance of a Newton iterate, and the velocity update at the end.
+/// Member functions of Solver<Exec> (solver_impl.h), written once for every backend.
+
+#include "sim/solver/solver_impl.h"
+
+namespace gd::sim {
+
+/// Saves the step-start state, applies Dirichlet targets and an inertial predictor that stays
+/// above the table.
+template <class Exec>
+void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
+  P_.h = opt_.dt;
+  P_.quasi_static = quasi_static;
+  P_.friction_eps = opt_.friction_eps_v * opt_.dt;
+  precond_ready_ = false;  // set up again at this step's first Newton iteration
+  if (quasi_static) Exec::fill(v_, 0.0);
+  copy(x_, x_t_);
+  copy(v_, v_t_);
+  if (P_.beta_bend > 0) {  // the damping's lagged angle gradient
+    const detail::View V0 = view();
+    double* grad_t = Exec::ptr(hinge_grad_t_);
+    Exec::for_each(V0.nh, [=] GD_HD_LAMBDA(int h) { detail::hinge_step_start(V0, h, grad_t); }, Exec::kParallelMinHeavy);
+  }
+  // Kinematic vertices: hard Dirichlet without self-contact; with self-contact they stay in the
+  // solve, pulled to their targets by a stiff spring, so CCD also guards their motion and a
+  // gripper pushes cloth aside instead of jumping through it.
+  const bool soft = self_ != nullptr;
+  std::fill(kin_fixed_host_.begin(), kin_fixed_host_.end(), 0);
+  std::vector<int> kin_flag(n_, 0);
+  for (int k : kin.vertices) (soft ? kin_flag : kin_fixed_host_)[k] = 1;
+  Exec::upload(fixed_, kin_fixed_host_);
+  Exec::upload(kin_flag_, kin_flag);
+  update_free_mass();
+  std::vector<double> targets(3 * static_cast<size_t>(n_), 0.0);
+  for (size_t k = 0; k < kin.vertices.size(); ++k)
+    for (int c = 0; c < 3; ++c) targets[3 * kin.vertices[k] + c] = kin.targets[3 * k + c];
+  Exec::upload(kin_target_, targets);
+  const detail::View V = view();
+  const detail::Params P = P_;
+  double* x = Exec::ptr(x_);
+  Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+    if (V.fixed[i] || V.kin[i]) {  // kinematic: straight to the target
+      detail::store3(x, i, detail::load3(V.kin_target, i));
+      return;
+    }
+    const Vec3 xt = detail::load3(V.x_t, i);
+    Vec3 step = detail::inertia_target(V, P, i) - xt;
+    if (P.table) {  // keep the predictor clear of the table
+      const Real d = P.table_n.dot(xt) - P.table_offset, dn = P.table_n.dot(step);
+      if (dn < 0 && d + dn < 0.5 * d) step *= 0.5 * d / (-dn);
+    }
+    detail::store3(x, i, xt + step);
+  });
+  if (n_col_ > 0) {
+    // A collider may move into the cloth during the step: start Newton from a guess with
+    // every free vertex at least dhat/2 outside each collider's end pose.
+    Exec::download(host_x_, x_);
+    for (int i = 0; i < n_; ++i) {
+      if (kin_fixed_host_[i]) continue;
+      Vec3 p(host_x_[3 * i], host_x_[3 * i + 1], host_x_[3 * i + 2]);
+      for (const Collider& c : *colliders_) p = c.project_out(p, col_t1_, 0.5 * P_.dhat);
+      for (int k = 0; k < 3; ++k) host_x_[3 * i + k] = p[k];
+    }
+    Exec::upload(x_, host_x_);
+  }
+  if (self_) {
+    // One broad phase on the predictor's motion x_t -> x: its candidates hold every pair within
+    // dhat at x_t too (a swept box contains the box at x_t), so the contacts at the start of
+    // the step, which lag the friction, are selected from them; then the whole motion is
+    // scaled back by CCD where needed.
+    Exec::download(host_xt_, x_t_);
+    Exec::download(host_x_, x_);
+    self_->find(host_xt_, host_x_);
+    self_->select_active(host_xt_, kin_fixed_host_);
+    self_->build_friction(host_xt_);
+    upload_friction();
+    upload_candidates();
+    for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] = host_x_[k] - host_xt_[k];
+    Exec::upload(dx_, host_dx_);
+    copy(x_t_, x_);
+    const double alpha = std::min(self_ccd_bound(), table_ccd_bound());
+    axpy(alpha < 1.0 ? 0.9 * alpha : 1.0, dx_, x_);
+  }
+}
+
+/// x += alpha dx, taking the line search's accepted trial point (bit for bit the state it
+/// evaluated) and its gradient. Returns whether g_ now holds the gradient at the new x.
+template <class Exec>
+bool Solver<Exec>::accept_step(double alpha) {
+  if (alpha == 0.0) return false;
+  if (alpha == last_trial_alpha_) {
+    std::swap(x_, x_trial_);
+    std::swap(g_, g_trial_);
+    return true;
+  }
+  axpy(alpha, dx_, x_);
+  return false;
+}
+
+template <class Exec>
+void Solver<Exec>::end_step() {
+  const double inv_h = 1.0 / P_.h;
+  const double* x = Exec::ptr(x_);
+  const double* xt = Exec::ptr(x_t_);
+  double* v = Exec::ptr(v_);
+  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { v[k] = (x[k] - xt[k]) * inv_h; });
+}
+
+}  // namespace gd::sim

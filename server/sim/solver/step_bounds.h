@@ -1,0 +1,110 @@
+#pragma once
+/// \file
+/// How far along a Newton direction the step may go: CCD against the table, colliders and
+/// self-contact pairs, then Armijo backtracking.
+/// Member functions of Solver<Exec> (solver_impl.h), written once for every backend.
+
+#include "sim/solver/solver_impl.h"
+
+namespace gd::sim {
+
+/// Largest step fraction along dx that keeps the state free of crossings (CCD).
+template <class Exec>
+double Solver<Exec>::max_step() { return std::min({table_ccd_bound(), self_ccd_bound(), collider_step_bound()}); }
+
+/// Conservative bound against colliders (distance is 1-Lipschitz): no free vertex moves more
+/// than 90% of its distance to a collider's surface in one step.
+template <class Exec>
+double Solver<Exec>::collider_step_bound() {
+  if (n_col_ == 0) return 1.0;
+  const detail::View V = view();
+  const double* x = Exec::ptr(x_);
+  const double* dx = Exec::ptr(dx_);
+  const double inv = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
+    if (V.fixed[i]) return 0.0;
+    const Real len = detail::load3(dx, i).norm();
+    if (len == 0) return 0.0;
+    double worst = 0;
+    for (int c = 0; c < V.n_col; ++c) {
+      const double* q = V.col_pose + 24 * c;
+      const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+      const Vec3 t1(q[21], q[22], q[23]);
+      const Real d = collider_world_distance(detail::load3(x, i), R1, t1, V.col_shape[c], &V.col_mesh, nullptr, nullptr);
+      worst = fmax(worst, d > 0 ? len / (0.9 * d) : 1e12);
+    }
+    return worst;
+  }, Exec::kParallelMinHeavy);
+  return inv > 1.0 ? 1.0 / inv : 1.0;
+}
+
+/// Largest step fraction keeping every free vertex at least 10% of its distance above the
+/// table (continuous collision detection against a plane is exact and cheap).
+template <class Exec>
+double Solver<Exec>::table_ccd_bound() {
+  if (!P_.table) return 1.0;
+  const detail::View V = view();
+  const detail::Params P = P_;
+  const double* x = Exec::ptr(x_);
+  const double* dx = Exec::ptr(dx_);
+  // max over vertices of the inverse admissible fraction
+  const double inv = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
+    if (V.fixed[i]) return 0.0;
+    const Real d = P.table_n.dot(detail::load3(x, i)) - P.table_offset;
+    const Real dn = P.table_n.dot(detail::load3(dx, i));
+    if (dn >= 0) return 0.0;
+    return -dn / (0.9 * d);
+  });
+  return inv > 1.0 ? 1.0 / inv : 1.0;
+}
+
+/// Largest fraction of dx along which no candidate pair closes more than 90% of its gap above
+/// the CCD floor. The floor (a micrometre at the default dhat) keeps pairs far above the rounding
+/// of the distance and triangle-triangle tests: without it a pair the barrier could not stop
+/// (a gripper pulling cloth through cloth) closed to 1e-14 m over a few steps, the exact test then
+/// read the touching edges as crossing, and the untangling fail-safe made real crossings of them.
+/// A pair within twice the floor may close to about half its distance (ccd_floor_offset).
+template <class Exec>
+double Solver<Exec>::self_ccd_bound() {
+  if (!self_ || cand_.n == 0) return 1.0;
+  const detail::View V = view();
+  const double* x = Exec::ptr(x_);
+  const double* dx = Exec::ptr(dx_);
+  const Real ccd_floor = P_.ccd_floor;
+  const double inv = Exec::max(V.cand.n, [=] GD_HD_LAMBDA(int c) {
+    const int* v = V.cand.v + 4 * c;
+    const Vec3 a = detail::load3(x, v[0]), b = detail::load3(x, v[1]), q = detail::load3(x, v[2]),
+               d = detail::load3(x, v[3]);
+    const Vec3 da = detail::load3(dx, v[0]), db = detail::load3(dx, v[1]), dq = detail::load3(dx, v[2]),
+               dd = detail::load3(dx, v[3]);
+    const Real alpha =
+        V.cand.type[c] == 0
+            ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor)
+            : edge_edge_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor);
+    return alpha >= 1.0 ? 0.0 : (alpha > 1e-12 ? 1.0 / alpha : 1e12);
+  }, Exec::kParallelMinHeavy);
+  return inv > 1.0 ? 1.0 / inv : 1.0;
+}
+
+/// Backtracking (Armijo) from alpha_max, given L(x) = e0; returns the accepted step fraction.
+/// Each trial also computes the gradient there (g_trial_): the next Newton iteration's residual
+/// check then needs no pass of its own. evals counts the evaluations.
+template <class Exec>
+double Solver<Exec>::line_search(double alpha_max, double e0, int* evals) {
+  last_trial_alpha_ = -1;
+  const double slope = dot(g_, dx_);
+  double alpha = alpha_max;
+  for (int k = 0; k < 20; ++k) {
+    copy(x_, x_trial_);
+    axpy(alpha, dx_, x_trial_);
+    const double e = evaluate(x_trial_, g_trial_, false);
+    ++*evals;
+    if (std::isfinite(e) && e <= e0 + 1e-4 * alpha * std::min(slope, 0.0)) {
+      last_trial_alpha_ = alpha;
+      return alpha;
+    }
+    alpha *= 0.5;
+  }
+  return 0.0;
+}
+
+}  // namespace gd::sim

@@ -1,0 +1,86 @@
+#pragma once
+/// \file
+/// Newton's stopping rule: the correction still to come, as a mass-weighted RMS velocity
+/// (docs/physics.md, "When a step is done").
+/// Member functions of Solver<Exec> (solver_impl.h), written once for every backend.
+
+#include "sim/solver/solver_impl.h"
+
+namespace gd::sim {
+
+/// Before Newton iteration k >= 1: whether the iterate is converged, judged by the correction its
+/// gradient still asks for against the first step's `scale`: estimated with the last
+/// preconditioner where it carries smooth modes (MAS: the next Newton step, P⁻¹g, without
+/// assembling or solving), else bounded by residual_bound. The gradient comes from the line
+/// search when it was computed there.
+template <class Exec>
+bool Solver<Exec>::converged(StepStats* st, int k, bool gradient_known, double scale) {
+  if (!gradient_known) timed(st->stage.assembly, [&] { evaluate(x_, g_, false); });
+  Preconditioner<Exec>* estimator = estimator_ ? estimator_.get() : precond_.get();
+  if (precond_ready_ && estimator->estimates_smooth_modes()) {
+    timed(st->stage.pcg, [&] { estimator->apply(Exec::ptr(g_), Exec::ptr(z_)); });
+    st->residual = rms_velocity(z_);
+  } else {
+    st->residual = residual_bound();
+  }
+  st->converged = st->residual <= residual_threshold(scale) && !pressed();
+  gd::log().trace("newton {}: next correction {:.3g} m/s (first step {:.3g}){}", k, st->residual, scale,
+                  st->converged ? ", converged" : "");
+  return st->converged;
+}
+
+/// A self-contact pair pressed closer than kPressedGapFloors CCD floors while the barrier can
+/// still stiffen: not converged whatever the residual says, so that stiffen_pressed_pairs gets
+/// its next Newton iteration (the per-iteration guard against grips squeezing cloth through
+/// cloth; validation case self/press).
+template <class Exec>
+bool Solver<Exec>::pressed() {
+  if (!self_ || kappa_scale_ >= kKappaScaleMax) return false;
+  Exec::download(host_x_, x_);
+  return self_->min_active_distance(host_x_) < kPressedGapFloors * P_.ccd_floor;
+}
+
+/// After the first assembly: whether the predictor is already within newton_atol.
+template <class Exec>
+bool Solver<Exec>::predictor_converged(StepStats* st) {
+  st->residual0 = st->residual = residual_bound();
+  st->converged = st->residual0 <= opt_.newton_atol;
+  return st->converged;
+}
+
+/// An upper bound of the velocity correction the gradient g_ still asks for: the Hessian is at
+/// least M/h² (inertia; every other term is PSD), so the Newton correction d = -H⁻¹ g has
+/// |d|_M <= h² |g|_M⁻¹, i.e. an RMS velocity of at most h |g|_M⁻¹ / sqrt(M), m/s. A safe test
+/// (it never calls an unconverged iterate converged) that is tight where inertia dominates
+/// (free flight, sliding, the predictor) and pessimistic for stiff membrane errors, which the
+/// step test after each iteration catches instead.
+template <class Exec>
+double Solver<Exec>::residual_bound() {
+  const detail::View V = view();
+  const double* g = Exec::ptr(g_);
+  const double num = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+    return V.fixed[i] ? 0.0 : detail::load3(g, i).squaredNorm() / V.mass[i];
+  });
+  return P_.h * std::sqrt(num / free_mass());
+}
+
+template <class Exec>
+void Solver<Exec>::update_free_mass() {
+  const detail::View V = view();
+  const double m = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return V.fixed[i] ? 0.0 : V.mass[i]; });
+  free_mass_ = m > 0 ? m : 1.0;
+}
+
+/// Mass-weighted RMS of a displacement over the step, |d|_M / (h sqrt(M)) over the free
+/// vertices, m/s.
+template <class Exec>
+double Solver<Exec>::rms_velocity(const Vec<double>& d) {
+  const detail::View V = view();
+  const double* p = Exec::ptr(d);
+  const double num = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+    return V.fixed[i] ? 0.0 : V.mass[i] * detail::load3(p, i).squaredNorm();
+  });
+  return std::sqrt(num / free_mass()) / P_.h;
+}
+
+}  // namespace gd::sim

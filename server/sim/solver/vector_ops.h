@@ -1,0 +1,51 @@
+#pragma once
+/// \file
+/// Vector operations over the 3n coordinates (dot products, axpy, copies) on the backend.
+/// Member functions of Solver<Exec> (solver_impl.h), written once for every backend.
+
+#include "sim/solver/solver_impl.h"
+
+namespace gd::sim {
+
+// --- vector kernels --------------------------------------------------------------------
+template <class Exec>
+double Solver<Exec>::dot(const Vec<double>& a, const Vec<double>& b) {
+  const double* pa = Exec::ptr(a);
+  const double* pb = Exec::ptr(b);
+  return Exec::sum(3 * n_, [=] GD_HD_LAMBDA(int k) { return pa[k] * pb[k]; });
+}
+
+template <class Exec>
+double Solver<Exec>::max_abs(const Vec<double>& a) {
+  const double* pa = Exec::ptr(a);
+  return Exec::max(3 * n_, [=] GD_HD_LAMBDA(int k) { return fabs(pa[k]); });
+}
+
+template <class Exec>
+void Solver<Exec>::axpy(double a, const Vec<double>& xs, Vec<double>& ys) {
+  const double* x = Exec::ptr(xs);
+  double* y = Exec::ptr(ys);
+  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] += a * x[k]; });
+}
+
+template <class Exec>
+void Solver<Exec>::xpby(const Vec<double>& xs, double b, Vec<double>& ys) {
+  const double* x = Exec::ptr(xs);
+  double* y = Exec::ptr(ys);
+  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] = x[k] + b * y[k]; });
+}
+
+template <class Exec>
+void Solver<Exec>::scale(double a, Vec<double>& ys) {
+  double* y = Exec::ptr(ys);
+  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] *= a; });
+}
+
+template <class Exec>
+void Solver<Exec>::copy(const Vec<double>& src, Vec<double>& dst) {
+  const double* s = Exec::ptr(src);
+  double* d = Exec::ptr(dst);
+  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { d[k] = s[k]; });
+}
+
+}  // namespace gd::sim
