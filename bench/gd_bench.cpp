@@ -1,7 +1,7 @@
 /// \file
 /// gd-bench: step-time benchmark of the simulator on hanging cotton squares of growing size.
 ///
-///   gd-bench [--json] [--steps N] [--sizes 5000,10000,20000,40000] [--backend cpu|cuda|auto]
+///   gd-bench [--json] [--steps N] [--sizes 5000,10000,20000,40000] [--backend cpu|cuda|auto|cpu-gpu-paths]
 ///            [--threads N] [--side 0.5] [--warmup 3] [--max-seconds 30] [--material cotton]
 ///
 /// Each case ("drape/<N>") is a cotton square of side 0.5 m meshed by make_rect with a spacing
@@ -260,8 +260,9 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   app.add_option("--sizes", sizes_arg, "Comma-separated approximate vertex counts")->capture_default_str();
-  app.add_option("--backend", backend_arg, "Solver backend")
-      ->check(CLI::IsMember({"cpu", "cuda", "auto"}))
+  app.add_option("--backend", backend_arg,
+                 "Solver backend (cpu-gpu-paths: the CPU running the CUDA backend's code paths, atomic adds)")
+      ->check(CLI::IsMember({"cpu", "cuda", "auto", "cpu-gpu-paths"}))
       ->capture_default_str();
   app.add_option("--threads", threads, "CPU threads (0: OpenMP default)")
       ->check(CLI::NonNegativeNumber)
@@ -336,9 +337,10 @@ int main(int argc, char** argv) {
   // The solver flags, shared by the timed cases and export --simulate (validated).
   auto solver_options = [&] {
     SceneOptions opt;
-    opt.backend = backend_arg == "cpu"    ? gd::sim::BackendKind::kCpu
-                  : backend_arg == "cuda" ? gd::sim::BackendKind::kCuda
-                                          : gd::sim::BackendKind::kAuto;
+    opt.backend = backend_arg == "cpu"             ? gd::sim::BackendKind::kCpu
+                  : backend_arg == "cuda"          ? gd::sim::BackendKind::kCuda
+                  : backend_arg == "cpu-gpu-paths" ? gd::sim::BackendKind::kCpuGpuPaths
+                                                   : gd::sim::BackendKind::kAuto;
     opt.threads = threads;
     if (precond_arg == "mas") opt.preconditioner = gd::sim::PreconditionerKind::kMas;
     if (precond_arg == "block-jacobi") opt.preconditioner = gd::sim::PreconditionerKind::kBlockJacobi;

@@ -52,7 +52,7 @@ void Solver<Exec>::merge_pair_blocks() {
   const FrictionPairs& fr = self_->friction();
   const double* HA = nullptr;
   const double* HF = nullptr;
-  if constexpr (std::is_same_v<Exec, CpuExec>) {
+  if constexpr (Exec::kHostMemory) {
     HA = act_H_.data();
     HF = fr_H_.data();
   } else {
@@ -72,7 +72,7 @@ void Solver<Exec>::merge_pair_blocks() {
 /// Before a linear solve: the contact couplings as a matrix, then the preconditioner's setup.
 template <class Exec>
 void Solver<Exec>::prepare_linear_solve() {
-  if (opt_.linear_solver == LinearSolverKind::kDirect && std::is_same_v<Exec, CpuExec>) return;
+  if (opt_.linear_solver == LinearSolverKind::kDirect && Exec::kHostMemory) return;
   if (self_) merge_pair_blocks();
   BlockMatrixView A{n_, Exec::ptr(row_ptr_), Exec::ptr(cols_), Exec::ptr(diag_), Exec::ptr(vals_), Exec::ptr(fixed_)};
   if (self_) {
@@ -89,7 +89,7 @@ void Solver<Exec>::prepare_linear_solve() {
 /// Solves H dx = -g. Returns the iterations spent (1 for the direct solver).
 template <class Exec>
 int Solver<Exec>::solve_linear(double first_step) {
-  if constexpr (std::is_same_v<Exec, CpuExec>) {
+  if constexpr (Exec::kHostMemory) {
     if (opt_.linear_solver == LinearSolverKind::kDirect) return solve_direct();
   }
   return solve_pcg(first_step);
@@ -137,7 +137,7 @@ int Solver<Exec>::solve_pcg(double first_step) {
 /// Sparse LDLT on the CPU (validation and small scenes).
 template <class Exec>
 int Solver<Exec>::solve_direct() {
-  if constexpr (std::is_same_v<Exec, CpuExec>) {
+  if constexpr (Exec::kHostMemory) {
     const SceneData& d = *data_;
     std::vector<Eigen::Triplet<double>> trip;
     trip.reserve(9 * d.cols.size());

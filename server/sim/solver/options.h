@@ -9,7 +9,9 @@
 
 namespace gd::sim {
 
-enum class BackendKind { kCpu, kCuda, kAuto };
+/// kCpuGpuPaths: the CPU running the CUDA backend's code paths (uncoloured element loops, atomic
+/// adds; backend/cpu/exec_cpu.h), for tests of those paths where no GPU is.
+enum class BackendKind { kCpu, kCuda, kAuto, kCpuGpuPaths };
 enum class LinearSolverKind {
   kPcg,     ///< preconditioned conjugate gradients (both backends; the production path)
   kDirect,  ///< sparse LDLT (CPU only): for small scenes and static validation solves

@@ -1,7 +1,8 @@
 #pragma once
 /// \file
 /// The implicit-Euler solver, written once over an execution policy `Exec` (CpuExec: OpenMP,
-/// CudaExec: kernels). One step minimises
+/// CudaExec: kernels, CpuGpuPathsExec: the kernels' paths on OpenMP). Paths differ only by the
+/// policy's traits (kColoring, kHostMemory), never by its type. One step minimises
 ///   L(x) = 1/(2h^2)|x - x_hat|_M^2 + E_membrane + E_bend + E_gravity + E_table + E_friction
 ///          + D_drag + D_damping
 /// with a few inexact Newton iterations: assemble the gradient and PSD-projected Hessian, solve
@@ -28,8 +29,6 @@
 #include "sim/log.h"
 
 namespace gd::sim {
-
-struct CpuExec;
 
 template <class Exec>
 class Solver final : public SolverBase {

@@ -1,13 +1,15 @@
 #pragma once
 /// \file
-/// The CPU execution policy of the shared solver: plain host vectors and OpenMP loops.
-/// Element loops that scatter into shared rows run colour by colour over chunks of consecutive
-/// elements (no two chunks of one colour share a vertex; SceneData's Coloring), so adds need no
-/// atomics and results are deterministic.
+/// The CPU execution policies of the shared solver: plain host vectors and OpenMP loops.
+/// CpuExec (the CPU backend): element loops that scatter into shared rows run colour by colour
+/// over chunks of consecutive elements (no two chunks of one colour share a vertex; SceneData's
+/// Coloring), so adds need no atomics and results are deterministic. CpuGpuPathsExec runs the
+/// CUDA backend's code paths on the CPU, so that CPU tests execute them.
 
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <numeric>
 #include <vector>
@@ -18,6 +20,9 @@ struct CpuExec {
   static constexpr const char* kName = "cpu";
   /// Element loops use a chunk colouring instead of atomic adds.
   static constexpr bool kColoring = true;
+  /// Vector<T> is host memory: host-side stages (the contact couplings' merge, the sparse direct
+  /// solver) read it in place.
+  static constexpr bool kHostMemory = true;
 
   template <class T>
   using Vector = std::vector<T>;
@@ -90,7 +95,17 @@ struct CpuExec {
   static void take(Vector<T>& dst, std::vector<T>& src) { dst.swap(src); }
   /// Waits for queued work (stage timers); nothing is queued on the CPU.
   static void sync() {}
+};
 
+/// The CUDA backend's code paths on the CPU (BackendKind::kCpuGpuPaths): element loops without
+/// colouring, every add into shared rows atomic (std::atomic_ref), the contact pairs' adds in
+/// parallel, reductions in OpenMP's order. Like the GPU's, its results vary in the last bits with
+/// thread timing. For tests (ctest label gpu-paths) and for measuring what the atomics cost.
+struct CpuGpuPathsExec : CpuExec {
+  static constexpr const char* kName = "cpu-gpu-paths";
+  static constexpr bool kColoring = false;
+  /// Add into memory other threads may add into at the same time.
+  static inline void add(double* p, double v) { std::atomic_ref<double>(*p).fetch_add(v, std::memory_order_relaxed); }
 };
 
 }  // namespace gd::sim

@@ -27,6 +27,7 @@ __global__ void gd_for_each_kernel(int n, F f) {
 struct CudaExec {
   static constexpr const char* kName = "cuda";
   static constexpr bool kColoring = false;
+  static constexpr bool kHostMemory = false;  ///< device vectors: host-side stages copy them
 
   template <class T>
   using Vector = thrust::device_vector<T>;

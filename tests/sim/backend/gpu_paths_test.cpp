@@ -1,0 +1,146 @@
+// The CUDA backend's code paths, run on the CPU (BackendKind::kCpuGpuPaths: uncoloured element
+// loops with atomic adds, the contact pairs' adds in parallel) against the CPU backend's own
+// (chunk colouring, serial pair adds), on scenes that exercise every term: self-contact barriers
+// and friction with grip springs, kinematic colliders with friction, the table, pins. No GPU is
+// needed: these are the paths a GPU would take, minus memory transfer and launch (ctest label
+// gpu-paths). Both solve each step tightly, so the two must take the same steps to rounding.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <vector>
+
+#include "sim/contact/collider.h"
+#include "sim/material.h"
+#include "sim/mesh.h"
+#include "sim/scene.h"
+
+namespace gd::sim {
+namespace {
+
+Material cotton() { return MaterialLibrary::load_default().get("cotton"); }
+
+/// Solver settings under which a step's result does not depend on the linear solver's path:
+/// PCG to a relative residual of 1e-11 and Newton to 1e-8 m/s, on two threads (so the atomic
+/// adds race).
+SceneOptions tight(bool self_contact) {
+  SceneOptions o;
+  o.self_contact = self_contact;
+  o.pcg_tol = 1e-11;
+  o.pcg_max_iters = 5000;
+  o.pcg_newton_fraction = 0;
+  o.newton_max_iters = 20;
+  o.newton_tol = 1e-8;
+  o.newton_rtol = o.newton_atol = 0;
+  o.threads = 2;
+  return o;
+}
+
+using Setup = std::function<void(Scene&)>;
+
+/// Steps one scene on each backend and returns the largest distance between their vertices over
+/// the steps, m; `moved` gets the largest displacement of a vertex from its start.
+double largest_difference(const Mesh& m, const SceneOptions& base, const Setup& setup, int steps, double* moved) {
+  SceneOptions a = base, b = base;
+  a.backend = BackendKind::kCpu;
+  b.backend = BackendKind::kCpuGpuPaths;
+  auto cpu = Scene::create(m, cotton(), a);
+  auto gpu = Scene::create(m, cotton(), b);
+  EXPECT_EQ(cpu->backend(), "cpu");
+  EXPECT_EQ(gpu->backend(), "cpu-gpu-paths");
+  setup(*cpu);
+  setup(*gpu);
+  double worst = 0;
+  *moved = 0;
+  for (int k = 0; k < steps; ++k) {
+    EXPECT_TRUE(cpu->step()) << cpu->failure();
+    EXPECT_TRUE(gpu->step()) << gpu->failure();
+    const auto xa = cpu->positions(), xb = gpu->positions();
+    for (size_t i = 0; i < xa.size(); ++i) {
+      worst = std::max(worst, (xa[i] - xb[i]).norm());
+      *moved = std::max(*moved, (xa[i] - m.x[i]).norm());
+    }
+    EXPECT_EQ(cpu->last_stats().intersecting_pairs, 0);
+    EXPECT_EQ(gpu->last_stats().intersecting_pairs, 0);
+  }
+  if (base.self_contact) {
+    EXPECT_GT(cpu->last_stats().contacts, 0);
+    EXPECT_NEAR(gpu->last_stats().contacts, cpu->last_stats().contacts, 0.02 * cpu->last_stats().contacts + 1);
+  }
+  return worst;
+}
+
+/// Two 8 cm sheets, the top one 0.6 mm above the bottom one (in contact), on the table.
+Mesh stacked_sheets() {
+  const Mesh bottom = make_rect(0.08, 0.08, 0.01);
+  Mesh m = bottom;
+  const int nb = static_cast<int>(bottom.x.size());
+  for (Vec3& p : m.x) p.z() = 0.0005;
+  for (int i = 0; i < nb; ++i) {
+    m.x.push_back(bottom.x[i] + Vec3(0.003, 0.002, 0.0006));
+    m.uv.push_back(bottom.uv[i]);
+  }
+  for (const auto& t : bottom.tris) m.tris.emplace_back(t + Eigen::Vector3i::Constant(nb));
+  return m;
+}
+
+// Self-contact barriers and cloth-cloth friction: a grip drags the top sheet's edge across the
+// bottom sheet (kinematic vertices are grip springs in self-contact mode), a pinned corner holds
+// the bottom one.
+TEST(GpuPaths, SelfContactFrictionAndGripsMatchTheCpuPaths) {
+  const Mesh m = stacked_sheets();
+  const int nb = static_cast<int>(m.x.size()) / 2;
+  double moved = 0;
+  const double worst = largest_difference(m, tight(true), [&](Scene& s) {
+    s.pin({0});
+    std::vector<int> edge;  // the top sheet's far edge, dragged 2 cm along x and pressed 1 mm down
+    for (int i = nb; i < 2 * nb; ++i)
+      if (m.x[i].x() > 0.083 - 1e-9) edge.push_back(i);
+    s.attach(edge, [](double t) {
+      return Eigen::Isometry3d(Eigen::Translation3d(0.2 * t, 0.0, -0.001 * std::min(t, 0.02) / 0.02));
+    });
+  }, 12, &moved);
+  EXPECT_GT(moved, 0.005);
+  EXPECT_LT(worst, 1e-7 * std::max(1.0, moved / 0.01)) << "moved " << moved;
+}
+
+// Kinematic colliders with friction: a capsule sweeps into a sheet hanging from its top edge and
+// pushes it along, sliding on it.
+TEST(GpuPaths, CollidersWithFrictionMatchTheCpuPaths) {
+  Mesh m = make_rect(0.1, 0.1, 0.004);  // 1250 triangles: the element loops run in parallel
+  for (Vec3& p : m.x) p = Vec3(p.x(), 0, 0.45 + p.y());  // hanging in the xz plane
+  SceneOptions o = tight(false);
+  o.table = false;
+  double moved = 0;
+  const double worst = largest_difference(m, o, [&](Scene& s) {
+    s.pin(vertices_where(m, [](const Vec3& p) { return p.z() > 0.55 - 1e-9; }));
+    Collider rod = Collider::capsule(0.01, 0.03);  // axis along local z, turned to lie along x
+    rod.set_pose([](double t) {
+      Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+      p.translate(Vec3(0.05, -0.0125 + 0.2 * t, 0.49));
+      p.rotate(Eigen::AngleAxisd(M_PI / 2, Vec3::UnitY()));
+      return p;
+    });
+    rod.set_friction(0.5);
+    s.add_collider(rod);
+  }, 16, &moved);
+  EXPECT_GT(moved, 0.005);
+  EXPECT_LT(worst, 1e-7 * std::max(1.0, moved / 0.01));
+}
+
+// Pins (Dirichlet rows), membrane, bending and their damping, air drag: a sheet swinging down
+// from two corners, without contact.
+TEST(GpuPaths, PinnedSheetSwingingMatchesTheCpuPaths) {
+  Mesh m = make_rect(0.16, 0.16, 0.005);  // 2048 triangles: the element loops run in parallel
+  for (Vec3& p : m.x) p.z() = 0.5;
+  double moved = 0;
+  const double worst = largest_difference(m, tight(false), [&](Scene& s) {
+    s.pin(vertices_where(m, [](const Vec3& p) { return p.y() < 1e-9 && (p.x() < 1e-9 || p.x() > 0.16 - 1e-9); }));
+  }, 12, &moved);
+  EXPECT_GT(moved, 0.01);
+  EXPECT_LT(worst, 1e-7 * std::max(1.0, moved / 0.01));
+}
+
+}  // namespace
+}  // namespace gd::sim
