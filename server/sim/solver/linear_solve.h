@@ -95,7 +95,12 @@ int Solver<Exec>::solve_linear(double first_step) {
   return solve_pcg(first_step);
 }
 
-/// PCG on H dx = -g with the preconditioner set up by prepare_linear_solve.
+/// PCG on H dx = -g with the preconditioner set up by prepare_linear_solve. Its scalars (alpha,
+/// beta, the residual tests) live in the backend's memory (pcg_s_) and are computed there, so an
+/// iteration needs no round trip to the host; the host reads the stop flag every
+/// Exec::kPcgCheckEvery iterations (1 on the CPU, where reading costs nothing: the same control
+/// flow as a plain loop; 8 on the GPU, where a stopped solve runs at most 7 iterations that
+/// change nothing). Round trips per solve: r0, the iteration count, and one flag read per check.
 template <class Exec>
 int Solver<Exec>::solve_pcg(double first_step) {
   // With MAS, z = P⁻¹r estimates the correction PCG has still to make (as in converged()):
@@ -110,28 +115,52 @@ int Solver<Exec>::solve_pcg(double first_step) {
   if (r0 == 0.0) return 0;
   precond_->apply(Exec::ptr(r_), Exec::ptr(z_));
   copy(z_, p_);
-  double rz = dot(r_, z_);
-  int it = 0;
-  while (it < opt_.pcg_max_iters) {
+  Exec::fill(pcg_s_, 0.0);
+  double* S = Exec::ptr(pcg_s_);
+  dot_to(r_, z_, S + kPcgRz);
+  // The scalar steps, each one thread of work on the backend.
+  const double tol_r = opt_.pcg_tol * r0;
+  const double fraction = opt_.pcg_newton_fraction, atol = opt_.newton_atol, rtol = opt_.newton_rtol;
+  const double mass = free_mass(), h = P_.h;  // rms_velocity's arithmetic, on the backend
+  const double first = first_step;
+  auto stopped = [&] { return Exec::read(pcg_s_, kPcgStop) != 0.0; };
+  for (int k = 0; k < opt_.pcg_max_iters; ++k) {
+    const bool check = (k + 1) % Exec::kPcgCheckEvery == 0;
     spmv(p_, ap_);
-    const double pap = dot(p_, ap_);
-    if (!(pap > 0)) break;
-    const double a = rz / pap;
-    axpy(a, p_, dx_);
-    axpy(-a, ap_, r_);
-    ++it;
-    if (std::sqrt(dot(r_, r_)) <= opt_.pcg_tol * r0) break;
+    dot_to(p_, ap_, S + kPcgPap);
+    Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // alpha = rz / pAp, or stop where pAp is not positive
+      const double pap = S[kPcgPap];
+      if (S[kPcgStop] == 0.0 && !(pap > 0)) S[kPcgStop] = 1.0;
+      S[kPcgAlpha] = S[kPcgStop] == 0.0 ? S[kPcgRz] / pap : 0.0;
+      if (S[kPcgStop] == 0.0) S[kPcgIters] += 1.0;
+    });
+    axpy_scalar(S + kPcgAlpha, 1.0, p_, dx_);   // dx += alpha p
+    axpy_scalar(S + kPcgAlpha, -1.0, ap_, r_);  // r -= alpha Ap
+    dot_to(r_, r_, S + kPcgRr);
+    Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // the relative residual test
+      if (std::sqrt(S[kPcgRr]) <= tol_r) S[kPcgStop] = 1.0;
+    });
+    if (Exec::kPcgCheckEvery == 1 && stopped()) break;
     precond_->apply(Exec::ptr(r_), Exec::ptr(z_));
     if (newton_stop) {
-      const double target = residual_threshold(first_step > 0 ? first_step : rms_velocity(dx_));
-      if (rms_velocity(z_) <= opt_.pcg_newton_fraction * target) break;
+      mass_norm_to(z_, S + kPcgZm);
+      if (first <= 0) mass_norm_to(dx_, S + kPcgDxm);
+      Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // the correction still to come against the Newton rule
+        const double built = first > 0 ? first : std::sqrt(S[kPcgDxm] / mass) / h;
+        const double target = fmax(atol, rtol * built);
+        if (std::sqrt(S[kPcgZm] / mass) / h <= fraction * target) S[kPcgStop] = 1.0;
+      });
+      if (Exec::kPcgCheckEvery == 1 && stopped()) break;
     }
-    const double rz_new = dot(r_, z_);
-    const double beta = rz_new / rz;
-    rz = rz_new;
-    xpby(z_, beta, p_);  // p = z + beta p
+    dot_to(r_, z_, S + kPcgRzNew);
+    Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // beta = rz_new / rz (0 once stopped)
+      S[kPcgBeta] = S[kPcgStop] == 0.0 ? S[kPcgRzNew] / S[kPcgRz] : 0.0;
+      if (S[kPcgStop] == 0.0) S[kPcgRz] = S[kPcgRzNew];
+    });
+    xpby_scalar(z_, S + kPcgBeta, p_);  // p = z + beta p
+    if (check && stopped()) break;
   }
-  return it;
+  return static_cast<int>(Exec::read(pcg_s_, kPcgIters));
 }
 
 /// Sparse LDLT on the CPU (validation and small scenes).

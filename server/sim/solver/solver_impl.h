@@ -53,6 +53,7 @@ class Solver final : public SolverBase {
     Exec::upload(v_, d.v);
     for (auto* vec : {&x_t_, &v_t_, &g_, &g_trial_, &dx_, &r_, &z_, &p_, &ap_, &x_trial_}) Exec::resize(*vec, 3 * n_);
     Exec::resize(vals_, 9 * static_cast<size_t>(d.blocks()));
+    Exec::resize(pcg_s_, kPcgScalars);
     Exec::resize(hinge_grad_t_, 12 * static_cast<size_t>(d.hinge_count()));
     precond_ = make_preconditioner<Exec>(opt, n_);
     // The Newton stopping rule predicts the next correction with a preconditioner that carries
@@ -257,6 +258,11 @@ class Solver final : public SolverBase {
   void xpby(const Vec<double>& xs, double b, Vec<double>& ys);
   void scale(double a, Vec<double>& ys);
   void copy(const Vec<double>& src, Vec<double>& dst);
+  // ... and with the result or a coefficient in the backend's memory (no round trip to the host)
+  void dot_to(const Vec<double>& a, const Vec<double>& b, double* out);
+  void mass_norm_to(const Vec<double>& d, double* out);  ///< sum of m_i |d_i|² over free vertices
+  void axpy_scalar(const double* a, double sign, const Vec<double>& xs, Vec<double>& ys);  ///< y += (sign a) x
+  void xpby_scalar(const Vec<double>& xs, const double* b, Vec<double>& ys);  ///< y = x + b y
 
   // Energies, strain and memory for reports (diagnostics.h)
   EnergyReport energies() override;
@@ -385,6 +391,10 @@ class Solver final : public SolverBase {
   double free_mass_ = 1.0;           ///< free_mass()
   Vec<int> cpl_row_ptr_, cpl_cols_;
   Vec<double> cpl_vals_;
+  /// PCG's scalars in the backend's memory (solve_pcg), at these indices.
+  Vec<double> pcg_s_;
+  static constexpr int kPcgRz = 0, kPcgPap = 1, kPcgRr = 2, kPcgRzNew = 3, kPcgAlpha = 4, kPcgBeta = 5,
+                       kPcgStop = 6, kPcgIters = 7, kPcgZm = 8, kPcgDxm = 9, kPcgScalars = 10;
   bool precond_ready_ = false;  ///< precond_ was set up in this step (not with the direct solver)
   /// The step fraction of the line search's accepted trial (accept_step swaps it in).
   double last_trial_alpha_ = -1;

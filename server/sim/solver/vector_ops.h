@@ -36,6 +36,35 @@ void Solver<Exec>::xpby(const Vec<double>& xs, double b, Vec<double>& ys) {
 }
 
 template <class Exec>
+void Solver<Exec>::dot_to(const Vec<double>& a, const Vec<double>& b, double* out) {
+  const double* pa = Exec::ptr(a);
+  const double* pb = Exec::ptr(b);
+  Exec::sum_to(3 * n_, [=] GD_HD_LAMBDA(int k) { return pa[k] * pb[k]; }, out);
+}
+
+template <class Exec>
+void Solver<Exec>::mass_norm_to(const Vec<double>& d, double* out) {
+  const detail::View V = view();
+  const double* p = Exec::ptr(d);
+  Exec::sum_to(n_, [=] GD_HD_LAMBDA(int i) { return V.fixed[i] ? 0.0 : V.mass[i] * detail::load3(p, i).squaredNorm(); },
+               out);
+}
+
+template <class Exec>
+void Solver<Exec>::axpy_scalar(const double* a, double sign, const Vec<double>& xs, Vec<double>& ys) {
+  const double* x = Exec::ptr(xs);
+  double* y = Exec::ptr(ys);
+  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] += (sign * *a) * x[k]; });
+}
+
+template <class Exec>
+void Solver<Exec>::xpby_scalar(const Vec<double>& xs, const double* b, Vec<double>& ys) {
+  const double* x = Exec::ptr(xs);
+  double* y = Exec::ptr(ys);
+  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] = x[k] + *b * y[k]; });
+}
+
+template <class Exec>
 void Solver<Exec>::scale(double a, Vec<double>& ys) {
   double* y = Exec::ptr(ys);
   Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] *= a; });

@@ -14,6 +14,8 @@
 #include <numeric>
 #include <vector>
 
+#include "sim/backend/round_trips.h"
+
 namespace gd::sim {
 
 struct CpuExec {
@@ -68,6 +70,15 @@ struct CpuExec {
     return sum(n, f, parallel_min);
   }
 
+  /// Sum of f(i) over [0, n) into *out, the backend's memory: no value returns to the host.
+  template <class F>
+  static void sum_to(int n, const F& f, double* out, int parallel_min = kParallelMin) {
+    *out = CpuExec::sum(n, f, parallel_min);
+  }
+  /// PCG reads its stop flag every this many iterations (Solver::solve_pcg): every iteration on
+  /// the CPU, where a read costs nothing.
+  static constexpr int kPcgCheckEvery = 1;
+
   /// Maximum of f(i) over [0, n) (0 for n == 0).
   template <class F>
   static double max(int n, const F& f, int parallel_min = kParallelMin) {
@@ -104,8 +115,37 @@ struct CpuExec {
 struct CpuGpuPathsExec : CpuExec {
   static constexpr const char* kName = "cpu-gpu-paths";
   static constexpr bool kColoring = false;
+  static constexpr int kPcgCheckEvery = 8;  ///< as CudaExec
   /// Add into memory other threads may add into at the same time.
   static inline void add(double* p, double v) { std::atomic_ref<double>(*p).fetch_add(v, std::memory_order_relaxed); }
+
+  // What returns a value or a copy to the host counts as a round trip (host_round_trips()), as
+  // it would on the GPU.
+  template <class F>
+  static double sum(int n, const F& f, int parallel_min = kParallelMin) {
+    ++host_round_trips().reductions;
+    return CpuExec::sum(n, f, parallel_min);
+  }
+  template <class F>
+  static double sum_effects(int n, const F& f, int parallel_min = kParallelMin) {
+    ++host_round_trips().reductions;
+    return CpuExec::sum_effects(n, f, parallel_min);
+  }
+  template <class F>
+  static double max(int n, const F& f, int parallel_min = kParallelMin) {
+    ++host_round_trips().reductions;
+    return CpuExec::max(n, f, parallel_min);
+  }
+  template <class T>
+  static void download(std::vector<T>& dst, const Vector<T>& src) {
+    ++host_round_trips().downloads;
+    CpuExec::download(dst, src);
+  }
+  template <class T>
+  static T read(const Vector<T>& v, size_t i) {
+    ++host_round_trips().downloads;
+    return v[i];
+  }
 };
 
 }  // namespace gd::sim

@@ -3,18 +3,22 @@
 /// The CUDA execution policy of the shared solver: device vectors, one kernel per loop,
 /// thrust reductions, and atomic adds for element scatter (no colouring needed on the GPU).
 
+#include <cub/device/device_reduce.cuh>
 #include <thrust/device_vector.h>
 #include <thrust/execution_policy.h>
 #include <thrust/fill.h>
 #include <thrust/functional.h>
 #include <thrust/reduce.h>
 #include <thrust/iterator/counting_iterator.h>
+#include <thrust/iterator/transform_iterator.h>
 #include <thrust/scan.h>
 #include <thrust/sort.h>
 #include <thrust/transform_reduce.h>
 
 #include <cstdint>
 #include <vector>
+
+#include "sim/backend/round_trips.h"
 
 namespace gd::sim {
 
@@ -40,6 +44,7 @@ struct CudaExec {
   static void upload(Vector<T>& dst, const std::vector<T>& src) { dst.assign(src.begin(), src.end()); }
   template <class T>
   static void download(std::vector<T>& dst, const Vector<T>& src) {
+    ++host_round_trips().downloads;
     dst.resize(src.size());
     thrust::copy(src.begin(), src.end(), dst.begin());
   }
@@ -61,6 +66,7 @@ struct CudaExec {
   template <class F>
   static double sum(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
+    ++host_round_trips().reductions;
     return thrust::transform_reduce(thrust::device, thrust::counting_iterator<int>(0), thrust::counting_iterator<int>(n),
                                     f, 0.0, thrust::plus<double>());
   }
@@ -70,6 +76,7 @@ struct CudaExec {
   template <class F>
   static double sum_effects(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
+    ++host_round_trips().reductions;
     thrust::device_vector<double> values(n);
     double* out = thrust::raw_pointer_cast(values.data());
     for_each(n, [=] __host__ __device__(int i) { out[i] = f(i); });
@@ -79,6 +86,7 @@ struct CudaExec {
   template <class F>
   static double max(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
+    ++host_round_trips().reductions;
     return thrust::transform_reduce(thrust::device, thrust::counting_iterator<int>(0), thrust::counting_iterator<int>(n),
                                     f, 0.0, thrust::maximum<double>());
   }
@@ -97,7 +105,38 @@ struct CudaExec {
     thrust::exclusive_scan(thrust::device, v.begin(), v.begin() + count, v.begin());
   }
   template <class T>
-  static T read(const Vector<T>& v, size_t i) { return v[i]; }
+  static T read(const Vector<T>& v, size_t i) {
+    ++host_round_trips().downloads;
+    return v[i];
+  }
+
+  /// Sum of f(i) over [0, n) into *out, device memory: a CUB reduction queued on the stream, no
+  /// value returns to the host. Its scratch memory is kept per thread and only grows.
+  template <class F>
+  static void sum_to(int n, const F& f, double* out, int /*parallel_min*/ = 0) {
+    if (n <= 0) {
+      cudaMemsetAsync(out, 0, sizeof(double));
+      return;
+    }
+    auto in = thrust::make_transform_iterator(thrust::counting_iterator<int>(0), f);
+    size_t bytes = 0;
+    cub::DeviceReduce::Sum(nullptr, bytes, in, out, n);
+    cub::DeviceReduce::Sum(scratch(bytes), bytes, in, out, n);
+  }
+  /// Device scratch of at least `bytes`, this thread's (kept until the process ends).
+  static void* scratch(size_t bytes) {
+    thread_local void* buffer = nullptr;
+    thread_local size_t capacity = 0;
+    if (bytes > capacity) {
+      if (buffer) cudaFree(buffer);
+      capacity = bytes + bytes / 2 + 256;
+      if (cudaMalloc(&buffer, capacity) != cudaSuccess) buffer = nullptr, capacity = 0;
+    }
+    return buffer;
+  }
+  /// PCG reads its stop flag every this many iterations (Solver::solve_pcg): a stopped solve then
+  /// runs at most 7 iterations that change nothing, instead of a round trip per iteration.
+  static constexpr int kPcgCheckEvery = 8;
   template <class T>
   static void take(Vector<T>& dst, std::vector<T>& src) { upload(dst, src); }
   static void sync() { cudaDeviceSynchronize(); }
