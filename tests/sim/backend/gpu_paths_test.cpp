@@ -1,20 +1,24 @@
 // The CUDA backend's code paths, run on the CPU (BackendKind::kCpuGpuPaths: uncoloured element
-// loops with atomic adds, the contact pairs' adds in parallel) against the CPU backend's own
-// (chunk colouring, serial pair adds), on scenes that exercise every term: self-contact barriers
-// and friction with grip springs, kinematic colliders with friction, the table, pins. No GPU is
-// needed: these are the paths a GPU would take, minus memory transfer and launch (ctest label
-// gpu-paths). Both solve each step tightly, so the two must take the same steps to rounding.
+// loops with atomic adds, the contact pairs' adds in parallel, PCG's scalars in the backend's
+// memory) against the CPU backend's own (chunk colouring, serial pair adds), on scenes that
+// exercise every term: self-contact barriers and friction with grip springs, kinematic colliders
+// with friction, the table, pins. No GPU is needed: these are the paths a GPU would take, minus
+// memory transfer and launch (ctest label gpu-paths). Where a CUDA device is present the same
+// scenes also run on it (the GPU parity test; elsewhere those cases skip). Both solve each step
+// tightly, so the two must take the same steps to rounding.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "sim/contact/collider.h"
 #include "sim/material.h"
 #include "sim/mesh.h"
 #include "sim/scene.h"
+#include "sim/solver/solver.h"
 
 namespace gd::sim {
 namespace {
@@ -39,16 +43,26 @@ SceneOptions tight(bool self_contact) {
 
 using Setup = std::function<void(Scene&)>;
 
-/// Steps one scene on each backend and returns the largest distance between their vertices over
-/// the steps, m; `moved` gets the largest displacement of a vertex from its start.
-double largest_difference(const Mesh& m, const SceneOptions& base, const Setup& setup, int steps, double* moved) {
+/// The GPU paths on the CPU, and on a CUDA device where there is one.
+class GpuPaths : public ::testing::TestWithParam<BackendKind> {
+ protected:
+  void SetUp() override {
+    if (GetParam() == BackendKind::kCuda && !cuda_available()) GTEST_SKIP() << "no CUDA device on this machine";
+  }
+};
+
+/// Steps one scene on the CPU backend and on `other` and returns the largest distance between
+/// their vertices over the steps, m; `moved` gets the largest displacement of a vertex from its
+/// start.
+double largest_difference(BackendKind other, const Mesh& m, const SceneOptions& base, const Setup& setup, int steps,
+                          double* moved) {
   SceneOptions a = base, b = base;
   a.backend = BackendKind::kCpu;
-  b.backend = BackendKind::kCpuGpuPaths;
+  b.backend = other;
   auto cpu = Scene::create(m, cotton(), a);
   auto gpu = Scene::create(m, cotton(), b);
   EXPECT_EQ(cpu->backend(), "cpu");
-  EXPECT_EQ(gpu->backend(), "cpu-gpu-paths");
+  EXPECT_EQ(gpu->backend(), other == BackendKind::kCuda ? "cuda" : "cpu-gpu-paths");
   setup(*cpu);
   setup(*gpu);
   double worst = 0;
@@ -88,11 +102,11 @@ Mesh stacked_sheets() {
 // Self-contact barriers and cloth-cloth friction: a grip drags the top sheet's edge across the
 // bottom sheet (kinematic vertices are grip springs in self-contact mode), a pinned corner holds
 // the bottom one.
-TEST(GpuPaths, SelfContactFrictionAndGripsMatchTheCpuPaths) {
+TEST_P(GpuPaths, SelfContactFrictionAndGripsMatchTheCpuPaths) {
   const Mesh m = stacked_sheets();
   const int nb = static_cast<int>(m.x.size()) / 2;
   double moved = 0;
-  const double worst = largest_difference(m, tight(true), [&](Scene& s) {
+  const double worst = largest_difference(GetParam(), m, tight(true), [&](Scene& s) {
     s.pin({0});
     std::vector<int> edge;  // the top sheet's far edge, dragged 2 cm along x and pressed 1 mm down
     for (int i = nb; i < 2 * nb; ++i)
@@ -107,13 +121,13 @@ TEST(GpuPaths, SelfContactFrictionAndGripsMatchTheCpuPaths) {
 
 // Kinematic colliders with friction: a capsule sweeps into a sheet hanging from its top edge and
 // pushes it along, sliding on it.
-TEST(GpuPaths, CollidersWithFrictionMatchTheCpuPaths) {
+TEST_P(GpuPaths, CollidersWithFrictionMatchTheCpuPaths) {
   Mesh m = make_rect(0.1, 0.1, 0.004);  // 1250 triangles: the element loops run in parallel
   for (Vec3& p : m.x) p = Vec3(p.x(), 0, 0.45 + p.y());  // hanging in the xz plane
   SceneOptions o = tight(false);
   o.table = false;
   double moved = 0;
-  const double worst = largest_difference(m, o, [&](Scene& s) {
+  const double worst = largest_difference(GetParam(), m, o, [&](Scene& s) {
     s.pin(vertices_where(m, [](const Vec3& p) { return p.z() > 0.55 - 1e-9; }));
     Collider rod = Collider::capsule(0.01, 0.03);  // axis along local z, turned to lie along x
     rod.set_pose([](double t) {
@@ -131,16 +145,21 @@ TEST(GpuPaths, CollidersWithFrictionMatchTheCpuPaths) {
 
 // Pins (Dirichlet rows), membrane, bending and their damping, air drag: a sheet swinging down
 // from two corners, without contact.
-TEST(GpuPaths, PinnedSheetSwingingMatchesTheCpuPaths) {
+TEST_P(GpuPaths, PinnedSheetSwingingMatchesTheCpuPaths) {
   Mesh m = make_rect(0.16, 0.16, 0.005);  // 2048 triangles: the element loops run in parallel
   for (Vec3& p : m.x) p.z() = 0.5;
   double moved = 0;
-  const double worst = largest_difference(m, tight(false), [&](Scene& s) {
+  const double worst = largest_difference(GetParam(), m, tight(false), [&](Scene& s) {
     s.pin(vertices_where(m, [](const Vec3& p) { return p.y() < 1e-9 && (p.x() < 1e-9 || p.x() > 0.16 - 1e-9); }));
   }, 12, &moved);
   EXPECT_GT(moved, 0.01);
   EXPECT_LT(worst, 1e-7 * std::max(1.0, moved / 0.01));
 }
+
+INSTANTIATE_TEST_SUITE_P(Backends, GpuPaths, ::testing::Values(BackendKind::kCpuGpuPaths, BackendKind::kCuda),
+                         [](const ::testing::TestParamInfo<BackendKind>& i) {
+                           return i.param == BackendKind::kCuda ? std::string("Cuda") : std::string("CpuGpuPaths");
+                         });
 
 }  // namespace
 }  // namespace gd::sim
