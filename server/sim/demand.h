@@ -14,6 +14,14 @@ class InputError : public std::invalid_argument {
   explicit InputError(const std::string& what) : std::invalid_argument(what) {}
 };
 
+/// Thrown when a backend's device fails (a kernel that cannot launch, a fault reported by the
+/// runtime, device memory exhausted): the scene's step fails with the message (Scene::failure),
+/// other scenes go on where the device still can.
+class BackendError : public std::runtime_error {
+ public:
+  explicit BackendError(const std::string& what) : std::runtime_error(what) {}
+};
+
 [[noreturn]] void demand_failed(const char* cond, const char* file, int line, const std::string& msg);
 
 }  // namespace gd::sim

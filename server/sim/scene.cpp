@@ -203,12 +203,24 @@ bool Scene::do_step(bool quasi_static) {
     return false;
   }
   std::vector<double> x0, v0;
-  solver_->get_positions(x0);
-  solver_->get_velocities(v0);
-  stats_ = solver_->step(kin, quasi_static);
   std::vector<double> x, v;
-  solver_->get_positions(x);
-  solver_->get_velocities(v);
+  try {
+    solver_->get_positions(x0);
+    solver_->get_velocities(v0);
+    stats_ = solver_->step(kin, quasi_static);
+    solver_->get_positions(x);
+    solver_->get_velocities(v);
+  } catch (const BackendError& e) {  // the device failed this scene's step; the process goes on
+    failed_ = true;
+    failure_ = std::string(e.what()) + " at t=" + std::to_string(time_ + options_.dt) + " s";
+    try {
+      if (!x0.empty() && !v0.empty()) solver_->set_state(x0, v0);
+    } catch (const BackendError&) {
+      failure_ += "; the previous state could not be restored";
+    }
+    gd::log().error("scene failed: {}", failure_);
+    return false;
+  }
   if (!stats_.finite || !finite(x) || !finite(v)) {
     solver_->set_state(x0, v0);
     failed_ = true;

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "sim/backend/round_trips.h"
+#include "sim/demand.h"
 
 namespace gd::sim {
 
@@ -118,6 +119,20 @@ struct CpuGpuPathsExec : CpuExec {
   static constexpr int kPcgCheckEvery = 8;  ///< as CudaExec
   /// Add into memory other threads may add into at the same time.
   static inline void add(double* p, double v) { std::atomic_ref<double>(*p).fetch_add(v, std::memory_order_relaxed); }
+
+  /// Test seam: loops still allowed to "launch" on this thread before one fails with BackendError,
+  /// as a GPU kernel launch can (< 0: never). CPU tests use it to check that a failed launch fails
+  /// that scene's step and nothing else (tests/sim/backend/backend_error_test.cpp).
+  static inline thread_local int launches_before_failure = -1;
+  template <class F>
+  static void for_each(int n, const F& f, int parallel_min = kParallelMin) {
+    if (launches_before_failure == 0) {
+      launches_before_failure = -1;
+      throw BackendError("cpu-gpu-paths backend: kernel launch failed (simulated)");
+    }
+    if (launches_before_failure > 0) --launches_before_failure;
+    CpuExec::for_each(n, f, parallel_min);
+  }
 
   // What returns a value or a copy to the host counts as a round trip (host_round_trips()), as
   // it would on the GPU.

@@ -1,7 +1,11 @@
 #pragma once
 /// \file
-/// The CUDA execution policy of the shared solver: device vectors, one kernel per loop,
-/// thrust reductions, and atomic adds for element scatter (no colouring needed on the GPU).
+/// The CUDA execution policy of the shared solver: device vectors, one kernel per loop, CUB
+/// reductions into per-thread device scratch (no cudaMalloc per reduction), and atomic adds for
+/// element scatter (no colouring needed on the GPU). Compiled with `--default-stream per-thread`
+/// (server/sim/CMakeLists.txt): a scene steps on one host thread, so the scenes a server steps on
+/// its worker threads run on separate streams and overlap. Every launch is checked; a failure
+/// throws BackendError, which fails the step of that scene (Scene::step), not the process.
 
 #include <cub/device/device_reduce.cuh>
 #include <thrust/device_vector.h>
@@ -16,9 +20,11 @@
 #include <thrust/transform_reduce.h>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "sim/backend/round_trips.h"
+#include "sim/demand.h"
 
 namespace gd::sim {
 
@@ -56,39 +62,95 @@ struct CudaExec {
   static constexpr int kParallelMin = 0;
   static constexpr int kParallelMinHeavy = 0;
 
+  /// Throws BackendError naming `what` when the runtime reports an error (of this call or an
+  /// earlier asynchronous one).
+  static void check(cudaError_t e, const char* what) {
+    if (e != cudaSuccess)
+      throw BackendError(std::string("CUDA backend: ") + what + " failed: " + cudaGetErrorName(e) + " (" +
+                         cudaGetErrorString(e) + ")");
+  }
+
   template <class F>
   static void for_each(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return;
     constexpr int kBlock = 256;
     gd_for_each_kernel<<<(n + kBlock - 1) / kBlock, kBlock>>>(n, f);
+    check(cudaGetLastError(), "kernel launch");
+  }
+
+  /// Device scratch of at least `bytes` for slot `k` (0: CUB's temporary storage, 1: values of
+  /// sum_effects, 2: one double read back by sum/max), this thread's, kept until the process
+  /// ends and grown as needed: no allocation per reduction.
+  static void* scratch(int k, size_t bytes) {
+    thread_local void* buffer[3] = {nullptr, nullptr, nullptr};
+    thread_local size_t capacity[3] = {0, 0, 0};
+    if (bytes > capacity[k]) {
+      if (buffer[k]) check(cudaFree(buffer[k]), "cudaFree of scratch");
+      buffer[k] = nullptr;
+      capacity[k] = 0;
+      const size_t want = bytes + bytes / 2 + 256;
+      check(cudaMalloc(&buffer[k], want), "cudaMalloc of scratch");
+      capacity[k] = want;
+    }
+    return buffer[k];
+  }
+
+  /// Sum of f(i) over [0, n) into *out, device memory: a CUB reduction queued on this thread's
+  /// stream; no value returns to the host.
+  template <class F>
+  static void sum_to(int n, const F& f, double* out, int /*parallel_min*/ = 0) {
+    if (n <= 0) {
+      check(cudaMemsetAsync(out, 0, sizeof(double)), "cudaMemsetAsync");
+      return;
+    }
+    auto in = thrust::make_transform_iterator(thrust::counting_iterator<int>(0), f);
+    size_t bytes = 0;
+    check(cub::DeviceReduce::Sum(nullptr, bytes, in, out, n), "reduction (size)");
+    check(cub::DeviceReduce::Sum(scratch(0, bytes), bytes, in, out, n), "reduction");
+  }
+
+  /// One double of device memory read back to the host (a round trip).
+  static double read_back(const double* d) {
+    double h = 0;
+    check(cudaMemcpy(&h, d, sizeof(double), cudaMemcpyDeviceToHost), "reading a reduction back");
+    return h;
   }
 
   template <class F>
   static double sum(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
     ++host_round_trips().reductions;
-    return thrust::transform_reduce(thrust::device, thrust::counting_iterator<int>(0), thrust::counting_iterator<int>(n),
-                                    f, 0.0, thrust::plus<double>());
+    double* out = static_cast<double*>(scratch(2, sizeof(double)));
+    sum_to(n, f, out);
+    return read_back(out);
   }
 
-  /// Sum of f(i) where f also writes memory: thrust's reductions may evaluate an element more
-  /// than once, so each value goes to a buffer first (one kernel), then a plain reduction.
+  /// Sum of f(i) where f also writes memory: a reduction may evaluate an element more than once,
+  /// so each value goes to scratch first (one kernel), then a plain sum.
   template <class F>
   static double sum_effects(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
     ++host_round_trips().reductions;
-    thrust::device_vector<double> values(n);
-    double* out = thrust::raw_pointer_cast(values.data());
-    for_each(n, [=] __host__ __device__(int i) { out[i] = f(i); });
-    return thrust::reduce(thrust::device, values.begin(), values.end(), 0.0);
+    double* values = static_cast<double*>(scratch(1, sizeof(double) * static_cast<size_t>(n)));
+    for_each(n, [=] __host__ __device__(int i) { values[i] = f(i); });
+    double* out = static_cast<double*>(scratch(2, sizeof(double)));
+    size_t bytes = 0;
+    check(cub::DeviceReduce::Sum(nullptr, bytes, values, out, n), "reduction (size)");
+    check(cub::DeviceReduce::Sum(scratch(0, bytes), bytes, values, out, n), "reduction");
+    return read_back(out);
   }
 
+  /// Maximum of f(i) over [0, n), at least 0 (the solver's maxima are of non-negative values).
   template <class F>
   static double max(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
     ++host_round_trips().reductions;
-    return thrust::transform_reduce(thrust::device, thrust::counting_iterator<int>(0), thrust::counting_iterator<int>(n),
-                                    f, 0.0, thrust::maximum<double>());
+    auto in = thrust::make_transform_iterator(thrust::counting_iterator<int>(0), f);
+    double* out = static_cast<double*>(scratch(2, sizeof(double)));
+    size_t bytes = 0;
+    check(cub::DeviceReduce::Reduce(nullptr, bytes, in, out, n, thrust::maximum<double>(), 0.0), "reduction (size)");
+    check(cub::DeviceReduce::Reduce(scratch(0, bytes), bytes, in, out, n, thrust::maximum<double>(), 0.0), "reduction");
+    return read_back(out);
   }
 
   __host__ __device__ static inline void add(double* p, double v) {
@@ -110,36 +172,14 @@ struct CudaExec {
     return v[i];
   }
 
-  /// Sum of f(i) over [0, n) into *out, device memory: a CUB reduction queued on the stream, no
-  /// value returns to the host. Its scratch memory is kept per thread and only grows.
-  template <class F>
-  static void sum_to(int n, const F& f, double* out, int /*parallel_min*/ = 0) {
-    if (n <= 0) {
-      cudaMemsetAsync(out, 0, sizeof(double));
-      return;
-    }
-    auto in = thrust::make_transform_iterator(thrust::counting_iterator<int>(0), f);
-    size_t bytes = 0;
-    cub::DeviceReduce::Sum(nullptr, bytes, in, out, n);
-    cub::DeviceReduce::Sum(scratch(bytes), bytes, in, out, n);
-  }
-  /// Device scratch of at least `bytes`, this thread's (kept until the process ends).
-  static void* scratch(size_t bytes) {
-    thread_local void* buffer = nullptr;
-    thread_local size_t capacity = 0;
-    if (bytes > capacity) {
-      if (buffer) cudaFree(buffer);
-      capacity = bytes + bytes / 2 + 256;
-      if (cudaMalloc(&buffer, capacity) != cudaSuccess) buffer = nullptr, capacity = 0;
-    }
-    return buffer;
-  }
   /// PCG reads its stop flag every this many iterations (Solver::solve_pcg): a stopped solve then
   /// runs at most 7 iterations that change nothing, instead of a round trip per iteration.
   static constexpr int kPcgCheckEvery = 8;
   template <class T>
   static void take(Vector<T>& dst, std::vector<T>& src) { upload(dst, src); }
-  static void sync() { cudaDeviceSynchronize(); }
+  /// Waits for this thread's queued work (its stream, not the whole device: other scenes' work
+  /// goes on) and reports any asynchronous fault.
+  static void sync() { check(cudaStreamSynchronize(cudaStreamPerThread), "a queued kernel"); }
 };
 
 }  // namespace gd::sim
