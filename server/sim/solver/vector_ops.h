@@ -7,7 +7,6 @@
 
 namespace gd::sim {
 
-// --- vector kernels --------------------------------------------------------------------
 template <class Exec>
 double Solver<Exec>::dot(const Vec<double>& a, const Vec<double>& b) {
   const double* pa = Exec::ptr(a);
