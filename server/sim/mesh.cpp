@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <numbers>
 #include <string_view>
 #include <tuple>
@@ -394,16 +396,62 @@ void write_obj(const Mesh& m, const std::vector<Vec3>& positions, const std::str
   if (!out) throw InputError(fmt::format("failed to write '{}' (disk full?)", path));
 }
 
+namespace {
+
+/// tinyobjloader reads a number it cannot parse ("nan", "inf", "abc") as 0 and a missing
+/// coordinate as 0: checks every `v` and `vt` line first, so that such a file is refused with
+/// the line, instead of becoming a mesh with vertices at the origin.
+void check_obj_numbers(const std::string& path, const std::string& text) {
+  size_t line_no = 0, pos = 0;
+  while (pos < text.size()) {
+    const size_t end = std::min(text.find('\n', pos), text.size());
+    std::string_view line(text.data() + pos, end - pos);
+    pos = end + 1;
+    ++line_no;
+    size_t k = 0;
+    auto next_token = [&]() -> std::string_view {
+      while (k < line.size() && (line[k] == ' ' || line[k] == '\t' || line[k] == '\r')) ++k;
+      const size_t b = k;
+      while (k < line.size() && line[k] != ' ' && line[k] != '\t' && line[k] != '\r') ++k;
+      return line.substr(b, k - b);
+    };
+    const std::string_view key = next_token();
+    const int need = key == "v" ? 3 : key == "vt" ? 2 : 0;  // positions; pattern uvs
+    if (need == 0) continue;
+    int count = 0;
+    for (std::string_view tok = next_token(); !tok.empty() && tok[0] != '#'; tok = next_token()) {
+      const std::string t(tok);
+      char* stop = nullptr;
+      const double value = std::strtod(t.c_str(), &stop);
+      if (stop != t.c_str() + t.size() || !std::isfinite(value))
+        throw InputError(fmt::format("OBJ file '{}': line {}: '{}' in a '{}' line is not a finite number", path, line_no,
+                                     t, key));
+      ++count;
+    }
+    if (count < need)
+      throw InputError(fmt::format("OBJ file '{}': line {}: a '{}' line needs {} numbers, it has {}", path, line_no, key,
+                                   need, count));
+  }
+}
+
+}  // namespace
+
 Mesh read_obj(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError(fmt::format("OBJ file '{}' does not exist", path));
   if (!std::filesystem::is_regular_file(path, ec))
     throw InputError(fmt::format("OBJ file '{}' is not a regular file", path));
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("OBJ file '{}' cannot be opened", path));
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  check_obj_numbers(path, text);
   tinyobj::ObjReaderConfig cfg;
   cfg.triangulate = false;  // fanned below, so triangles keep the file's corner order
   cfg.vertex_color = false;
   tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path, cfg)) {
+  // Parsed from memory with an empty material text: an `mtllib` line opens no file (the
+  // simulator uses no materials; a server must not follow a path a request names).
+  if (!reader.ParseFromString(text, std::string(), cfg)) {
     std::string why = reader.Error();
     while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
     throw InputError(fmt::format("OBJ file '{}' could not be parsed: {}", path, why.empty() ? "unknown error" : why));

@@ -144,6 +144,9 @@ TEST(ErrorsRpc, EveryBadRequestGetsItsCodeAndTheServerKeepsServing) {
       {"watch unknown job", C::NOT_FOUND, [](auto& s) { pb::WatchJobRequest r; r.set_job_id("j-nope"); auto c = ctx(); auto rd = s.WatchJob(c.get(), r); pb::WatchJobResponse m; while (rd->Read(&m)) {} return rd->Finish(); }},
       {"list reports negative limit", C::INVALID_ARGUMENT, [](auto& s) { pb::ListReportsRequest r; r.set_limit(-1); pb::ListReportsResponse o; return s.ListReports(ctx().get(), r, &o); }},
       {"upload garbage OBJ", C::INVALID_ARGUMENT, [](auto& s) { pb::UploadMeshRequest r; r.set_obj("this is not an obj\nf 1 2 3\n"); pb::UploadMeshResponse o; return s.UploadMesh(ctx().get(), r, &o); }},
+      {"upload OBJ with a NaN coordinate", C::INVALID_ARGUMENT, [](auto& s) { pb::UploadMeshRequest r; r.set_obj("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"); pb::UploadMeshResponse o; return s.UploadMesh(ctx().get(), r, &o); }},
+      {"upload OBJ with an unreadable coordinate", C::INVALID_ARGUMENT, [](auto& s) { pb::UploadMeshRequest r; r.set_obj("v 0 0 0\nv abc 0 0\nv 0 1 0\nf 1 2 3\n"); pb::UploadMeshResponse o; return s.UploadMesh(ctx().get(), r, &o); }},
+      {"upload OBJ with a missing coordinate", C::INVALID_ARGUMENT, [](auto& s) { pb::UploadMeshRequest r; r.set_obj("v 0 0 0\nv 0.05\nv 0 1 0\nf 1 2 3\n"); pb::UploadMeshResponse o; return s.UploadMesh(ctx().get(), r, &o); }},
       {"message over the size limit", C::RESOURCE_EXHAUSTED, [](auto& s) { pb::UploadMeshRequest r; r.set_obj(std::string(2 << 20, '#')); pb::UploadMeshResponse o; return s.UploadMesh(ctx().get(), r, &o); }},
   };
   ASSERT_GE(table.size(), 20u);

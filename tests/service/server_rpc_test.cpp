@@ -104,7 +104,9 @@ TEST(ServerRpc, AssetsInfoAndAnUploadedMeshThatSurvivesARestart) {
 
     pb::UploadMeshRequest up;
     up.set_name("grid");
-    up.set_obj(grid_obj());
+    // Material libraries are never opened: were these followed, /dev/zero would be read until
+    // memory ran out and the other would read a file outside the server's data.
+    up.set_obj("mtllib /dev/zero\nmtllib ../../../../../../../../etc/passwd\n" + grid_obj());
     pb::UploadMeshResponse ur;
     grpc::Status st = stub->UploadMesh(ctx().get(), up, &ur);
     ASSERT_TRUE(st.ok()) << st.error_message();

@@ -1,14 +1,21 @@
 #include "sim/mesh.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <set>
+#include <thread>
+#include <utility>
+#include <vector>
 
 #include "sim/demand.h"
 
@@ -308,6 +315,56 @@ TEST(Obj, RejectsMalformedNamingTheFace) {
   EXPECT_THROW(read_obj(path), InputError);  // missing file
   EXPECT_THROW(read_obj(std::filesystem::temp_directory_path().string()), InputError);  // a directory
   EXPECT_THROW(write_obj(square(), {}, "/nonexistent-dir/x.obj"), InputError);
+}
+
+// tinyobjloader reads what it cannot parse as 0: such files are refused with the line.
+TEST(Obj, RejectsNumbersItCannotReadNamingTheLine) {
+  const std::string path = temp_path("gd_mesh_numbers.obj");
+  const std::string tail = "v 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  for (const auto& [first, needle] : std::vector<std::pair<std::string, std::string>>{
+           {"v nan 0 0\n", "line 1: 'nan' in a 'v' line is not a finite number"},
+           {"v inf 0 0\n", "line 1: 'inf' in a 'v' line is not a finite number"},
+           {"v abc 0 0\n", "line 1: 'abc' in a 'v' line is not a finite number"},
+           {"v 0.05\n", "line 1: a 'v' line needs 3 numbers, it has 1"},
+           {"v 1e999 0 0\n", "'1e999' in a 'v' line is not a finite number"},
+           {"v 0 0 0\nvt 0.5 x\n", "line 2: 'x' in a 'vt' line is not a finite number"}}) {
+    std::ofstream(path) << first << tail;
+    try {
+      read_obj(path);
+      ADD_FAILURE() << "accepted: " << first;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  }
+  // Comments, extra values (w, vertex colours) and CRLF line ends are fine.
+  std::ofstream(path) << "v 0 0 0 1 # w\r\nv 1 0 0 0.5 0.5 0.5\r\nv 0 1 0\r\nf 1 2 3\r\n";
+  EXPECT_EQ(read_obj(path).tris.size(), 1u);
+  std::filesystem::remove(path);
+}
+
+// An `mtllib` line opens no file: here it names a FIFO without a writer, which would block any
+// reader forever; the OBJ must still be read, promptly.
+TEST(Obj, MaterialLibrariesAreNeverOpened) {
+  const std::filesystem::path dir = std::filesystem::path(temp_path("gd_mesh_mtllib"));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string fifo = (dir / "trap.mtl").string();
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  const std::string path = (dir / "m.obj").string();
+  std::ofstream(path) << "mtllib trap.mtl\nmtllib " << fifo << "\nusemtl cloth\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  struct Result {
+    std::atomic<bool> done{false};
+    size_t tris = 0;
+  };
+  auto r = std::make_shared<Result>();
+  std::thread([r, path] {  // detached: should read_obj block on the FIFO, the test fails, not hangs
+    r->tris = read_obj(path).tris.size();
+    r->done = true;
+  }).detach();
+  for (int i = 0; i < 100 && !r->done; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(r->done) << "read_obj blocked: it opened the mtllib FIFO";
+  EXPECT_EQ(r->tris, 1u);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
