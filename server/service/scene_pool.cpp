@@ -278,8 +278,14 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     return Status::InvalidArgument(fmt::format("settings.dt must be a finite number > 0 s (got {})", *spec.dt));
   if (spec.dt && *spec.dt > 0.1)
     return Status::InvalidArgument(fmt::format("settings.dt {} s is too large; use at most 0.1 s", *spec.dt));
+  if (spec.dt && *spec.dt < sim::kMinDt)
+    return Status::InvalidArgument(
+        fmt::format("settings.dt {} s is too small; use at least {} s", *spec.dt, sim::kMinDt));
   if (bad_number(spec.jaw_radius) || (spec.jaw_radius && *spec.jaw_radius < 0))
     return Status::InvalidArgument("settings.jaw_radius must be a finite number >= 0 m");
+  if (spec.jaw_radius && *spec.jaw_radius > tasks::kMaxJawRadius)
+    return Status::InvalidArgument(fmt::format("settings.jaw_radius {} m is too large; use at most {} m",
+                                               *spec.jaw_radius, tasks::kMaxJawRadius));
   if (bad_number(spec.grab_time) || (spec.grab_time && *spec.grab_time < 0))
     return Status::InvalidArgument("settings.grab_time must be a finite number >= 0 s");
   if (!std::isfinite(spec.yaw_deg) || spec.yaw_deg < 0 || spec.yaw_deg > 180)

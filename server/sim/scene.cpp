@@ -276,6 +276,7 @@ void SceneOptions::validate() const {
   };
   positive(dt, "dt");
   if (dt > 1.0) throw InputError("option dt must be at most 1 s");
+  if (dt < kMinDt) throw InputError(fmt::format("option dt must be at least {} s (got {} s)", kMinDt, dt));
   if (!gravity.allFinite()) throw InputError("option gravity must be finite");
   if (newton_max_iters < 1 || newton_max_iters > 1000) throw InputError("option newton_max_iters must be in [1, 1000]");
   if (pcg_max_iters < 1 || pcg_max_iters > 100000) throw InputError("option pcg_max_iters must be in [1, 100000]");

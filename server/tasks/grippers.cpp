@@ -36,6 +36,8 @@ void GripperOptions::validate() const {
   };
   nonneg(close_threshold, "close_threshold");
   nonneg(jaw_radius, "jaw_radius");
+  if (jaw_radius > kMaxJawRadius)
+    throw InputError(fmt::format("gripper option jaw_radius must be at most {} m (got {} m)", kMaxJawRadius, jaw_radius));
   if (!(max_reach >= 0)) throw InputError("gripper option max_reach must be >= 0 (infinity allowed)");
   if (!std::isfinite(grab_time)) throw InputError("gripper option grab_time must be finite");
   nonneg(fling_prepare_time, "fling_prepare_time");

@@ -54,12 +54,16 @@ enum class TaskKind { kGrasp, kFling, kFold };
 TaskKind task_kind_from_name(const std::string& name);
 const char* task_name(TaskKind k);
 
+/// Largest jaw radius of a pseudo grasp, m: wider than any gripper's jaws (a radius of 1e300
+/// took the whole garment).
+inline constexpr double kMaxJawRadius = 0.2;
+
 struct GripperOptions {
   GraspMode mode = GraspMode::kPseudoGrasp;
 
   // --- pseudo grasp ---------------------------------------------------------------------------
   double close_threshold = 0.01;  ///< m: the gripper counts as closed while its opening is below this
-  double jaw_radius = 0.02;       ///< m: a closing gripper takes the free vertices within this distance
+  double jaw_radius = 0.02;       ///< m: a closing gripper takes the free vertices within this distance (<= kMaxJawRadius)
   /// m: if even the nearest free vertex is farther than this, a closing gripper takes nothing (it
   /// closed in the air). Infinity restores "always at least the nearest vertex".
   double max_reach = 0.05;

@@ -107,6 +107,8 @@ TEST(ErrorsRpc, EveryBadRequestGetsItsCodeAndTheServerKeepsServing) {
       {"unknown material", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_material("kevlar"); return create(s, r); }},
       {"unknown mode", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_mode("magic"); return create(s, r); }},
       {"NaN dt", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_settings()->set_dt(kNaN); return create(s, r); }},
+      {"dt too small to advance", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_settings()->set_dt(1e-300); return create(s, r); }},
+      {"jaw radius of the whole garment", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_settings()->set_jaw_radius(1e300); return create(s, r); }},
       {"negative count", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_count(-3); return create(s, r); }},
       {"no garment", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.clear_garment(); return create(s, r); }},
       {"bad randomization", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_randomization()->set_yaw_deg(-1); return create(s, r); }},

@@ -41,6 +41,8 @@ TEST(SceneCreate, RejectsBadOptionsWithTheirName) {
   SceneOptions o;
   o.dt = -1;
   EXPECT_TRUE(rejected_naming(o, "dt"));
+  o.dt = 1e-300;  // would step without advancing the clock
+  EXPECT_TRUE(rejected_naming(o, "dt must be at least"));
   o = SceneOptions();
   o.gravity = Vec3(0, 0, NAN);
   EXPECT_TRUE(rejected_naming(o, "gravity"));

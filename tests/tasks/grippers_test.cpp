@@ -238,6 +238,12 @@ TEST(GripperOptions, BadValuesAreInputErrors) {
   GripperOptions o;
   o.jaw_radius = -1;
   EXPECT_THROW(GripperController(traj, o), InputError);
+  for (double wide : {0.25, 1e300}) {  // would take the whole garment
+    o.jaw_radius = wide;
+    EXPECT_THROW(GripperController(traj, o), InputError) << wide;
+  }
+  o.jaw_radius = kMaxJawRadius;
+  EXPECT_NO_THROW(GripperController(traj, o));
   o = GripperOptions();
   o.mode = GraspMode::kFixedPoint;
   o.action = TaskKind::kFling;  // no shoulder vertices

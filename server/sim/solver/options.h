@@ -35,9 +35,13 @@ enum class ContactHessianKind {
   kProjected,    ///< the exact 12x12 Hessian with negative eigenvalues clamped (Jacobi): the default
 };
 
+/// Smallest time step a scene takes, s: below it a step no longer advances the clock in any
+/// useful way (at 1e-300 s the time stayed 0 while steps counted up).
+inline constexpr double kMinDt = 1e-6;
+
 struct SceneOptions {
   // --- time stepping and solver ---------------------------------------------------------
-  Real dt = 1.0 / 200.0;          ///< time step, s
+  Real dt = 1.0 / 200.0;          ///< time step, s, in [kMinDt, 1]
   Vec3 gravity = Vec3(0, 0, -kGravity);  ///< m/s^2
   int newton_max_iters = 6;       ///< inexact Newton iterations per step (at most)
   Real newton_tol = 1e-4;         ///< stop when max |dx|/dt (m/s) falls below this
