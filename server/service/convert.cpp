@@ -32,8 +32,11 @@ Status check_array(const pb::Array& a, const char* what, const char* dtype, int 
   if (a.shape(0) < 0 || (cols > 0 && a.shape(1) != cols))
     return Status::InvalidArgument(fmt::format("{}: shape must be {} (got [{}])", what, want_shape,
                                                fmt::join(a.shape(), ", ")));
+  if (a.shape(0) > (int64_t(1) << 31))
+    return Status::InvalidArgument(fmt::format("{}: shape [{}] has more than 2^31 rows; data has {} bytes", what,
+                                               fmt::join(a.shape(), ", "), a.data().size()));
   const int64_t n = a.shape(0) * std::max(cols, 1);
-  if (a.shape(0) > (int64_t(1) << 31) || static_cast<int64_t>(a.data().size()) != n * 4)
+  if (static_cast<int64_t>(a.data().size()) != n * 4)
     return Status::InvalidArgument(fmt::format("{}: shape [{}] needs {} bytes of {} but data has {}", what,
                                                fmt::join(a.shape(), ", "), n * 4, dtype, a.data().size()));
   *rows = a.shape(0);

@@ -4,6 +4,7 @@
 #include <spdlog/fmt/fmt.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <random>
@@ -463,6 +464,34 @@ Status check_action(const SceneAction& a, int vertex_count) {
 
 }  // namespace
 
+size_t snapshot_reply_bytes(int vertices, bool positions, bool velocities) {
+  const size_t array = 12 * static_cast<size_t>(vertices) + 32;  // float32 (N, 3), dtype, shape, tags
+  return 1024 + (positions ? array : 0) + (velocities ? array : 0);
+}
+
+namespace {
+
+/// Refuses a call whose reply would pass `limit` bytes (0: none), before any work: gRPC would
+/// refuse to send it only after the scenes had stepped.
+Status check_reply_size(const std::vector<std::shared_ptr<ScenePool::Entry>>& entries, bool positions,
+                        bool velocities, size_t limit) {
+  if (limit == 0) return Status::Ok();
+  size_t bytes = 0, largest = 0;
+  for (const auto& e : entries) {
+    const size_t b = snapshot_reply_bytes(e->tmpl->info.vertex_count, positions, velocities);
+    bytes += b;
+    largest = std::max(largest, b);
+  }
+  if (bytes <= limit) return Status::Ok();
+  return Status::ResourceExhausted(fmt::format(
+      "the reply for {} scenes would take about {:.1f} MiB, over this server's {:.1f} MiB per message "
+      "(--max-message-mb): ask for about {} scenes per call{}",
+      entries.size(), bytes / 1048576.0, limit / 1048576.0, std::max<size_t>(1, limit / largest),
+      velocities ? ", or leave the velocities out" : ""));
+}
+
+}  // namespace
+
 Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) {
   if (req.substeps < 0) return Status::InvalidArgument(fmt::format("substeps must be >= 1 (got {})", req.substeps));
   const int substeps = req.substeps == 0 ? 1 : req.substeps;
@@ -475,6 +504,8 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
     for (const SceneAction& a : req.actions) ids.push_back(a.scene_id);
   std::vector<std::shared_ptr<Entry>> entries;
   GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  GD_RETURN_IF_ERROR(check_reply_size(entries, req.include_positions, req.include_velocities,
+                                      options_.max_reply_bytes));
   std::map<std::string, size_t> index;
   for (size_t i = 0; i < ids.size(); ++i) index[ids[i]] = i;
   std::vector<const SceneAction*> actions(ids.size(), nullptr);
@@ -542,6 +573,8 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
 
   const int n = static_cast<int>(entries.size());
   const int solver_threads = n >= threads() ? 1 : std::max(1, threads() / n);
+  std::atomic<bool> stopped{false};
+  std::atomic<int> done_substeps{0};
   pool_.run(n, [&](int i) {
     Entry& e = *entries[i];
     omp_set_num_threads(solver_threads);
@@ -549,6 +582,11 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
     e.newton = e.pcg = e.contacts = 0;
     try {
       for (int k = 0; k < substeps; ++k) {
+        if (stopped || (req.cancelled && req.cancelled())) {  // the caller is gone: stop at a step boundary
+          stopped = true;
+          break;
+        }
+        ++done_substeps;
         const double t_next = e.scene->time() + e.scene->options().dt;
         if (!tasks::run_until(*e.scene, *e.controller, t_next)) break;
         ++e.steps;
@@ -567,6 +605,11 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
       e.publish();
     }
   });
+  if (stopped)
+    return Status(Code::kCancelled,
+                  fmt::format("the call was cancelled or passed its deadline; its scenes stopped at a step boundary "
+                              "after {} of {} scene-steps (GetState reads where they are)",
+                              done_substeps.load(), substeps * n));
   out->clear();
   for (const auto& e : entries) out->push_back(e->snapshot(req.include_positions, req.include_velocities));
   return Status::Ok();
@@ -575,6 +618,7 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
 Status ScenePool::state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out) {
   std::vector<std::shared_ptr<Entry>> entries;
   GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  GD_RETURN_IF_ERROR(check_reply_size(entries, true, include_velocities, options_.max_reply_bytes));
   out->clear();
   for (const auto& e : entries) {
     std::lock_guard<std::mutex> lock(e->mu);

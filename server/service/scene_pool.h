@@ -35,6 +35,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -58,8 +59,15 @@ struct PoolOptions {
   int max_scenes = 256;        ///< scenes alive at once (flag --max-scenes)
   int max_vertices = 50000;    ///< vertices per scene (flag --max-vertices)
   int max_substeps = 1000;     ///< substeps per step call
+  /// Largest reply a step or state call may make, bytes (the server's --max-message-mb; 0: no
+  /// limit): a call whose reply would not fit is refused before any scene changes.
+  size_t max_reply_bytes = 0;
   sim::BackendKind backend = sim::BackendKind::kCpu;
 };
+
+/// An upper bound of one scene's share of a StepScenes / GetState reply, bytes: its id, stats
+/// and arms, and 12 bytes per vertex for each of positions and velocities included.
+size_t snapshot_reply_bytes(int vertices, bool positions, bool velocities);
 
 /// What CreateScenes asks for. Unset optionals take the defaults noted.
 struct SceneSpec {
@@ -102,6 +110,9 @@ struct StepRequest {
   int substeps = 1;
   bool include_positions = true;
   bool include_velocities = false;
+  /// Asked between substeps (the call's deadline passed or the client left): the scenes stop at
+  /// a step boundary and step() returns CANCELLED. Empty: never.
+  std::function<bool()> cancelled;
 };
 
 /// One arm's state in a snapshot.

@@ -70,6 +70,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     po.max_scenes = o.max_scenes;
     po.max_vertices = o.max_vertices;
     po.max_substeps = o.max_substeps;
+    po.max_reply_bytes = max_bytes;
     po.backend = o.backend;
     im.scenes = std::make_unique<ScenePool>(po);
     JobQueueOptions jo;
@@ -86,6 +87,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
   }
   HandlerOptions ho;
   ho.version = GD_VERSION;
+  ho.max_reply_bytes = max_bytes;
   ho.max_report_file_bytes = std::min<size_t>(32u << 20, max_bytes - std::min<size_t>(max_bytes / 2, 1u << 20));
   im.service = std::make_unique<GarmentDynamicsService>(*im.scenes, *im.jobs, *im.meshes, ho);
 
@@ -93,6 +95,10 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder b;
   const std::string addr = fmt::format("{}:{}", o.host, o.port);
+  // No SO_REUSEPORT: with it gRPC bound one socket per poller, each on its own free port when
+  // --port is 0 (a server on two ports, one of them in --port-file), and a second server could
+  // bind a port this one holds without an error (grpc/grpc#11920, #24730).
+  b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   b.AddListeningPort(addr, grpc::InsecureServerCredentials(), &im.port);
   b.RegisterService(im.service.get());
   b.SetMaxReceiveMessageSize(static_cast<int>(max_bytes));

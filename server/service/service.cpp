@@ -2,8 +2,11 @@
 
 #include <spdlog/fmt/fmt.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <chrono>
+#include <cstring>
 
 #include "garments/generator.h"
 #include "service/convert.h"
@@ -17,7 +20,11 @@ namespace {
 std::string request_id(grpc::ServerContext* ctx) {
   const auto& md = ctx->client_metadata();
   auto it = md.find("x-request-id");
-  if (it != md.end() && !it->second.empty() && it->second.size() <= 128) return std::string(it->second.data(), it->second.size());
+  // The client's id when it is a plain token (it is echoed into every log line of the call).
+  auto plain = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || std::strchr("._:/+=-", c); };
+  if (it != md.end() && !it->second.empty() && it->second.size() <= 128 &&
+      std::all_of(it->second.begin(), it->second.end(), plain))
+    return std::string(it->second.data(), it->second.size());
   static std::atomic<uint64_t> next{1};
   return fmt::format("r-{}", next++);
 }
@@ -42,6 +49,7 @@ grpc::Status GarmentDynamicsService::handle(Ctx* ctx, const char* method, bool i
   } catch (...) {
     st = Status::Internal(fmt::format("{} failed unexpectedly", method));
   }
+  if (!st.ok()) st = Status(st.code(), printable_message(st.message()));  // bounded, no control characters
   try {
     const double ms = 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const auto level = !st.ok() && st.code() == Code::kInternal ? spdlog::level::err
@@ -69,6 +77,21 @@ grpc::Status GarmentDynamicsService::CreateScenes(Ctx* ctx, const pb::CreateScen
     for (const std::string& id : created.ids) resp->add_scene_ids(id);
     to_proto(created.info, resp->mutable_info());
     for (const SceneSnapshot& s : created.states) to_proto(s, false, resp->add_states());
+    // A reply gRPC would refuse to send: the scenes go again, so none is left that the client
+    // never learns of.
+    const size_t bytes = resp->ByteSizeLong();
+    if (options_.max_reply_bytes > 0 && bytes > options_.max_reply_bytes) {
+      int destroyed = 0;
+      scenes_.destroy(created.ids, &destroyed);
+      const size_t per_scene = resp->states_size() > 0 ? resp->states(0).ByteSizeLong() : 1;
+      const size_t fixed = bytes - per_scene * created.ids.size();
+      const size_t fit = options_.max_reply_bytes > fixed ? (options_.max_reply_bytes - fixed) / per_scene : 0;
+      resp->Clear();
+      return Status::ResourceExhausted(fmt::format(
+          "the reply for {} scenes would take {:.1f} MiB, over this server's {:.1f} MiB per message "
+          "(--max-message-mb); no scene was kept: ask for at most {} scenes per call",
+          created.ids.size(), bytes / 1048576.0, options_.max_reply_bytes / 1048576.0, fit));
+    }
     return Status::Ok();
   });
 }
@@ -90,6 +113,7 @@ grpc::Status GarmentDynamicsService::StepScenes(Ctx* ctx, const pb::StepScenesRe
   return handle(ctx, "StepScenes", false, [&](const std::string&) {
     StepRequest r;
     GD_RETURN_IF_ERROR(to_step_request(*req, &r));
+    r.cancelled = [ctx] { return ctx->IsCancelled(); };  // deadline passed or client gone
     std::vector<SceneSnapshot> states;
     GD_RETURN_IF_ERROR(scenes_.step(r, &states));
     for (const SceneSnapshot& s : states) to_proto(s, true, resp->add_states());

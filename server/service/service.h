@@ -19,6 +19,7 @@ namespace gd::service {
 /// Limits the handlers apply themselves.
 struct HandlerOptions {
   size_t max_report_file_bytes = 32u << 20;  ///< GetReport include_files cap
+  size_t max_reply_bytes = 0;                 ///< largest reply (--max-message-mb; 0: no limit)
   std::string version;
 };
 

@@ -5,6 +5,7 @@
 /// Nothing here includes gRPC.
 
 #include <string>
+#include <string_view>
 #include <utility>
 
 namespace gd::service {
@@ -48,6 +49,37 @@ inline const char* code_name(Code c) {
     case Code::kUnavailable: return "UNAVAILABLE";
   }
   return "UNKNOWN";
+}
+
+/// A message fit for a client and a log line: control characters escaped (a newline or an ANSI
+/// escape from a request would split or colour the log), and at most about `limit` bytes (a
+/// 100 KB garment name echoed back makes a 100 KB status): the head and the tail kept, since
+/// messages end with what to fix.
+inline std::string printable_message(std::string_view m, size_t limit = 1024) {
+  auto escape = [](std::string_view in) {
+    static const char* hex = "0123456789abcdef";
+    std::string out;
+    out.reserve(in.size());
+    for (const char ch : in) {
+      const auto u = static_cast<unsigned char>(ch);
+      if (u == '\n') {
+        out += "\\n";
+      } else if (u == '\t') {
+        out += "\\t";
+      } else if (u < 0x20 || u == 0x7f) {
+        out += "\\x";
+        out += hex[u >> 4];
+        out += hex[u & 15];
+      } else {
+        out += ch;
+      }
+    }
+    return out;
+  };
+  if (m.size() <= limit) return escape(m);
+  const size_t head = limit * 5 / 8, tail = limit / 4;
+  return escape(m.substr(0, head)) + " [... " + std::to_string(m.size() - head - tail) + " bytes omitted ...] " +
+         escape(m.substr(m.size() - tail));
 }
 
 /// A code and a message; default-constructed it is OK.

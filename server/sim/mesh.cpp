@@ -477,7 +477,13 @@ Mesh read_obj(const std::string& path) {
       std::vector<int> v(n), vt(n);
       for (unsigned k = 0; k < n; ++k) {
         const tinyobj::index_t& idx = sh.mesh.indices[off + k];
-        if (idx.vertex_index < 0 || idx.vertex_index >= nv)
+        // (tinyobjloader has already turned a negative index, which counts back from the vertices
+        // read so far, into an absolute one: the file's own number is not known here.)
+        if (idx.vertex_index < 0)
+          throw InputError(fmt::format("OBJ file '{}': face {} uses a vertex before the first one (a negative index "
+                                       "counts back from the vertices above its line; the file has {} vertices)",
+                                       path, face_no, nv));
+        if (idx.vertex_index >= nv)
           throw InputError(fmt::format("OBJ file '{}': face {} uses vertex {}, out of range (the file has {} vertices)",
                                        path, face_no, idx.vertex_index + 1, nv));
         v[k] = idx.vertex_index;

@@ -173,5 +173,90 @@ TEST(ErrorsRpc, EveryBadRequestGetsItsCodeAndTheServerKeepsServing) {
   EXPECT_EQ(info.max_scenes(), 4);
 }
 
+TEST(ErrorsRpc, EchoedStringsAreBoundedPrintableAndTrue) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data", {"--max-vertices", "1000"});
+  auto stub = server.stub();
+  // A 100 KB garment name carrying a newline and an ANSI escape: the status message stays short,
+  // keeps its head and its tail (what to fix), and neither it nor the log gets the raw bytes.
+  pb::CreateScenesRequest r = towel();
+  r.set_garment("kilt\n[2026-01-01 00:00:00.000] [gd] [info] injected line\x1b[31m" + std::string(100000, 'k'));
+  const grpc::Status st = create(*stub, r);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_LT(st.error_message().size(), 1200u) << st.error_message().substr(0, 200);
+  EXPECT_EQ(st.error_message().find('\n'), std::string::npos);
+  EXPECT_EQ(st.error_message().find('\x1b'), std::string::npos);
+  EXPECT_NE(st.error_message().find("bytes omitted"), std::string::npos);
+  EXPECT_NE(st.error_message().find("tshirt"), std::string::npos) << "the tail (the known garments) was lost";
+  // An array whose shape overflows a byte count: named as too many rows, not "needs 0 bytes".
+  {
+    pb::CreateScenesResponse made;
+    ASSERT_TRUE(stub->CreateScenes(ctx().get(), towel(), &made).ok());
+    auto idx = int_array({0});
+    idx.set_shape(0, int64_t(1) << 62);
+    const grpc::Status big = step(*stub, target_step(made.scene_ids(0), idx, vec3_array({0, 0, 0.1f})));
+    EXPECT_EQ(big.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(big.error_message().find("more than 2^31 rows"), std::string::npos) << big.error_message();
+    EXPECT_EQ(big.error_message().find("needs 0 bytes"), std::string::npos) << big.error_message();
+  }
+  // A face index counting back past the first vertex: not reported as a vertex of negative number.
+  pb::UploadMeshRequest up;
+  up.set_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 -10\n");
+  pb::UploadMeshResponse uploaded;
+  const grpc::Status obj = stub->UploadMesh(ctx().get(), up, &uploaded);
+  EXPECT_EQ(obj.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(obj.error_message().find("negative index"), std::string::npos) << obj.error_message();
+  EXPECT_EQ(obj.error_message().find("vertex -"), std::string::npos) << obj.error_message();
+  const std::string log = server.log();
+  EXPECT_EQ(log.find("\n[2026-01-01 00:00:00.000]"), std::string::npos) << "the name started a log line of its own";
+  EXPECT_NE(log.find("kilt\\n[2026-01-01"), std::string::npos) << "the newline was not written as \\n";
+  EXPECT_EQ(log.find('\x1b'), std::string::npos);
+  EXPECT_LT(log.size(), 50000u) << "the 100 KB name reached the log";
+}
+
+TEST(ErrorsRpc, RepliesOverTheMessageLimitAreRefusedBeforeAnyWork) {
+  // gRPC refuses to send a reply over --max-message-mb, but only after the handler's work: 50
+  // scenes were created that the client never learnt of, and refused steps had stepped.
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data", {"--max-message-mb", "1", "--max-vertices", "6000", "--max-scenes", "64"});
+  auto stub = server.stub();
+  pb::CreateScenesRequest r = towel();
+  r.set_vertices(5000);
+  r.set_count(20);  // ~20 x 60 KB of states plus the shared rest shape: over 1 MiB
+  pb::CreateScenesResponse refused;
+  const grpc::Status big = stub->CreateScenes(ctx(120).get(), r, &refused);
+  EXPECT_EQ(big.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << big.error_message();
+  EXPECT_NE(big.error_message().find("--max-message-mb"), std::string::npos) << big.error_message();
+  EXPECT_NE(big.error_message().find("no scene was kept"), std::string::npos) << big.error_message();
+  pb::GetServerInfoResponse info;
+  ASSERT_TRUE(stub->GetServerInfo(ctx().get(), pb::GetServerInfoRequest(), &info).ok());
+  EXPECT_EQ(info.scenes(), 0) << "scenes of a refused reply were kept";
+
+  r.set_count(10);
+  pb::CreateScenesResponse made;
+  const grpc::Status ok = stub->CreateScenes(ctx(120).get(), r, &made);
+  ASSERT_TRUE(ok.ok()) << ok.error_message();
+  ASSERT_EQ(made.scene_ids_size(), 10);
+  // Positions and velocities of 10 scenes (~1.2 MiB): refused before any scene steps.
+  pb::StepScenesRequest step_all;
+  for (const std::string& id : made.scene_ids()) step_all.add_scene_ids(id);
+  step_all.set_include_velocities(true);
+  pb::StepScenesResponse stepped;
+  const grpc::Status too_big = stub->StepScenes(ctx(120).get(), step_all, &stepped);
+  EXPECT_EQ(too_big.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << too_big.error_message();
+  EXPECT_NE(too_big.error_message().find("leave the velocities out"), std::string::npos) << too_big.error_message();
+  pb::GetStateRequest ask;
+  ask.add_scene_ids(made.scene_ids(0));
+  pb::GetStateResponse state;
+  ASSERT_TRUE(stub->GetState(ctx().get(), ask, &state).ok());
+  EXPECT_EQ(state.states(0).steps(), 0) << "a refused step advanced the scene";
+  // Positions alone fit.
+  step_all.set_include_velocities(false);
+  const grpc::Status fits = stub->StepScenes(ctx(120).get(), step_all, &stepped);
+  ASSERT_TRUE(fits.ok()) << fits.error_message();
+  ASSERT_EQ(stepped.states_size(), 10);
+  EXPECT_EQ(stepped.states(9).steps(), 1);
+}
+
 }  // namespace
 }  // namespace gd::service::testing

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <set>
 
@@ -158,6 +159,37 @@ TEST(ScenesRpc, StreamFramesFollowsStepScenesUntilMaxFramesOrDestroy) {
     ASSERT_TRUE(reader->Finish().ok());
     EXPECT_EQ(steps, (std::vector<int64_t>{8, 9}));
   }
+}
+
+TEST(ScenesRpc, AStepPastItsDeadlineStopsAndFreesItsScene) {
+  // 400 substeps under a 0.3 s deadline ran to the end (75 s) and held the scene's lock all along.
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data");
+  auto stub = server.stub();
+  pb::CreateScenesRequest r = towel(1, 1000);
+  r.mutable_settings()->set_dt(0.005);
+  pb::CreateScenesResponse created;
+  ASSERT_TRUE(stub->CreateScenes(ctx().get(), r, &created).ok());
+  pb::StepScenesRequest step;
+  step.add_scene_ids(created.scene_ids(0));
+  step.set_substeps(400);
+  pb::StepScenesResponse stepped;
+  const grpc::Status late = stub->StepScenes(ctx(0.3).get(), step, &stepped);
+  EXPECT_EQ(late.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED) << late.error_message();
+  // The scene is free again within a substep or two, and it stopped at a step boundary.
+  const auto t0 = std::chrono::steady_clock::now();
+  pb::GetStateRequest ask;
+  ask.add_scene_ids(created.scene_ids(0));
+  pb::GetStateResponse state;
+  const grpc::Status st = stub->GetState(ctx(30).get(), ask, &state);
+  const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_LT(waited, 5.0) << "the stopped step still held the scene";
+  EXPECT_LT(state.states(0).steps(), 400);
+  EXPECT_EQ(state.states(0).status(), pb::SCENE_READY);
+  EXPECT_NEAR(state.states(0).time(), 0.005 * state.states(0).steps(), 1e-9);
+  const std::string log = server.log();
+  EXPECT_NE(log.find("stopped at a step boundary"), std::string::npos);
 }
 
 }  // namespace

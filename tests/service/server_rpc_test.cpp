@@ -5,6 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <set>
 #include <sstream>
 
 #include "service/server_process.h"
@@ -158,6 +163,54 @@ TEST(ServerRpc, AssetsInfoAndAnUploadedMeshThatSurvivesARestart) {
   cr.set_mesh_id(mesh_id);
   pb::CreateScenesResponse created;
   EXPECT_TRUE(stub->CreateScenes(ctx().get(), cr, &created).ok());
+}
+
+/// The TCP ports process `pid` listens on (its socket inodes matched against /proc/net/tcp{,6}).
+std::set<int> listening_ports(int pid) {
+  std::set<std::string> inodes;
+  for (const auto& e : fs::directory_iterator(fs::path("/proc") / std::to_string(pid) / "fd")) {
+    std::error_code ec;
+    const std::string target = fs::read_symlink(e.path(), ec).string();
+    if (!ec && target.rfind("socket:[", 0) == 0) inodes.insert(target.substr(8, target.size() - 9));
+  }
+  std::set<int> ports;
+  for (const char* table : {"/proc/net/tcp", "/proc/net/tcp6"}) {
+    std::ifstream f(table);
+    std::string line;
+    std::getline(f, line);  // header
+    while (std::getline(f, line)) {
+      std::istringstream row(line);
+      std::string slot, local, remote, state, queues, timer, retr, uid, timeout, inode;
+      row >> slot >> local >> remote >> state >> queues >> timer >> retr >> uid >> timeout >> inode;
+      if (state == "0A" && inodes.count(inode)) ports.insert(std::stoi(local.substr(local.find(':') + 1), nullptr, 16));
+    }
+  }
+  return ports;
+}
+
+TEST(ServerRpc, PortZeroListensOnOnePortAndAHeldPortIsRefused) {
+  // gRPC's SO_REUSEPORT bound a socket per poller, each on its own free port with --port 0: the
+  // server listened on two ports and --port-file named one; and a second server started on a
+  // port the first held without an error.
+  TempDir dir;
+  ServerProcess first((dir.path() / "a").string());
+  EXPECT_EQ(listening_ports(first.pid()), std::set<int>{first.port()});
+  // (Run as a plain process: a client would find the first server answering on that port.)
+  const fs::path log_file = dir.path() / "second.log";
+  const std::string cmd = "timeout 30 " + server_binary() + " --port " + std::to_string(first.port()) +
+                          " --data-dir " + (dir.path() / "b").string() + " > " + log_file.string() + " 2>&1";
+  const int rc = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(rc));
+  EXPECT_NE(WEXITSTATUS(rc), 0) << "a second server took the port";
+  EXPECT_NE(WEXITSTATUS(rc), 124) << "a second server kept running on the port";
+  std::ifstream log(log_file);
+  std::stringstream text;
+  text << log.rdbuf();
+  EXPECT_NE(text.str().find("cannot listen"), std::string::npos) << text.str();
+  // The first server still answers.
+  pb::GetServerInfoRequest req;
+  pb::GetServerInfoResponse info;
+  EXPECT_TRUE(first.stub()->GetServerInfo(ctx().get(), req, &info).ok());
 }
 
 }  // namespace
