@@ -69,11 +69,20 @@ void Solver<Exec>::merge_pair_blocks() {
   Exec::take(cpl_vals_, cpl_h_.vals);
 }
 
-/// Before a linear solve: the contact couplings as a matrix, then the preconditioner's setup.
+/// Before a linear solve: the contact couplings as a matrix, then the preconditioners' setup.
 template <class Exec>
 void Solver<Exec>::prepare_linear_solve() {
   if (opt_.linear_solver == LinearSolverKind::kDirect && Exec::kHostMemory) return;
   if (self_) merge_pair_blocks();
+  const BlockMatrixView A = matrix_view();
+  precond_->setup(A);
+  if (estimator_) estimator_->setup(A);
+  precond_ready_ = true;
+}
+
+/// The assembled Hessian and contact couplings at x_, as the preconditioners read them.
+template <class Exec>
+BlockMatrixView Solver<Exec>::matrix_view() {
   BlockMatrixView A{n_, Exec::ptr(row_ptr_), Exec::ptr(cols_), Exec::ptr(diag_), Exec::ptr(vals_), Exec::ptr(fixed_)};
   if (self_) {
     A.cpl_row_ptr = Exec::ptr(cpl_row_ptr_);
@@ -81,9 +90,7 @@ void Solver<Exec>::prepare_linear_solve() {
     A.cpl_vals = Exec::ptr(cpl_vals_);
   }
   A.x = Exec::ptr(x_);
-  precond_->setup(A);
-  if (estimator_) estimator_->setup(A);
-  precond_ready_ = true;
+  return A;
 }
 
 /// Solves H dx = -g. Returns the iterations spent (1 for the direct solver).
@@ -134,9 +141,7 @@ int Solver<Exec>::solve_pcg(double first_step) {
       S[kPcgAlpha] = S[kPcgStop] == 0.0 ? S[kPcgRz] / pap : 0.0;
       if (S[kPcgStop] == 0.0) S[kPcgIters] += 1.0;
     });
-    axpy_scalar(S + kPcgAlpha, 1.0, p_, dx_);   // dx += alpha p
-    axpy_scalar(S + kPcgAlpha, -1.0, ap_, r_);  // r -= alpha Ap
-    dot_to(r_, r_, S + kPcgRr);
+    pcg_update_to(S + kPcgAlpha, p_, ap_, dx_, r_, S + kPcgRr);  // dx += alpha p, r -= alpha Ap, |r|²
     Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // the relative residual test
       if (std::sqrt(S[kPcgRr]) <= tol_r) S[kPcgStop] = 1.0;
     });
@@ -209,11 +214,7 @@ int Solver<Exec>::solve_direct() {
     Eigen::Map<Eigen::VectorXd> dx(dx_.data(), 3 * n_);
     if (ldlt_.info() != Eigen::Success) {
       if (self_) merge_pair_blocks();
-      BlockMatrixView A{n_, Exec::ptr(row_ptr_), Exec::ptr(cols_), Exec::ptr(diag_), Exec::ptr(vals_),
-                        Exec::ptr(fixed_)};
-      if (self_) A.cpl_row_ptr = cpl_row_ptr_.data(), A.cpl_cols = cpl_cols_.data(), A.cpl_vals = cpl_vals_.data();
-      A.x = x_.data();
-      precond_->setup(A);
+      precond_->setup(matrix_view());
       return solve_pcg(0);
     }
     dx = ldlt_.solve(-g);

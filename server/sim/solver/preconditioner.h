@@ -60,7 +60,7 @@ class BlockJacobi final : public Preconditioner<Exec> {
       }
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) inv[9 * i + 3 * r + c] = m(r, c);
-    });
+    }, Exec::kParallelMinHeavy);
   }
 
   void apply(const double* r, double* z) override {
@@ -71,7 +71,7 @@ class BlockJacobi final : public Preconditioner<Exec> {
       z[3 * i] = m[0] * r0 + m[1] * r1 + m[2] * r2;
       z[3 * i + 1] = m[3] * r0 + m[4] * r1 + m[5] * r2;
       z[3 * i + 2] = m[6] * r0 + m[7] * r1 + m[8] * r2;
-    });
+    }, Exec::kParallelMinVector / 3);
   }
 
  private:

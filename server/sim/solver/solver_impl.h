@@ -240,6 +240,7 @@ class Solver final : public SolverBase {
   void spmv(const Vec<double>& xs, Vec<double>& ys);
   void merge_pair_blocks();
   void prepare_linear_solve();
+  BlockMatrixView matrix_view();
   int solve_linear(double first_step);
   int solve_pcg(double first_step);
   int solve_direct();
@@ -261,7 +262,9 @@ class Solver final : public SolverBase {
   // ... and with the result or a coefficient in the backend's memory (no round trip to the host)
   void dot_to(const Vec<double>& a, const Vec<double>& b, double* out);
   void mass_norm_to(const Vec<double>& d, double* out);  ///< sum of m_i |d_i|² over free vertices
-  void axpy_scalar(const double* a, double sign, const Vec<double>& xs, Vec<double>& ys);  ///< y += (sign a) x
+  /// x += a p, r -= a q and |r|² into *rr, one pass (PCG's update; a in the backend's memory).
+  void pcg_update_to(const double* a, const Vec<double>& ps, const Vec<double>& qs, Vec<double>& xs, Vec<double>& rs,
+                     double* rr);
   void xpby_scalar(const Vec<double>& xs, const double* b, Vec<double>& ys);  ///< y = x + b y
 
   // Energies, strain and memory for reports (diagnostics.h)

@@ -38,7 +38,7 @@ template <class Exec>
 void Solver<Exec>::dot_to(const Vec<double>& a, const Vec<double>& b, double* out) {
   const double* pa = Exec::ptr(a);
   const double* pb = Exec::ptr(b);
-  Exec::sum_to(3 * n_, [=] GD_HD_LAMBDA(int k) { return pa[k] * pb[k]; }, out);
+  Exec::sum_to(3 * n_, [=] GD_HD_LAMBDA(int k) { return pa[k] * pb[k]; }, out, Exec::kParallelMinVector);
 }
 
 template <class Exec>
@@ -49,18 +49,28 @@ void Solver<Exec>::mass_norm_to(const Vec<double>& d, double* out) {
                out);
 }
 
+/// PCG's update in one pass: x += a p, r -= a q, and |r|² into *rr (the backend's memory); each
+/// coordinate's arithmetic as in three separate loops.
 template <class Exec>
-void Solver<Exec>::axpy_scalar(const double* a, double sign, const Vec<double>& xs, Vec<double>& ys) {
-  const double* x = Exec::ptr(xs);
-  double* y = Exec::ptr(ys);
-  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] += (sign * *a) * x[k]; });
+void Solver<Exec>::pcg_update_to(const double* a, const Vec<double>& ps, const Vec<double>& qs, Vec<double>& xs,
+                                 Vec<double>& rs, double* rr) {
+  const double* p = Exec::ptr(ps);
+  const double* q = Exec::ptr(qs);
+  double* x = Exec::ptr(xs);
+  double* r = Exec::ptr(rs);
+  Exec::sum_effects_to(3 * n_, [=] GD_HD_LAMBDA(int k) {
+    const double alpha = *a;
+    x[k] += alpha * p[k];
+    r[k] += -alpha * q[k];
+    return r[k] * r[k];
+  }, rr, Exec::kParallelMinVector);
 }
 
 template <class Exec>
 void Solver<Exec>::xpby_scalar(const Vec<double>& xs, const double* b, Vec<double>& ys) {
   const double* x = Exec::ptr(xs);
   double* y = Exec::ptr(ys);
-  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] = x[k] + *b * y[k]; });
+  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] = x[k] + *b * y[k]; }, Exec::kParallelMinVector);
 }
 
 template <class Exec>

@@ -48,6 +48,9 @@ struct CpuExec {
   static constexpr int kParallelMin = 16384;
   /// The same for loops whose iterations are heavy (element energies and Hessians).
   static constexpr int kParallelMinHeavy = 1024;
+  /// The same for PCG's vector operations over 3n coordinates, run ~10 times per iteration on
+  /// a warm team (RGBench's 4867-vertex T-shirt: its dot products and updates were serial).
+  static constexpr int kParallelMinVector = 4096;
 
   /// Runs f(i) for i in [0, n) on the OpenMP threads.
   template <class F>
@@ -75,6 +78,11 @@ struct CpuExec {
   template <class F>
   static void sum_to(int n, const F& f, double* out, int parallel_min = kParallelMin) {
     *out = CpuExec::sum(n, f, parallel_min);
+  }
+  /// sum_effects into *out, the backend's memory.
+  template <class F>
+  static void sum_effects_to(int n, const F& f, double* out, int parallel_min = kParallelMin) {
+    *out = CpuExec::sum_effects(n, f, parallel_min);
   }
   /// PCG reads its stop flag every this many iterations (Solver::solve_pcg): every iteration on
   /// the CPU, where a read costs nothing.

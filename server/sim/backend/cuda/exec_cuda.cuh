@@ -61,6 +61,7 @@ struct CudaExec {
 
   static constexpr int kParallelMin = 0;
   static constexpr int kParallelMinHeavy = 0;
+  static constexpr int kParallelMinVector = 0;
 
   /// Throws BackendError naming `what` when the runtime reports an error (of this call or an
   /// earlier asynchronous one).
@@ -125,18 +126,29 @@ struct CudaExec {
     return read_back(out);
   }
 
-  /// Sum of f(i) where f also writes memory: a reduction may evaluate an element more than once,
-  /// so each value goes to scratch first (one kernel), then a plain sum.
+  /// Sum of f(i) where f also writes memory, into *out (device memory, nothing read back): a
+  /// reduction may evaluate an element more than once, so each value goes to scratch first (one
+  /// kernel), then a plain sum.
+  template <class F>
+  static void sum_effects_to(int n, const F& f, double* out, int /*parallel_min*/ = 0) {
+    if (n <= 0) {
+      check(cudaMemsetAsync(out, 0, sizeof(double)), "cudaMemsetAsync");
+      return;
+    }
+    double* values = static_cast<double*>(scratch(1, sizeof(double) * static_cast<size_t>(n)));
+    for_each(n, [=] __host__ __device__(int i) { values[i] = f(i); });
+    size_t bytes = 0;
+    check(cub::DeviceReduce::Sum(nullptr, bytes, values, out, n), "reduction (size)");
+    check(cub::DeviceReduce::Sum(scratch(0, bytes), bytes, values, out, n), "reduction");
+  }
+
+  /// Sum of f(i) where f also writes memory (each i evaluated exactly once), read back.
   template <class F>
   static double sum_effects(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
     ++host_round_trips().reductions;
-    double* values = static_cast<double*>(scratch(1, sizeof(double) * static_cast<size_t>(n)));
-    for_each(n, [=] __host__ __device__(int i) { values[i] = f(i); });
     double* out = static_cast<double*>(scratch(2, sizeof(double)));
-    size_t bytes = 0;
-    check(cub::DeviceReduce::Sum(nullptr, bytes, values, out, n), "reduction (size)");
-    check(cub::DeviceReduce::Sum(scratch(0, bytes), bytes, values, out, n), "reduction");
+    sum_effects_to(n, f, out);
     return read_back(out);
   }
 
