@@ -158,6 +158,9 @@ RemoteCommands::RemoteCommands(CLI::App& app) {
   report_->add_option("job", job_id_, "job id")->required();
   report_->add_option("--out", report_out_, "directory to write the report's files into");
 
+  cancel_ = app.add_subcommand("cancel", "cancel a queued or running job (needs --server)");
+  cancel_->add_option("job", job_id_, "job id")->required();
+
   reports_ = app.add_subcommand("reports", "list stored job reports, newest first (needs --server)");
   reports_->add_option("--limit", limit_, "at most this many")->capture_default_str();
   reports_->add_option("--offset", offset_, "skip this many")->capture_default_str();
@@ -171,7 +174,7 @@ RemoteCommands::RemoteCommands(CLI::App& app) {
 }
 
 bool RemoteCommands::selected() const {
-  for (const CLI::App* c : {info_, garments_, materials_, create_, step_, report_, reports_, destroy_, upload_})
+  for (const CLI::App* c : {info_, garments_, materials_, create_, step_, report_, cancel_, reports_, destroy_, upload_})
     if (c->parsed()) return true;
   return false;
 }
@@ -184,6 +187,7 @@ int RemoteCommands::execute(const std::string& server) {
   if (create_->parsed()) return do_create(client);
   if (step_->parsed()) return do_step(client);
   if (report_->parsed()) return do_report(client);
+  if (cancel_->parsed()) return do_cancel(client);
   if (reports_->parsed()) return do_reports(client);
   if (destroy_->parsed()) return do_destroy(client);
   if (upload_->parsed()) return do_upload(client);
@@ -261,6 +265,14 @@ int RemoteCommands::do_report(Client& c) {
     std::fprintf(stderr, "wrote %d file(s) to %s\n", n, report_out_.c_str());
   }
   return r.job.status == JobStatus::kSucceeded ? kExitOk : kExitFailed;
+}
+
+int RemoteCommands::do_cancel(Client& c) {
+  const JobInfo j = c.cancel_job(job_id_);
+  print_job(j);
+  if (j.status != JobStatus::kCancelled)
+    std::fprintf(stderr, "job %s stops at its next step\n", j.id.c_str());
+  return kExitOk;
 }
 
 int RemoteCommands::do_reports(Client& c) {

@@ -54,6 +54,7 @@ class RemoteCommands {
   CLI::App* create_ = nullptr;
   CLI::App* step_ = nullptr;
   CLI::App* report_ = nullptr;
+  CLI::App* cancel_ = nullptr;
   CLI::App* reports_ = nullptr;
   CLI::App* destroy_ = nullptr;
   CLI::App* upload_ = nullptr;
@@ -78,6 +79,7 @@ class RemoteCommands {
   int do_create(Client& c);
   int do_step(Client& c);
   int do_report(Client& c);
+  int do_cancel(Client& c);
   int do_reports(Client& c);
   int do_destroy(Client& c);
   int do_upload(Client& c);

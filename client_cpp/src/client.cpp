@@ -56,12 +56,14 @@ const char* job_status_name(JobStatus status) {
     case JobStatus::kSucceeded: return "succeeded";
     case JobStatus::kFailed: return "failed";
     case JobStatus::kInterrupted: return "interrupted";
+    case JobStatus::kCancelled: return "cancelled";
     default: return "unspecified";
   }
 }
 
 bool job_finished(JobStatus status) {
-  return status == JobStatus::kSucceeded || status == JobStatus::kFailed || status == JobStatus::kInterrupted;
+  return status == JobStatus::kSucceeded || status == JobStatus::kFailed || status == JobStatus::kInterrupted ||
+         status == JobStatus::kCancelled;
 }
 
 namespace {
@@ -288,6 +290,12 @@ Report Client::get_report(const std::string& job_id, bool include_files) {
   for (const auto& f : resp.files()) r.files.push_back({f.name(), f.data()});
   r.file_names.assign(resp.file_names().begin(), resp.file_names().end());
   return r;
+}
+
+JobInfo Client::cancel_job(const std::string& job_id) {
+  pb::CancelJobRequest req;
+  req.set_job_id(job_id);
+  return from_proto(impl_->call("CancelJob", &pb::GarmentDynamics::Stub::CancelJob, req).job());
 }
 
 ReportList Client::list_reports(int limit, int offset) {

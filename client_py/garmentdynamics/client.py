@@ -34,8 +34,9 @@ from .progress import ProgressBar
 _MAX_MESSAGE = 512 * 1024 * 1024
 
 _JOB_STATUS = {pb.JOB_STATUS_UNSPECIFIED: "UNSPECIFIED", pb.JOB_QUEUED: "QUEUED", pb.JOB_RUNNING: "RUNNING",
-               pb.JOB_SUCCEEDED: "SUCCEEDED", pb.JOB_FAILED: "FAILED", pb.JOB_INTERRUPTED: "INTERRUPTED"}
-FINAL_JOB_STATUSES = ("SUCCEEDED", "FAILED", "INTERRUPTED")
+               pb.JOB_SUCCEEDED: "SUCCEEDED", pb.JOB_FAILED: "FAILED", pb.JOB_INTERRUPTED: "INTERRUPTED",
+               pb.JOB_CANCELLED: "CANCELLED"}
+FINAL_JOB_STATUSES = ("SUCCEEDED", "FAILED", "INTERRUPTED", "CANCELLED")
 _SCENE_STATUS = {pb.SCENE_STATUS_UNSPECIFIED: "UNSPECIFIED", pb.SCENE_READY: "READY", pb.SCENE_FAILED: "FAILED"}
 _ARM_NAME = {pb.ARM_UNSPECIFIED: "unspecified", pb.ARM_LEFT: "left", pb.ARM_RIGHT: "right"}
 
@@ -378,7 +379,7 @@ class Client:
 
     def watch_job(self, job: str, timeout: Optional[float] = None) -> Iterator[dict]:
         """Yields the job's progress (job_to_dict) until it ends; the last one has a final status
-        (SUCCEEDED, FAILED or INTERRUPTED)."""
+        (SUCCEEDED, FAILED, INTERRUPTED or CANCELLED)."""
         call = self._stub.WatchJob(pb.WatchJobRequest(job_id=job),
                                    timeout=self.stream_timeout if timeout is None else timeout)
         try:
@@ -397,6 +398,12 @@ class Client:
                 "summary": json.loads(resp.summary_json) if resp.summary_json else None,
                 "file_names": list(resp.file_names),
                 "files": {f.name: f.data for f in resp.files}}
+
+    def cancel_job(self, job: str) -> dict:
+        """Cancels a job (CancelJob): a queued one ends CANCELLED at once, a running one at its
+        next step (the dict returned may still say RUNNING). FAILED_PRECONDITION (grpc.RpcError)
+        for a job that has already finished otherwise."""
+        return job_to_dict(self._stub.CancelJob(pb.CancelJobRequest(job_id=job), timeout=self.timeout).job)
 
     def wait_report(self, job: str, progress: bool = True, include_files: bool = False,
                     timeout: Optional[float] = None, settle_timeout: float = 10.0) -> dict:

@@ -120,6 +120,17 @@ def test_job_with_its_report(client):
     assert client.count_reports() >= 1
 
 
+def test_cancel_job(client):
+    job = client.submit_job(garment="towel", material="cotton", task="grasp", vertices=200, dt=0.01,
+                            time_scale=1.0, settle=1.0, label="to cancel")
+    info = client.cancel_job(job)
+    assert info["status"] in ("CANCELLED", "RUNNING")  # queued: at once; running: at its next step
+    report = client.wait_report(job, progress=False)
+    assert report["job"]["status"] == "CANCELLED", report["job"]["message"]
+    assert "CancelJob" in report["job"]["message"]
+    assert client.cancel_job(job)["status"] == "CANCELLED"  # again: not an error
+
+
 def test_garment_params_size_scenes_and_jobs(client):
     ids = client.create_scenes(garment="towel", vertices=TOWEL_VERTICES, garment_params={"length": 0.4, "width": 0.3})
     try:

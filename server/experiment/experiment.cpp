@@ -339,6 +339,11 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     if (end_time <= 0) end_time = schedule.back().compensated;
   }
 
+  const double steps = end_time / config.scene.dt;
+  if (config.max_steps > 0 && steps > static_cast<double>(config.max_steps))
+    throw InputError(fmt::format("the run would take {:.3g} steps ({:.4g} s simulated at dt {:g} s), over the limit of "
+                                 "{} ({}); shorten it (time_scale, settle, dt) or raise the limit",
+                                 steps, end_time, config.scene.dt, config.max_steps, config.steps_limit_name));
   auto scene = sim::Scene::create(mesh, material, config.scene);
   gd::log().info("experiment: {} ({} vertices, {} triangles), {}, {} in {} mode from {}, {:.2f} s simulated",
                  garment.type, scene->vertex_count(), mesh.tris.size(), config.material, config.task, config.mode,

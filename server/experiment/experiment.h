@@ -63,6 +63,11 @@ struct ExperimentConfig {
   int keep_frames = 4;                   ///< (sim, real) pairs kept for frames.png
   std::string baselines_csv;             ///< RGBench's paper_baselines.csv (empty: look in GD_SHARED_DIR)
   bool plots = true;                     ///< run scripts/plot_report.py when a Python is found
+  /// Most steps the run may take (its simulated time over dt), checked once the trajectory is
+  /// known and before the scene is built: a longer run throws InputError naming `steps_limit_name`.
+  /// 0: no limit.
+  long max_steps = 0;
+  std::string steps_limit_name = "max_steps";
 
   /// SceneOptions for manipulation: the defaults with self-contact on.
   static sim::SceneOptions default_scene_options();

@@ -27,9 +27,13 @@ using sim::InputError;
 namespace {
 
 constexpr const char* kInterruptedMessage = "server stopped while the job ran";
+constexpr const char* kInterruptedQueuedMessage = "server stopped before the job ran";
 
 /// Thrown from the progress callback to stop a running experiment when the server drains.
-struct JobCancelled {};
+struct JobCancelled {
+  bool by_client = false;  ///< CancelJob (else the server's drain)
+};
+constexpr const char* kCancelledMessage = "cancelled by a client (CancelJob)";
 
 void fsync_path(const fs::path& p) {
   const int fd = ::open(p.c_str(), O_RDONLY);
@@ -62,8 +66,15 @@ JobQueue::JobQueue(JobQueueOptions options, ReportStore& store, MeshLibrary& mes
     : options_(std::move(options)), store_(store), meshes_(meshes) {
   if (options_.capture_root.empty()) options_.capture_root = options_.data_dir + "/captures";
   fs::create_directories(fs::path(options_.data_dir) / "jobs");
-  const int n = store_.interrupt_unfinished(kInterruptedMessage);
+  std::vector<std::string> unfinished;
+  const int n = store_.interrupt_unfinished(kInterruptedMessage, kInterruptedQueuedMessage, &unfinished);
   if (n > 0) gd::log().warn("{} job(s) left unfinished by a previous server are now interrupted", n);
+  // Their partial outputs (a process killed mid-job) are no report: nothing lists them.
+  for (const std::string& id : unfinished) {
+    std::error_code ec;
+    const fs::path dir = fs::path(options_.data_dir) / "jobs" / id;
+    if (fs::remove_all(dir, ec) > 0) gd::log().info("job {}: removed the partial output of the interrupted run", id);
+  }
   for (int i = 0; i < std::max(1, options_.workers); ++i) workers_.emplace_back([this] { worker(); });
 }
 
@@ -112,6 +123,14 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   if (spec.dt) cfg->scene.dt = *spec.dt;
   if (spec.time_scale) cfg->task_params.time_scale = *spec.time_scale;
   if (spec.settle) cfg->settle_after = *spec.settle;
+  cfg->max_steps = options_.max_job_steps;
+  cfg->steps_limit_name = "--max-job-steps";
+  // What is known before the garment is built: the settling alone must fit (the whole run is
+  // checked again once its trajectory is known, before the scene is built).
+  if (options_.max_job_steps > 0 && cfg->settle_after / cfg->scene.dt > static_cast<double>(options_.max_job_steps))
+    return Status::ResourceExhausted(fmt::format(
+        "settle {:g} s at dt {:g} s is {:.3g} steps, over this server's limit of {} per job (--max-job-steps)",
+        cfg->settle_after, cfg->scene.dt, cfg->settle_after / cfg->scene.dt, options_.max_job_steps));
   if (spec.self_contact) cfg->scene.self_contact = *spec.self_contact;
   cfg->scene.backend = options_.backend;
   cfg->icp = spec.icp;
@@ -262,7 +281,11 @@ void JobQueue::run_job(const std::string& id) {
   try {
     const experiment::ExperimentResult res =
         experiment::run_experiment(*cfg, [&](double t, double end, const sim::StepStats&) {
-          if (cancel_.load()) throw JobCancelled{};
+          if (cancel_.load()) throw JobCancelled{false};
+          {
+            std::lock_guard<std::mutex> lock(mu_);
+            if (cancelled_.count(id)) throw JobCancelled{true};
+          }
           const auto now = std::chrono::steady_clock::now();
           if (now - last < std::chrono::milliseconds(100) && t < end) return;
           last = now;
@@ -286,12 +309,13 @@ void JobQueue::run_job(const std::string& id) {
     final_rec.progress = 1;
     final_rec.sim_time = res.summary.value("sim_seconds", final_rec.sim_time);
     if (final_rec.end_time < final_rec.sim_time) final_rec.end_time = final_rec.sim_time;
-  } catch (const JobCancelled&) {
+  } catch (const JobCancelled& c) {
     std::lock_guard<std::mutex> lock(mu_);
     final_rec = live_[id].record;
-    final_rec.status = JobState::kInterrupted;
-    final_rec.message = kInterruptedMessage;
+    final_rec.status = c.by_client ? JobState::kCancelled : JobState::kInterrupted;
+    final_rec.message = c.by_client ? kCancelledMessage : kInterruptedMessage;
     final_rec.finished_at = now_iso8601();
+    files = list_files(cfg->out_dir);
   } catch (const InputError& e) {
     finish(JobState::kFailed, e.what());
   } catch (const std::exception& e) {
@@ -300,8 +324,44 @@ void JobQueue::run_job(const std::string& id) {
   if (Status st = store_.complete(final_rec, summary, files); !st.ok())
     gd::log().error("job {}: storing the report failed: {}", id, st.message());
   update(id, [&](JobRecord& r) { r = final_rec; });
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    cancelled_.erase(id);
+  }
   gd::log().info("job {} {}{}", id, job_state_name(final_rec.status),
                  final_rec.message.empty() ? "" : ": " + final_rec.message);
+}
+
+Status JobQueue::cancel(const std::string& job_id, JobRecord* out) {
+  bool dropped = false;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = live_.find(job_id);
+    if (it != live_.end() && !job_finished(it->second.record.status)) {
+      auto q = std::find(queue_.begin(), queue_.end(), job_id);
+      if (q != queue_.end()) {  // not started: drop it
+        queue_.erase(q);
+        configs_.erase(job_id);
+        dropped = true;
+      } else {  // running: its next step throws
+        cancelled_.insert(job_id);
+      }
+    }
+  }
+  if (dropped) {
+    update(job_id, [&](JobRecord& r) {
+      r.status = JobState::kCancelled;
+      r.message = kCancelledMessage;
+      r.finished_at = now_iso8601();
+    });
+    GD_RETURN_IF_ERROR(store_.set_status(job_id, JobState::kCancelled, kCancelledMessage));
+    gd::log().info("job {} cancelled before it ran", job_id);
+  }
+  GD_RETURN_IF_ERROR(info(job_id, out));
+  if (job_finished(out->status) && !dropped && out->status != JobState::kCancelled)
+    return Status::FailedPrecondition(fmt::format("job '{}' has already finished ({}); nothing to cancel", job_id,
+                                                  job_state_name(out->status)));
+  return Status::Ok();
 }
 
 Status JobQueue::info(const std::string& job_id, JobRecord* out) {
@@ -403,10 +463,10 @@ void JobQueue::drain(double grace_seconds) {
   for (const std::string& id : dropped) {
     update(id, [&](JobRecord& r) {
       r.status = JobState::kInterrupted;
-      r.message = "server stopped before the job ran";
+      r.message = kInterruptedQueuedMessage;
       r.finished_at = now_iso8601();
     });
-    store_.set_status(id, JobState::kInterrupted, "server stopped before the job ran");
+    store_.set_status(id, JobState::kInterrupted, kInterruptedQueuedMessage);
   }
   {
     std::unique_lock<std::mutex> lock(mu_);

@@ -21,6 +21,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -61,6 +62,9 @@ struct JobQueueOptions {
   int workers = 1;
   int max_vertices = 50000;
   int max_queued = 1000;            ///< queued jobs at once
+  /// Most simulation steps one job may take (its simulated time over dt; --max-job-steps): a
+  /// longer job fails before its scene is built, naming the flag. 0: no limit.
+  long max_job_steps = 2'000'000;
   bool plots = false;               ///< draw the PNG plots of capture runs (needs Python + matplotlib)
   sim::BackendKind backend = sim::BackendKind::kCpu;
 };
@@ -98,6 +102,10 @@ class JobQueue {
   Status list(int limit, int offset, std::vector<JobRecord>* out, int* total);
   /// Jobs queued or running now.
   int active() const;
+  /// Cancels a job: a queued one is dropped at once, a running one stops at its next step; both
+  /// end CANCELLED (the running one keeps the files it wrote). FAILED_PRECONDITION for a finished
+  /// job, NOT_FOUND for an unknown one. `out` receives the record as it stands after the call.
+  Status cancel(const std::string& job_id, JobRecord* out);
 
   /// Stops taking jobs, waits up to grace_seconds for the running ones, then interrupts them and
   /// the queued ones. Idempotent.
@@ -123,6 +131,7 @@ class JobQueue {
   int running_ = 0;
   bool draining_ = false;
   std::atomic<bool> cancel_{false};
+  std::set<std::string> cancelled_;  ///< running jobs a client cancelled (stop at their next step)
   std::vector<std::thread> workers_;
 };
 

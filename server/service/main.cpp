@@ -63,6 +63,11 @@ int main(int argc, char** argv) {
   app.add_option("--max-substeps", o.max_substeps, "substeps per StepScenes call")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--max-message-mb", o.max_message_mb, "largest message received or sent, MiB")->check(CLI::Range(1, 2000))->capture_default_str();
   app.add_option("--job-workers", o.job_workers, "jobs run at once")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--max-job-steps", o.max_job_steps,
+                 "simulation steps per job (its simulated time over dt; 0: no limit): a longer job is refused or "
+                 "fails before its scene is built")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   app.add_flag("--plots", o.plots, "draw the PNG plots of capture jobs (needs Python with matplotlib)");
   app.add_option("--grace-seconds", o.grace_seconds, "on SIGTERM: how long running jobs may still take")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--log-format", log_format, "text | json (one JSON object per line)")->check(CLI::IsMember({"text", "json"}))->capture_default_str();

@@ -18,6 +18,7 @@ const char* job_state_name(JobState s) {
     case JobState::kSucceeded: return "succeeded";
     case JobState::kFailed: return "failed";
     case JobState::kInterrupted: return "interrupted";
+    case JobState::kCancelled: return "cancelled";
   }
   return "unknown";
 }
@@ -243,12 +244,23 @@ Status ReportStore::complete(const JobRecord& j, const std::string& summary_json
   return Status::Ok();
 }
 
-int ReportStore::interrupt_unfinished(const std::string& message) {
+int ReportStore::interrupt_unfinished(const std::string& running_message, const std::string& queued_message,
+                                      std::vector<std::string>* ids) {
   std::lock_guard<std::mutex> lock(mu_);
-  Stmt s(db_, "UPDATE jobs SET status = ?, message = ?, finished_at = ? WHERE status IN (?, ?)");
+  const int queued = static_cast<int>(JobState::kQueued), running = static_cast<int>(JobState::kRunning);
+  if (ids) {
+    ids->clear();
+    Stmt q(db_, "SELECT job_id FROM jobs WHERE status IN (?, ?) ORDER BY job_id");
+    if (!q.ok()) return -1;
+    q.bind(1, queued).bind(2, running);
+    while (q.step() == SQLITE_ROW) ids->push_back(q.text(0));
+  }
+  Stmt s(db_, "UPDATE jobs SET message = CASE status WHEN ? THEN ? ELSE ? END, status = ?, finished_at = ? "
+              "WHERE status IN (?, ?)");
   if (!s.ok()) return -1;
-  s.bind(1, static_cast<int>(JobState::kInterrupted)).bind(2, message).bind(3, now_iso8601());
-  s.bind(4, static_cast<int>(JobState::kQueued)).bind(5, static_cast<int>(JobState::kRunning));
+  s.bind(1, running).bind(2, running_message).bind(3, queued_message);
+  s.bind(4, static_cast<int>(JobState::kInterrupted)).bind(5, now_iso8601());
+  s.bind(6, queued).bind(7, running);
   if (s.step() != SQLITE_DONE) return -1;
   return sqlite3_changes(db_);
 }

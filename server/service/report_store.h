@@ -20,12 +20,15 @@ struct sqlite3;
 namespace gd::service {
 
 /// A job's status; the values are those of the proto's JobStatus.
-enum class JobState { kQueued = 1, kRunning = 2, kSucceeded = 3, kFailed = 4, kInterrupted = 5 };
+enum class JobState { kQueued = 1, kRunning = 2, kSucceeded = 3, kFailed = 4, kInterrupted = 5, kCancelled = 6 };
 
-/// "queued", "running", "succeeded", "failed", "interrupted".
+/// "queued", "running", "succeeded", "failed", "interrupted", "cancelled".
 const char* job_state_name(JobState s);
-/// True for succeeded, failed and interrupted.
-inline bool job_finished(JobState s) { return s == JobState::kSucceeded || s == JobState::kFailed || s == JobState::kInterrupted; }
+/// True for succeeded, failed, interrupted and cancelled.
+inline bool job_finished(JobState s) {
+  return s == JobState::kSucceeded || s == JobState::kFailed || s == JobState::kInterrupted ||
+         s == JobState::kCancelled;
+}
 
 /// One job as listed.
 struct JobRecord {
@@ -82,9 +85,11 @@ class ReportStore {
   Status set_status(const std::string& job_id, JobState status, const std::string& message = "");
   /// Stores a finished job: its final record, summary and file names, in one transaction.
   Status complete(const JobRecord& job, const std::string& summary_json, const std::vector<std::string>& files);
-  /// Marks every queued or running job interrupted with `message` (at startup: a previous process
-  /// died while they ran). Returns how many were marked, or -1 on error.
-  int interrupt_unfinished(const std::string& message);
+  /// Marks every queued or running job interrupted (at startup: a previous process died before or
+  /// while they ran), running ones with `running_message`, queued ones with `queued_message`; their
+  /// ids into `ids` when given. Returns how many were marked, or -1 on error.
+  int interrupt_unfinished(const std::string& running_message, const std::string& queued_message,
+                           std::vector<std::string>* ids = nullptr);
   /// The job and its report; NOT_FOUND for an unknown id.
   Status get(const std::string& job_id, StoredReport* out);
   /// Jobs newest first, and the total count.

@@ -628,6 +628,14 @@ Status ScenePool::state(const std::vector<std::string>& ids, bool include_veloci
   return Status::Ok();
 }
 
+std::vector<std::string> ScenePool::existing(const std::vector<std::string>& ids) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<std::string> out;
+  for (const std::string& id : ids)
+    if (scenes_.count(id)) out.push_back(id);
+  return out;
+}
+
 Status ScenePool::destroy(const std::vector<std::string>& ids, int* destroyed) {
   std::vector<std::shared_ptr<Entry>> entries;
   GD_RETURN_IF_ERROR(lookup(ids, &entries));

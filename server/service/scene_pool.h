@@ -206,6 +206,8 @@ class ScenePool {
   Status step(const StepRequest& req, std::vector<SceneSnapshot>* out);
   /// Current states.
   Status state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out);
+  /// The ids among `ids` that name live scenes, in order.
+  std::vector<std::string> existing(const std::vector<std::string>& ids) const;
   /// Destroys scenes (all ids must exist). `destroyed` receives how many.
   Status destroy(const std::vector<std::string>& ids, int* destroyed);
   /// Subscribes to the frames of scenes (see FrameSubscription). Unsubscribe by dropping the pointer.

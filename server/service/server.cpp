@@ -78,6 +78,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     jo.capture_root = o.capture_root.empty() ? (fs::path(o.data_dir) / "captures").string() : o.capture_root;
     fs::create_directories(jo.capture_root);
     jo.workers = o.job_workers;
+    jo.max_job_steps = o.max_job_steps;
     jo.max_vertices = o.max_vertices;
     jo.plots = o.plots;
     jo.backend = o.backend;
@@ -135,6 +136,7 @@ void Server::drain() {
       h->SetServingStatus(false);
       h->SetServingStatus(kServiceName, false);
     }
+    im.service->stop_accepting();
     im.jobs->drain(im.options.grace_seconds);
     im.service->begin_drain();
     im.server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));

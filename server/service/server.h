@@ -26,6 +26,7 @@ struct ServerOptions {
   int max_substeps = 1000;
   int max_message_mb = 64;           ///< receive and send limit per message
   int job_workers = 1;
+  long max_job_steps = 2'000'000;    ///< simulation steps per job (0: no limit)
   bool plots = false;
   double grace_seconds = 10;         ///< drain: how long running jobs may still take
 };

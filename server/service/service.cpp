@@ -65,6 +65,7 @@ grpc::Status GarmentDynamicsService::handle(Ctx* ctx, const char* method, bool i
 grpc::Status GarmentDynamicsService::CreateScenes(Ctx* ctx, const pb::CreateScenesRequest* req,
                                                   pb::CreateScenesResponse* resp) {
   return handle(ctx, "CreateScenes", true, [&](const std::string&) {
+    if (refusing_) return Status::Unavailable("the server is shutting down; create the scenes on another server");
     SceneSpec spec;
     GD_RETURN_IF_ERROR(to_scene_spec(*req, &spec));
     if (req->source_case() == pb::CreateScenesRequest::kMeshId) {
@@ -159,8 +160,17 @@ grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFram
         StepRequest r;
         r.scene_ids = ids;
         r.substeps = std::min(every, req->steps() - done);
+        r.cancelled = stop;
         std::vector<SceneSnapshot> states;
-        GD_RETURN_IF_ERROR(scenes_.step(r, &states));
+        const Status stepped = scenes_.step(r, &states);
+        if (stepped.code() == Code::kNotFound) {  // scenes destroyed under the stream: go on with the rest
+          std::vector<std::string> alive = scenes_.existing(ids);
+          if (alive.size() == ids.size()) return stepped;
+          ids = std::move(alive);
+          continue;
+        }
+        if (stepped.code() == Code::kCancelled) return Status::Ok();  // the client left or the server drains
+        GD_RETURN_IF_ERROR(stepped);
         done += r.substeps;
         if (r.substeps < every) break;  // a partial period sends no frame
         ids.clear();
@@ -228,6 +238,16 @@ grpc::Status GarmentDynamicsService::WatchJob(Ctx* ctx, const pb::WatchJobReques
   });
 }
 
+grpc::Status GarmentDynamicsService::CancelJob(Ctx* ctx, const pb::CancelJobRequest* req, pb::CancelJobResponse* resp) {
+  return handle(ctx, "CancelJob", true, [&](const std::string&) {
+    if (req->job_id().empty()) return Status::InvalidArgument("no job_id given; ListReports lists the jobs");
+    JobRecord j;
+    GD_RETURN_IF_ERROR(jobs_.cancel(req->job_id(), &j));
+    to_proto(j, resp->mutable_job());
+    return Status::Ok();
+  });
+}
+
 grpc::Status GarmentDynamicsService::GetReport(Ctx* ctx, const pb::GetReportRequest* req, pb::GetReportResponse* resp) {
   return handle(ctx, "GetReport", false, [&](const std::string&) {
     if (req->job_id().empty()) return Status::InvalidArgument("no job_id given; ListReports lists the jobs");
@@ -292,6 +312,7 @@ grpc::Status GarmentDynamicsService::ListMaterials(Ctx* ctx, const pb::ListMater
 grpc::Status GarmentDynamicsService::UploadMesh(Ctx* ctx, const pb::UploadMeshRequest* req,
                                                 pb::UploadMeshResponse* resp) {
   return handle(ctx, "UploadMesh", true, [&](const std::string&) {
+    if (refusing_) return Status::Unavailable("the server is shutting down; upload the mesh to another server");
     MeshRecord m;
     GD_RETURN_IF_ERROR(meshes_.upload(req->name(), req->obj(), &m));
     resp->set_mesh_id(m.mesh_id);

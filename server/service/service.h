@@ -29,6 +29,8 @@ class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynami
 
   /// Ends streams (StreamFrames, WatchJob) at their next check: the server is draining.
   void begin_drain() { draining_ = true; }
+  /// Refuses new scenes and uploads (UNAVAILABLE) from now on: the server is shutting down.
+  void stop_accepting() { refusing_ = true; }
 
   using Ctx = grpc::ServerContext;
   grpc::Status CreateScenes(Ctx* ctx, const ::garmentdynamics::v1::CreateScenesRequest* req,
@@ -49,6 +51,8 @@ class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynami
                       grpc::ServerWriter<::garmentdynamics::v1::WatchJobResponse>* writer) override;
   grpc::Status GetReport(Ctx* ctx, const ::garmentdynamics::v1::GetReportRequest* req,
                       ::garmentdynamics::v1::GetReportResponse* resp) override;
+  grpc::Status CancelJob(Ctx* ctx, const ::garmentdynamics::v1::CancelJobRequest* req,
+                         ::garmentdynamics::v1::CancelJobResponse* resp) override;
   grpc::Status ListReports(Ctx* ctx, const ::garmentdynamics::v1::ListReportsRequest* req,
                       ::garmentdynamics::v1::ListReportsResponse* resp) override;
   grpc::Status ListGarments(Ctx* ctx, const ::garmentdynamics::v1::ListGarmentsRequest* req,
@@ -70,6 +74,7 @@ class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynami
   MeshLibrary& meshes_;
   HandlerOptions options_;
   std::atomic<bool> draining_{false};
+  std::atomic<bool> refusing_{false};
 };
 
 }  // namespace gd::service

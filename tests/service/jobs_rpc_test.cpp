@@ -111,6 +111,7 @@ TEST(JobsRpc, JobWithProgressAndReportSurvivesKillAndRestart) {
     pb::GetReportResponse unfinished;
     gr.set_job_id(second);
     EXPECT_EQ(stub->GetReport(ctx().get(), gr, &unfinished).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+    EXPECT_TRUE(fs::exists(fs::path(data) / "jobs" / second)) << "the running job has no output directory";
     server.kill9();
   }
   ServerProcess server(data);  // restart on the same data directory
@@ -122,6 +123,7 @@ TEST(JobsRpc, JobWithProgressAndReportSurvivesKillAndRestart) {
   EXPECT_EQ(list.jobs(0).job_id(), second);  // newest first
   EXPECT_EQ(list.jobs(0).status(), pb::JOB_INTERRUPTED);
   EXPECT_EQ(list.jobs(0).message(), "server stopped while the job ran");
+  EXPECT_FALSE(fs::exists(fs::path(data) / "jobs" / second)) << "the killed job's partial output was left behind";
   EXPECT_EQ(list.jobs(1).job_id(), first);
   EXPECT_EQ(list.jobs(1).status(), pb::JOB_SUCCEEDED);
 
@@ -191,6 +193,12 @@ TEST(JobsRpc, SigtermDrainsInterruptsTheRunningJobAndExitsZero) {
     pb::SubmitJobResponse refused;
     const grpc::Status st = stub->SubmitJob(ctx().get(), short_grasp("late"), &refused);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAVAILABLE) << st.error_message();
+    pb::CreateScenesRequest scene;
+    scene.set_garment("towel");
+    scene.set_vertices(200);
+    pb::CreateScenesResponse no_scene;
+    const grpc::Status create = stub->CreateScenes(ctx().get(), scene, &no_scene);
+    EXPECT_EQ(create.error_code(), grpc::StatusCode::UNAVAILABLE) << "a scene created during the drain";
     EXPECT_EQ(server.signal_and_wait(0, 30), 0) << server.log();
   }
   ServerProcess server(data);
@@ -201,6 +209,63 @@ TEST(JobsRpc, SigtermDrainsInterruptsTheRunningJobAndExitsZero) {
   ASSERT_TRUE(stub->GetReport(ctx().get(), gr, &rep).ok());
   EXPECT_EQ(rep.job().status(), pb::JOB_INTERRUPTED);
   EXPECT_EQ(rep.job().message(), "server stopped while the job ran");
+}
+
+TEST(JobsRpc, CancelJobStopsQueuedAndRunningJobsAndLongJobsAreBounded) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data", {"--job-workers", "1", "--max-job-steps", "20000"});
+  auto stub = server.stub();
+  auto submit_ok = [&](const pb::SubmitJobRequest& r) {
+    pb::SubmitJobResponse sub;
+    const grpc::Status st = stub->SubmitJob(ctx().get(), r, &sub);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+    return sub.job_id();
+  };
+  auto cancel = [&](const std::string& id, pb::CancelJobResponse* out) {
+    pb::CancelJobRequest r;
+    r.set_job_id(id);
+    return stub->CancelJob(ctx().get(), r, out);
+  };
+  // One worker: the first job runs, the second waits in the queue.
+  const std::string running = submit_ok(long_grasp());
+  wait_running(*stub, running);
+  const std::string queued = submit_ok(long_grasp());
+  pb::CancelJobResponse out;
+  ASSERT_TRUE(cancel(queued, &out).ok());
+  EXPECT_EQ(out.job().status(), pb::JOB_CANCELLED) << "a queued job is dropped at once";
+  ASSERT_TRUE(cancel(running, &out).ok());
+  const std::vector<pb::JobInfo> seen = watch(*stub, running);
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(seen.back().status(), pb::JOB_CANCELLED);
+  EXPECT_LT(seen.back().progress(), 1.0);
+  pb::GetReportRequest gr;
+  gr.set_job_id(running);
+  pb::GetReportResponse rep;
+  ASSERT_TRUE(stub->GetReport(ctx().get(), gr, &rep).ok());
+  EXPECT_EQ(rep.job().status(), pb::JOB_CANCELLED);
+  EXPECT_NE(rep.job().message().find("CancelJob"), std::string::npos) << rep.job().message();
+  EXPECT_TRUE(cancel(running, &out).ok()) << "cancelling twice is not an error";
+  EXPECT_EQ(cancel("j-nope", &out).error_code(), grpc::StatusCode::NOT_FOUND);
+  // The worker is free again: a short job runs to the end, and cannot be cancelled afterwards.
+  const std::string done = submit_ok(short_grasp("after"));
+  EXPECT_EQ(watch(*stub, done).back().status(), pb::JOB_SUCCEEDED);
+  EXPECT_EQ(cancel(done, &out).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+
+  // Absurd durations: settling alone is refused at submission; a trajectory slowed 1000 times
+  // fails before its scene is built, naming the flag (it would have held the worker for days).
+  pb::SubmitJobRequest settle = short_grasp("settle");
+  settle.set_settle(1e6);
+  pb::SubmitJobResponse refused;
+  const grpc::Status st = stub->SubmitJob(ctx().get(), settle, &refused);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+  EXPECT_NE(st.error_message().find("--max-job-steps"), std::string::npos) << st.error_message();
+  pb::SubmitJobRequest slow = short_grasp("slow");
+  slow.set_time_scale(1000);
+  const std::string slow_id = submit_ok(slow);
+  const std::vector<pb::JobInfo> slow_seen = watch(*stub, slow_id);
+  ASSERT_FALSE(slow_seen.empty());
+  EXPECT_EQ(slow_seen.back().status(), pb::JOB_FAILED);
+  EXPECT_NE(slow_seen.back().message().find("--max-job-steps"), std::string::npos) << slow_seen.back().message();
 }
 
 }  // namespace

@@ -73,15 +73,20 @@ TEST(ReportStore, UnfinishedJobsBecomeInterrupted) {
     ASSERT_TRUE(s.insert_job(job("j-f", JobState::kFailed)).ok());
   }
   ReportStore s(db);
-  EXPECT_EQ(s.interrupt_unfinished("server stopped while the job ran"), 2);
+  std::vector<std::string> ids;
+  EXPECT_EQ(s.interrupt_unfinished("server stopped while the job ran", "server stopped before the job ran", &ids), 2);
+  EXPECT_EQ(ids, (std::vector<std::string>{"j-q", "j-r"}));
   StoredReport r;
   ASSERT_TRUE(s.get("j-r", &r).ok());
   EXPECT_EQ(r.job.status, JobState::kInterrupted);
   EXPECT_EQ(r.job.message, "server stopped while the job ran");
   EXPECT_FALSE(r.job.finished_at.empty());
+  ASSERT_TRUE(s.get("j-q", &r).ok());  // a queued job never ran
+  EXPECT_EQ(r.job.status, JobState::kInterrupted);
+  EXPECT_EQ(r.job.message, "server stopped before the job ran");
   ASSERT_TRUE(s.get("j-f", &r).ok());
   EXPECT_EQ(r.job.status, JobState::kFailed);  // finished jobs keep their status
-  EXPECT_EQ(s.interrupt_unfinished("again"), 0);
+  EXPECT_EQ(s.interrupt_unfinished("again", "again"), 0);
 }
 
 TEST(ReportStore, RefusesANewerSchema) {

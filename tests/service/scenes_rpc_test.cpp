@@ -114,6 +114,48 @@ TEST(ScenesRpc, StreamFramesStepsItsScenesItself) {
   }
 }
 
+TEST(ScenesRpc, AStreamThatStepsGoesOnWithoutItsDestroyedScenesThenEndsOk) {
+  // It ended NOT_FOUND once a scene was destroyed; the docs say OK, after the frames of the rest.
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data");
+  auto stub = server.stub();
+  const std::vector<std::string> ids = create(*stub, 2);
+  pb::StreamFramesRequest req;
+  for (const auto& id : ids) req.add_scene_ids(id);
+  req.set_every(1);
+  req.set_steps(100000);
+  auto c = ctx(120);
+  auto reader = stub->StreamFrames(c.get(), req);
+  pb::StreamFramesResponse msg;
+  auto destroy = [&](const std::string& id) {
+    pb::DestroyScenesRequest d;
+    d.add_scene_ids(id);
+    pb::DestroyScenesResponse out;
+    ASSERT_TRUE(stub->DestroyScenes(ctx().get(), d, &out).ok());
+  };
+  int frames = 0, after_first = 0, first_after = 0;
+  bool first_gone = false, second_gone = false;
+  while (reader->Read(&msg)) {
+    ++frames;
+    if (first_gone) {
+      ++after_first;
+      if (msg.state().scene_id() == ids[0]) ++first_after;
+    }
+    if (frames == 4 && !first_gone) {
+      destroy(ids[0]);
+      first_gone = true;
+    }
+    if (after_first == 6 && !second_gone) {
+      destroy(ids[1]);
+      second_gone = true;
+    }
+  }
+  const grpc::Status st = reader->Finish();
+  EXPECT_TRUE(st.ok()) << grpc::StatusCode(st.error_code()) << ": " << st.error_message();
+  EXPECT_TRUE(second_gone) << "the stream ended before the second scene was destroyed";
+  EXPECT_LE(first_after, 1) << "frames of a destroyed scene kept coming";  // one may be in flight
+}
+
 TEST(ScenesRpc, StreamFramesFollowsStepScenesUntilMaxFramesOrDestroy) {
   TempDir dir;
   ServerProcess server(dir.str() + "/data");

@@ -233,9 +233,10 @@ enum class JobStatus : int {
   kSucceeded = 3,
   kFailed = 4,
   kInterrupted = 5,
+  kCancelled = 6,
 };
 
-/// "queued", "running", "succeeded", "failed", "interrupted" ("unspecified" otherwise).
+/// "queued", "running", "succeeded", "failed", "interrupted", "cancelled" ("unspecified" otherwise).
 const char* job_status_name(JobStatus status);
 /// True for succeeded, failed and interrupted.
 bool job_finished(JobStatus status);
@@ -353,6 +354,10 @@ class Client {
   /// Calls `on_update` for each progress message until the job ends; returns the last JobInfo.
   JobInfo watch_job(const std::string& job_id, const std::function<void(const JobInfo&)>& on_update = {});
   Report get_report(const std::string& job_id, bool include_files = false);
+  /// Cancels a job (CancelJob): a queued one ends CANCELLED at once, a running one at its next
+  /// step (the JobInfo returned may still say running). Throws ClientError FAILED_PRECONDITION
+  /// for a job that has already finished otherwise.
+  JobInfo cancel_job(const std::string& job_id);
   ReportList list_reports(int limit = 100, int offset = 0);
 
   // --- assets and server ---
