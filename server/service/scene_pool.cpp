@@ -628,6 +628,11 @@ Status ScenePool::state(const std::vector<std::string>& ids, bool include_veloci
   return Status::Ok();
 }
 
+Status ScenePool::check(const std::vector<std::string>& ids) const {
+  std::vector<std::shared_ptr<Entry>> entries;
+  return lookup(ids, &entries);
+}
+
 std::vector<std::string> ScenePool::existing(const std::vector<std::string>& ids) const {
   std::lock_guard<std::mutex> lock(mu_);
   std::vector<std::string> out;

@@ -206,6 +206,8 @@ class ScenePool {
   Status step(const StepRequest& req, std::vector<SceneSnapshot>* out);
   /// Current states.
   Status state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out);
+  /// OK when every id names a live scene, each once (else lookup's NOT_FOUND / INVALID_ARGUMENT).
+  Status check(const std::vector<std::string>& ids) const;
   /// The ids among `ids` that name live scenes, in order.
   std::vector<std::string> existing(const std::vector<std::string>& ids) const;
   /// Destroys scenes (all ids must exist). `destroyed` receives how many.

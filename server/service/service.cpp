@@ -85,7 +85,8 @@ grpc::Status GarmentDynamicsService::CreateScenes(Ctx* ctx, const pb::CreateScen
       int destroyed = 0;
       scenes_.destroy(created.ids, &destroyed);
       const size_t per_scene = resp->states_size() > 0 ? resp->states(0).ByteSizeLong() : 1;
-      const size_t fixed = bytes - per_scene * created.ids.size();
+      const size_t states = per_scene * created.ids.size();
+      const size_t fixed = bytes > states ? bytes - states : 0;  // the shared rest shape and ids
       const size_t fit = options_.max_reply_bytes > fixed ? (options_.max_reply_bytes - fixed) / per_scene : 0;
       resp->Clear();
       return Status::ResourceExhausted(fmt::format(
@@ -154,6 +155,7 @@ grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFram
       if (every > scenes_.options().max_substeps)
         return Status::ResourceExhausted(fmt::format("every {} is over the server's limit of {} steps per call",
                                                      every, scenes_.options().max_substeps));
+      GD_RETURN_IF_ERROR(scenes_.check(ids));  // unknown ids: NOT_FOUND (destroyed later: the stream goes on)
       int done = 0;
       while (done < req->steps() && !ids.empty()) {
         if (stop()) return Status::Ok();
