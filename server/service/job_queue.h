@@ -8,9 +8,11 @@
 /// the job QUEUED (row written to SQLite). A worker sets it RUNNING, runs the experiment with its
 /// files under DATA_DIR/jobs/<job_id>/, and on completion writes the summary, the file names and
 /// the final status (SUCCEEDED, or FAILED when the simulation failed or the input was refused) in
-/// one transaction. At construction, rows a previous process left QUEUED/RUNNING become
-/// INTERRUPTED. drain() stops taking jobs, lets running ones finish within a grace period, and
-/// then interrupts them (INTERRUPTED, "server stopped while the job ran").
+/// one transaction. A run longer than max_job_steps fails before its scene is built. cancel()
+/// drops a queued job or stops a running one at its next step (CANCELLED). At construction,
+/// rows a previous process left QUEUED/RUNNING become INTERRUPTED and their partial output
+/// directories are removed. drain() stops taking jobs, lets running ones finish within a grace
+/// period, and then interrupts them (INTERRUPTED, "server stopped while the job ran").
 
 #include <atomic>
 #include <condition_variable>

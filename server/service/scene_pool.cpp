@@ -464,12 +464,14 @@ Status check_action(const SceneAction& a, int vertex_count) {
 
 }  // namespace
 
+namespace {
+
+/// An upper bound of one scene's share of a StepScenes / GetState reply, bytes: its id, stats
+/// and arms, and 12 bytes per vertex for each of positions and velocities included.
 size_t snapshot_reply_bytes(int vertices, bool positions, bool velocities) {
   const size_t array = 12 * static_cast<size_t>(vertices) + 32;  // float32 (N, 3), dtype, shape, tags
   return 1024 + (positions ? array : 0) + (velocities ? array : 0);
 }
-
-namespace {
 
 /// Refuses a call whose reply would pass `limit` bytes (0: none), before any work: gRPC would
 /// refuse to send it only after the scenes had stepped.

@@ -65,9 +65,6 @@ struct PoolOptions {
   sim::BackendKind backend = sim::BackendKind::kCpu;
 };
 
-/// An upper bound of one scene's share of a StepScenes / GetState reply, bytes: its id, stats
-/// and arms, and 12 bytes per vertex for each of positions and velocities included.
-size_t snapshot_reply_bytes(int vertices, bool positions, bool velocities);
 
 /// What CreateScenes asks for. Unset optionals take the defaults noted.
 struct SceneSpec {
