@@ -334,7 +334,28 @@ Vec3 Collider::project_out(const Vec3& x_world, double t, Real gap) const {
   if (!finite(gap) || !(gap >= 0))
     throw InputError("Collider::project_out: the gap must be finite and >= 0 (m), got " + fmt(gap));
   if (!x_world.allFinite()) throw InputError("Collider::project_out: the point is not finite: " + fmt(x_world));
+  return project_out(x_world, checked_pose(t), gap);
+}
+
+void Collider::project_out(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap) const {
+  if (!finite(gap) || !(gap >= 0))
+    throw InputError("Collider::project_out: the gap must be finite and >= 0 (m), got " + fmt(gap));
+  if (x->size() != 3 * skip.size())
+    throw InputError("Collider::project_out: " + std::to_string(x->size()) + " coordinates but " +
+                     std::to_string(skip.size()) + " skip flags");
   const Eigen::Isometry3d P = checked_pose(t);
+  const int n = static_cast<int>(skip.size());
+  double* xs = x->data();
+#pragma omp parallel for schedule(static) if (n >= 2048)
+  for (int i = 0; i < n; ++i) {
+    const Vec3 p(xs[3 * i], xs[3 * i + 1], xs[3 * i + 2]);
+    if (skip[i] || !p.allFinite()) continue;
+    const Vec3 q = project_out(p, P, gap);
+    for (int k = 0; k < 3; ++k) xs[3 * i + k] = q[k];
+  }
+}
+
+Vec3 Collider::project_out(const Vec3& x_world, const Eigen::Isometry3d& P, Real gap) const {
   const Mat3 R = P.linear();
   Vec3 p = R.transpose() * (x_world - P.translation());
   Vec3 g;

@@ -463,6 +463,10 @@ class Collider {
   /// For a non-convex mesh the step is repeated (up to 16 times) until the gap is reached.
   /// Open meshes are unsigned: "outside" is the side x is on.
   Vec3 project_out(const Vec3& x_world, double t, Real gap) const;
+  /// project_out for every point of a flat xyz array except those flagged in `skip` (one per
+  /// point), the pose evaluated once and the points in parallel; non-finite points are left as
+  /// they are. Throws InputError for a bad gap or pose.
+  void project_out(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap) const;
 
   /// Displacement (m) from time t0 to t1 of the collider's surface point closest to x_world at t0.
   Vec3 surface_displacement(const Vec3& x_world, double t0, double t1) const;
@@ -470,6 +474,7 @@ class Collider {
  private:
   struct MeshData;
   Collider() = default;
+  Vec3 project_out(const Vec3& x_world, const Eigen::Isometry3d& pose, Real gap) const;
   ColliderShape shape_;
   std::shared_ptr<const MeshData> mesh_;
   PoseFunction pose_;

@@ -21,15 +21,20 @@ double Solver<Exec>::assemble() {
 /// otherwise (a line-search trial point: every pair within dhat of it is a candidate).
 template <class Exec>
 double Solver<Exec>::evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessian) {
-  if (hessian) Exec::fill(vals_, 0.0);
-  Exec::fill(gs, 0.0);
   const detail::View V = view();
   const detail::Params P = P_;
   const double* x = Exec::ptr(xs);
   double* g = Exec::ptr(gs);
   double* H = hessian ? Exec::ptr(vals_) : nullptr;
+  // The vertex pass also clears vertex i's gradient and Hessian row for the element adds below
+  // (in parallel, row by row, instead of two serial fills of the whole arrays).
   double e = Exec::sum_effects(n_, [=] GD_HD_LAMBDA(int i) {
-    if (V.fixed[i]) return 0.0;
+    if (H)
+      for (int k = 9 * V.row_ptr[i]; k < 9 * V.row_ptr[i + 1]; ++k) H[k] = 0.0;
+    if (V.fixed[i]) {
+      detail::store3(g, i, Vec3::Zero());
+      return 0.0;
+    }
     Vec3 gi;
     Mat3 Hi;
     const double ei = detail::vertex_terms(V, P, i, detail::load3(x, i), &gi, H ? &Hi : nullptr);
@@ -203,7 +208,7 @@ double Solver<Exec>::sum_elements(const Coloring& coloring, int count, const F& 
         double s = 0;
         for (int i = C->first(chunks[begin + k]); i < C->last(chunks[begin + k]); ++i) s += f(i);
         ce[begin + k] = s;
-      }, std::max(2, Exec::kParallelMinHeavy / C->chunk));
+      }, 2);  // any colour of two chunks or more: a chunk is tens of microseconds of element work, a fork one
     }
     double e = 0;
     for (double v : chunk_energy_) e += v;

@@ -58,12 +58,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     // A collider may move into the cloth during the step: start Newton from a guess with
     // every free vertex at least dhat/2 outside each collider's end pose.
     Exec::download(host_x_, x_);
-    for (int i = 0; i < n_; ++i) {
-      if (kin_fixed_host_[i]) continue;
-      Vec3 p(host_x_[3 * i], host_x_[3 * i + 1], host_x_[3 * i + 2]);
-      for (const Collider& c : *colliders_) p = c.project_out(p, col_t1_, 0.5 * P_.dhat);
-      for (int k = 0; k < 3; ++k) host_x_[3 * i + k] = p[k];
-    }
+    for (const Collider& c : *colliders_) c.project_out(&host_x_, kin_fixed_host_, col_t1_, 0.5 * P_.dhat);
     Exec::upload(x_, host_x_);
   }
   if (self_) {

@@ -62,8 +62,13 @@ struct SceneData {
 /// options.rest_from_uv, else from the initial 3D shape.
 SceneData build_scene_data(const Mesh& mesh, const Material& material, const SceneOptions& options);
 
-/// Elements per chunk of the colourings build_scene_data makes.
-inline constexpr int kColoringChunk = 256;
+/// Elements per chunk of the colourings build_scene_data makes. Small enough that a colour of a
+/// 5k-vertex garment holds many chunks to share among threads: RGBench's T-shirt in its own
+/// (scattered) vertex order has 9615 triangles in 15 colours; with 256-element chunks most
+/// colours held 2-3 chunks, ran on one thread or split 2:1, and assembly scaled 1.5x on 2
+/// threads. With 32 it has 19 colours of ~16 chunks and the T-shirt's assembly took 9.1 instead
+/// of 10.9 ms per step on 2 threads; gd-bench's ordered grids are unchanged (docs/physics.md).
+inline constexpr int kColoringChunk = 32;
 
 /// Greedy colouring of the chunks of `chunk` consecutive elements with k vertices each (flat
 /// index array); chunk = 1 colours element by element.

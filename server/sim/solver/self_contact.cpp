@@ -155,8 +155,6 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
 
 void SelfContact::select_active(const std::vector<double>& x, const std::vector<int>& fixed) {
   active_.clear();
-  ContactPairs kept;
-  std::vector<int> kept_raw;
   dropped_ = 0;
   if (x != dist_x_) dist_x_ = x, ++dist_gen_;  // distances known so far were measured elsewhere
   // The distances in parallel (the costly part), then the lists in candidate order.
@@ -175,6 +173,8 @@ void SelfContact::select_active(const std::vector<double>& x, const std::vector<
       raw_stamp_[r] = dist_gen_;
     }
   }
+  // The candidates kept are compacted in place (pair c moves to k <= c), in candidate order.
+  int k = 0;
   for (int c = 0; c < n; ++c) {
     const int* v = &cand_.v[4 * c];
     if (fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]]) continue;  // nothing to solve
@@ -183,12 +183,16 @@ void SelfContact::select_active(const std::vector<double>& x, const std::vector<
       ++dropped_;
       continue;
     }
-    kept.push(v, cand_.type[c], cand_.kappa[c], cand_.eps_x[c]);
-    kept_raw.push_back(cand_raw_[c]);
     if (dist < dhat_) active_.push(v, cand_.type[c], cand_.kappa[c], cand_.eps_x[c]);
+    if (k != c) {
+      std::copy_n(v, 4, &cand_.v[4 * k]);
+      cand_.type[k] = cand_.type[c], cand_.kappa[k] = cand_.kappa[c], cand_.eps_x[k] = cand_.eps_x[c];
+      cand_raw_[k] = cand_raw_[c];
+    }
+    ++k;
   }
-  cand_ = std::move(kept);
-  cand_raw_ = std::move(kept_raw);
+  cand_.v.resize(4 * static_cast<size_t>(k));
+  cand_.type.resize(k), cand_.kappa.resize(k), cand_.eps_x.resize(k), cand_raw_.resize(k);
 }
 
 void SelfContact::set_kappa_scale(Real s) {

@@ -19,6 +19,7 @@
 #include "sim/mesh.h"
 #include "sim/scene.h"
 #include "sim/solver/solver.h"
+#include "sim/stacked_sheets.h"
 
 namespace gd::sim {
 namespace {
@@ -86,18 +87,7 @@ double largest_difference(BackendKind other, const Mesh& m, const SceneOptions& 
 }
 
 /// Two 8 cm sheets, the top one 0.6 mm above the bottom one (in contact), on the table.
-Mesh stacked_sheets() {
-  const Mesh bottom = make_rect(0.08, 0.08, 0.01);
-  Mesh m = bottom;
-  const int nb = static_cast<int>(bottom.x.size());
-  for (Vec3& p : m.x) p.z() = 0.0005;
-  for (int i = 0; i < nb; ++i) {
-    m.x.push_back(bottom.x[i] + Vec3(0.003, 0.002, 0.0006));
-    m.uv.push_back(bottom.uv[i]);
-  }
-  for (const auto& t : bottom.tris) m.tris.emplace_back(t + Eigen::Vector3i::Constant(nb));
-  return m;
-}
+Mesh stacked_sheets() { return test::stacked_sheets(0.08, 0.01, 0.0005, Vec3(0.003, 0.002, 0.0006)); }
 
 // Self-contact barriers and cloth-cloth friction: a grip drags the top sheet's edge across the
 // bottom sheet (kinematic vertices are grip springs in self-contact mode), a pinned corner holds

@@ -781,5 +781,52 @@ TEST(ColliderProjectOut, PutsPointsExactlyAtTheGap) {
   }
 }
 
+
+// The batch form (the solver's predictor) gives each point what the single-point form gives, bit
+// for bit, leaves skipped and non-finite points alone and evaluates the pose once.
+TEST(ColliderProjectOut, TheBatchFormMatchesPointByPointAndSkipsWhatItIsTold) {
+  std::mt19937 rng(11);
+  std::vector<Vec3> v;
+  std::vector<Tri> t;
+  sphere_mesh(0.05, 2, &v, &t);
+  Collider c = Collider::mesh(v, t);
+  const Eigen::Isometry3d P = random_pose(rng);
+  int pose_calls = 0;
+  c.set_pose([P, &pose_calls](double) {
+    ++pose_calls;
+    return P;
+  });
+  const int n = 3000;  // over the batch's parallel threshold
+  std::vector<double> x(3 * n);
+  std::vector<int> skip(n, 0);
+  for (int i = 0; i < n; ++i) {
+    const Vec3 p = P * (Vec3(0.06, 0.06, 0.06).cwiseProduct(test::random_vec3(rng)));
+    for (int k = 0; k < 3; ++k) x[3 * i + k] = p[k];
+    skip[i] = i % 7 == 0;
+  }
+  x[3 * 5] = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> y = x;
+  pose_calls = 0;
+  c.project_out(&y, skip, 0.0, 2e-3);
+  EXPECT_EQ(pose_calls, 1);
+  int moved = 0;
+  for (int i = 0; i < n; ++i) {
+    const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]), q(y[3 * i], y[3 * i + 1], y[3 * i + 2]);
+    if (i == 5) {
+      EXPECT_TRUE(std::isnan(y[3 * i])) << "a non-finite point is left as it is";
+      continue;
+    }
+    if (skip[i]) {
+      EXPECT_EQ(p, q) << i;
+      continue;
+    }
+    EXPECT_EQ(q, c.project_out(p, 0.0, 2e-3)) << i;
+    moved += p != q;
+  }
+  EXPECT_GT(moved, n / 4);
+  EXPECT_THROW(c.project_out(&y, std::vector<int>(n - 1, 0), 0.0, 2e-3), InputError);
+  EXPECT_THROW(c.project_out(&y, skip, 0.0, -1.0), InputError);
+}
+
 }  // namespace
 }  // namespace gd::sim

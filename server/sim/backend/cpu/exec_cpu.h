@@ -40,6 +40,11 @@ struct CpuExec {
   static void download(std::vector<T>& dst, const Vector<T>& src) { dst = src; }
   template <class T>
   static void resize(Vector<T>& v, size_t n) { v.assign(n, T{}); }
+  /// n elements whose values the caller overwrites before reading: keeps what is there and
+  /// reallocates only to grow (per-pair buffers change size every Newton iteration; zeroing
+  /// ~10 MB of them per step was ~2% of a 2-thread T-shirt step, on one thread).
+  template <class T>
+  static void resize_for_overwrite(Vector<T>& v, size_t n) { v.resize(n); }
   template <class T>
   static void fill(Vector<T>& v, T value) { std::fill(v.begin(), v.end(), value); }
 
@@ -59,12 +64,31 @@ struct CpuExec {
     for (int i = 0; i < n; ++i) f(i);
   }
 
-  /// Sum of f(i) over [0, n).
+  /// Sum of f(i) over [0, n). Loops of parallel_min or more are summed in blocks of a size set
+  /// by n and parallel_min alone, the block sums then added in order: the same bits at any
+  /// thread count (an OpenMP reduction adds in an order that depends on it, and a run's steps
+  /// then differ in the last bits between 1 and 2 threads).
   template <class F>
   static double sum(int n, const F& f, int parallel_min = kParallelMin) {
     double s = 0.0;
-#pragma omp parallel for schedule(static) reduction(+ : s) if (n >= parallel_min)
-    for (int i = 0; i < n; ++i) s += f(i);
+    if (n < parallel_min || n <= 0) {
+      for (int i = 0; i < n; ++i) s += f(i);
+      return s;
+    }
+    const int block = std::max(64, parallel_min / 8);
+    const int blocks = (n + block - 1) / block;
+    constexpr int kOnStack = 256;
+    double stack[kOnStack];
+    std::vector<double> heap(blocks > kOnStack ? blocks : 0);
+    double* part = blocks > kOnStack ? heap.data() : stack;
+#pragma omp parallel for schedule(static)
+    for (int b = 0; b < blocks; ++b) {
+      double p = 0.0;
+      const int end = std::min(n, (b + 1) * block);
+      for (int i = b * block; i < end; ++i) p += f(i);
+      part[b] = p;
+    }
+    for (int b = 0; b < blocks; ++b) s += part[b];
     return s;
   }
 
@@ -119,8 +143,8 @@ struct CpuExec {
 
 /// The CUDA backend's code paths on the CPU (BackendKind::kCpuGpuPaths): element loops without
 /// colouring, every add into shared rows atomic (std::atomic_ref), the contact pairs' adds in
-/// parallel, reductions in OpenMP's order. Like the GPU's, its results vary in the last bits with
-/// thread timing. For tests (ctest label gpu-paths) and for measuring what the atomics cost.
+/// parallel. Like the GPU's, its results vary in the last bits with thread timing. For tests
+/// (ctest label gpu-paths) and for measuring what the atomics cost.
 struct CpuGpuPathsExec : CpuExec {
   static constexpr const char* kName = "cpu-gpu-paths";
   static constexpr bool kColoring = false;
