@@ -330,16 +330,21 @@ Real Collider::energy(const Vec3& x_world, const Eigen::Isometry3d& pose, Real o
   return collider_barrier_energy(d, R * gl, R * Hl * R.transpose(), offset, dhat, kappa, grad, hess, kind);
 }
 
-Vec3 Collider::project_out(const Vec3& x_world, double t, Real gap) const {
+namespace {
+void check_gap(Real gap) {
   if (!finite(gap) || !(gap >= 0))
     throw InputError("Collider::project_out: the gap must be finite and >= 0 (m), got " + fmt(gap));
+}
+}  // namespace
+
+Vec3 Collider::project_out(const Vec3& x_world, double t, Real gap) const {
+  check_gap(gap);
   if (!x_world.allFinite()) throw InputError("Collider::project_out: the point is not finite: " + fmt(x_world));
   return project_out(x_world, checked_pose(t), gap);
 }
 
 void Collider::project_out(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap) const {
-  if (!finite(gap) || !(gap >= 0))
-    throw InputError("Collider::project_out: the gap must be finite and >= 0 (m), got " + fmt(gap));
+  check_gap(gap);
   if (x->size() != 3 * skip.size())
     throw InputError("Collider::project_out: " + std::to_string(x->size()) + " coordinates but " +
                      std::to_string(skip.size()) + " skip flags");
