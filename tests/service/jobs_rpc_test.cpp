@@ -27,11 +27,15 @@ pb::SubmitJobRequest short_grasp(const std::string& label) {
   return r;
 }
 
-/// A job long enough to be caught running (~12 s simulated).
+/// A job long enough to be caught running and to outlast a 1 s drain grace on any machine:
+/// ~13 s simulated at dt 4 ms on an 800-vertex towel (~3,300 steps, several seconds of CPU even
+/// on a fast one; a 200-vertex towel at dt 10 ms once finished inside the grace period in CI).
 pb::SubmitJobRequest long_grasp() {
   pb::SubmitJobRequest r = short_grasp("long");
+  r.set_vertices(800);
+  r.set_dt(0.004);
   r.set_time_scale(1.0);
-  r.set_settle(1.0);
+  r.set_settle(2.0);
   return r;
 }
 
