@@ -43,7 +43,7 @@ struct SceneOptions {
   // --- time stepping and solver ---------------------------------------------------------
   Real dt = 1.0 / 200.0;          ///< time step, s, in [kMinDt, 1]
   Vec3 gravity = Vec3(0, 0, -kGravity);  ///< m/s^2
-  int newton_max_iters = 6;       ///< inexact Newton iterations per step (at most)
+  int newton_max_iters = 8;       ///< inexact Newton iterations per step (at most)
   Real newton_tol = 1e-4;         ///< stop when max |dx|/dt (m/s) falls below this
   /// Residual stopping rule (docs/physics.md, "Solver"), in velocity units: Newton stops once the
   /// correction still to come is at most max(newton_atol, newton_rtol x the first Newton step),
