@@ -20,7 +20,10 @@
 /// Every level keeps its nodes' vertices as one permutation of the vertices (`members`) with
 /// offsets: a domain's vertices are a contiguous range of it, so building the next level, the
 /// dense blocks and the restriction are gathers, parallel over domains or nodes, with no atomics
-/// and a deterministic result.
+/// and a deterministic result. The gathers over a domain's vertices (its adjacency in coarsen,
+/// its dense block in factor_level) run over parts of at most kPartVertices vertices, so that the
+/// one or two domains of the coarsest levels, which hold every vertex, are gathered by every
+/// thread too; the parts are set by the level alone, and a domain's parts are added in order.
 
 #include <algorithm>
 #include <cmath>
@@ -132,7 +135,21 @@ struct LevelView {
   const int* members;  ///< the free vertices, node by node
 };
 
+/// The range [*lo, *hi) of members gathered by part j of the `parts` parts of domain d.
+GD_HD void part_range(const LevelView& L, int B, int d, int j, int parts, int* lo, int* hi) {
+  const int first = d * B;
+  const int count = L.nodes - first < B ? L.nodes - first : B;
+  const int a = L.offsets[first];
+  const long long verts = L.offsets[first + count] - a;
+  *lo = a + static_cast<int>(verts * j / parts);
+  *hi = a + static_cast<int>(verts * (j + 1) / parts);
+}
+
 inline constexpr int kMaxLevels = 8;
+
+/// Most fine vertices gathered by one part of a domain (see the file comment): a level-0 or
+/// level-1 domain (B nodes of one vertex, or of about B) is one part, a coarse domain many.
+inline constexpr int kPartVertices = 256;
 
 /// Every level's view and solution, passed by value into the prolongation kernel.
 struct LevelPack {
@@ -159,9 +176,11 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
   void setup(const BlockMatrixView& A) override {
     A_ = A;
     order_vertices(A);                  // level 0: free vertices in Morton order
+    split_parts(0);                     // its domains' vertices in parts for the gathers
     levels_ = 1;
     while (levels_ < kMaxLevels && level(levels_ - 1).domains > 1) {
       if (!coarsen(A, levels_ - 1)) break;  // level l+1: connected pieces of level l's domains
+      split_parts(levels_);
       ++levels_;
     }
     for (int l = 0; l < levels_; ++l) factor_level(A, l);  // dense blocks of R A Rᵀ, Cholesky
@@ -186,8 +205,13 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     int nodes = 0, domains = 0;
     Vec<int> node_of, offsets, members;
     Vec<int> local_comp;  ///< per node: its connected piece inside its domain (coarsen)
+    int parts = 0;        ///< parts of the domains (split_parts)
+    Vec<int> part_start;  ///< per domain: its first part; [domains]: the number of parts
+    Vec<int> part_domain; ///< per part: its domain
+    Vec<uint64_t> part_adj;  ///< per part: B adjacency bitmasks of the domain's nodes (coarsen)
     Vec<int> comp_count;  ///< per domain: connected pieces (coarsen), then their prefix sum
-    Vec<double> dense;    ///< per domain: (3B)^2 block, factored in place (setup scratch)
+    Vec<double> dense;    ///< per part: (3B)^2 partial block; a domain's first part ends up holding
+                          ///< the domain's block, factored in place (setup scratch)
     Vec<float> packed;    ///< per domain: its Cholesky factor's lower triangle, single precision
     Vec<double> rhs;      ///< per domain: 3B restricted residual, then the solution
   };
@@ -243,6 +267,33 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     Exec::for_each(1, [=] GD_HD_LAMBDA(int) { offsets[free_count] = free_count; });
   }
 
+  /// Splits each domain of level l into parts of at most kPartVertices of its vertices (they are
+  /// one contiguous range of members): part_start, part_domain and parts.
+  void split_parts(int l) {
+    LevelStore& s = store_[l];
+    const mas_detail::LevelView L = level(l);
+    const int B = B_, domains = L.domains;
+    ensure(s.part_start, domains + 1);
+    int* start = Exec::ptr(s.part_start);
+    Exec::for_each(domains + 1, [=] GD_HD_LAMBDA(int d) {
+      if (d == domains) {
+        start[d] = 0;
+        return;
+      }
+      const int first = d * B;
+      const int count = L.nodes - first < B ? L.nodes - first : B;
+      const int verts = L.offsets[first + count] - L.offsets[first];
+      start[d] = verts > mas_detail::kPartVertices ? (verts + mas_detail::kPartVertices - 1) / mas_detail::kPartVertices : 1;
+    });
+    Exec::exclusive_scan(s.part_start, domains + 1);
+    s.parts = Exec::read(s.part_start, domains);
+    ensure(s.part_domain, s.parts);
+    int* part_domain = Exec::ptr(s.part_domain);
+    Exec::for_each(domains, [=] GD_HD_LAMBDA(int d) {
+      for (int p = start[d]; p < start[d + 1]; ++p) part_domain[p] = d;
+    });
+  }
+
   /// Builds level l+1 from level l: connected pieces of each domain's nodes become nodes.
   /// Returns false when no piece joined two nodes (nothing to coarsen).
   bool coarsen(const BlockMatrixView& A, int l) {
@@ -257,28 +308,42 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     const BlockMatrixView M = A;
     const int domains = L.domains;
     Exec::for_each(1, [=] GD_HD_LAMBDA(int) { comp_count[domains] = 0; });
-    // Per domain: adjacency bitmasks of its nodes, then connected pieces, labelled in the order
-    // of their first node.
+    // Per part: adjacency bitmasks of its domain's nodes from the part's vertices' rows.
+    ensure(s.part_adj, static_cast<size_t>(s.parts) * B);
+    uint64_t* part_adj = Exec::ptr(s.part_adj);
+    const int* part_start = Exec::ptr(s.part_start);
+    const int* part_domain = Exec::ptr(s.part_domain);
+    Exec::for_each(s.parts, [=] GD_HD_LAMBDA(int p) {
+      const int d = part_domain[p], first = d * B;
+      const int count = L.nodes - first < B ? L.nodes - first : B;
+      uint64_t* adj = part_adj + static_cast<size_t>(p) * B;
+      for (int a = 0; a < count; ++a) adj[a] = 0;
+      int lo, hi;
+      mas_detail::part_range(L, B, d, p - part_start[d], part_start[d + 1] - part_start[d], &lo, &hi);
+      for (int e = lo; e < hi; ++e) {
+        const int v = L.members[e];
+        const int a = L.node_of[v] - first;
+        auto visit = [&](int j) {
+          const int nb = L.node_of[j];
+          if (nb >= first && nb < first + count && nb != first + a) {
+            adj[a] |= uint64_t(1) << (nb - first);
+            adj[nb - first] |= uint64_t(1) << a;
+          }
+        };
+        for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) visit(M.cols[k]);
+        if (M.cpl_row_ptr)
+          for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) visit(M.cpl_cols[k]);
+      }
+    }, 1);
+    // Per domain: its parts' bitmasks joined, then connected pieces, labelled in the order of
+    // their first node.
     Exec::for_each(L.domains, [=] GD_HD_LAMBDA(int d) {
       const int first = d * B;
       const int count = L.nodes - first < B ? L.nodes - first : B;
       uint64_t adj[64];
       for (int a = 0; a < count; ++a) adj[a] = uint64_t(1) << a;
-      for (int a = 0; a < count; ++a) {
-        for (int e = L.offsets[first + a]; e < L.offsets[first + a + 1]; ++e) {
-          const int v = L.members[e];
-          auto visit = [&](int j) {
-            const int nb = L.node_of[j];
-            if (nb >= first && nb < first + count && nb != first + a) {
-              adj[a] |= uint64_t(1) << (nb - first);
-              adj[nb - first] |= uint64_t(1) << a;
-            }
-          };
-          for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) visit(M.cols[k]);
-          if (M.cpl_row_ptr)
-            for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) visit(M.cpl_cols[k]);
-        }
-      }
+      for (int p = part_start[d]; p < part_start[d + 1]; ++p)
+        for (int a = 0; a < count; ++a) adj[a] |= part_adj[static_cast<size_t>(p) * B + a];
       int comps = 0;
       uint64_t seen = 0;
       for (int a = 0; a < count; ++a) {
@@ -340,32 +405,47 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     const mas_detail::LevelView L = level(l);
     const int B = B_, m = 3 * B_;
     const size_t tri = static_cast<size_t>(m) * (m + 1) / 2;
-    ensure(s.dense, static_cast<size_t>(L.domains) * m * m);
+    ensure(s.dense, static_cast<size_t>(s.parts) * m * m);
     ensure(s.packed, static_cast<size_t>(L.domains) * tri);
     ensure(s.rhs, static_cast<size_t>(L.domains) * m);
     double* dense = Exec::ptr(s.dense);
     float* packed = Exec::ptr(s.packed);
+    const int* part_start = Exec::ptr(s.part_start);
+    const int* part_domain = Exec::ptr(s.part_domain);
     const BlockMatrixView M = A;
-    Exec::for_each(L.domains, [=] GD_HD_LAMBDA(int d) {
-      double* D = dense + static_cast<size_t>(d) * m * m;
+    // Per part: the blocks its vertices' rows add to the domain's block (a domain of one part,
+    // every domain of the fine levels, sums in the same order as a loop over the domain).
+    Exec::for_each(s.parts, [=] GD_HD_LAMBDA(int p) {
+      const int d = part_domain[p], first = d * B;
+      const int count = L.nodes - first < B ? L.nodes - first : B;
+      double* D = dense + static_cast<size_t>(p) * m * m;
       for (int k = 0; k < m * m; ++k) D[k] = 0.0;
+      int lo, hi;
+      mas_detail::part_range(L, B, d, p - part_start[d], part_start[d + 1] - part_start[d], &lo, &hi);
+      for (int e = lo; e < hi; ++e) {
+        const int v = L.members[e];
+        const int a = L.node_of[v] - first;
+        auto add_block = [&](int j, const double* blk) {
+          const int nb = L.node_of[j];
+          if (nb < first || nb >= first + count) return;
+          double* dst = D + static_cast<size_t>(3 * a) * m + 3 * (nb - first);
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) dst[r * m + c] += blk[3 * r + c];
+        };
+        for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) add_block(M.cols[k], M.vals + 9 * k);
+        if (M.cpl_row_ptr)
+          for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) add_block(M.cpl_cols[k], M.cpl_vals + 9 * k);
+      }
+    }, 1);
+    // Per domain: its parts added, in order, into its first part's block, then factored.
+    Exec::for_each(L.domains, [=] GD_HD_LAMBDA(int d) {
+      double* D = dense + static_cast<size_t>(part_start[d]) * m * m;
+      for (int p = part_start[d] + 1; p < part_start[d + 1]; ++p) {
+        const double* Dp = dense + static_cast<size_t>(p) * m * m;
+        for (int k = 0; k < m * m; ++k) D[k] += Dp[k];
+      }
       const int first = d * B;
       const int count = L.nodes - first < B ? L.nodes - first : B;
-      for (int a = 0; a < count; ++a) {
-        for (int e = L.offsets[first + a]; e < L.offsets[first + a + 1]; ++e) {
-          const int v = L.members[e];
-          auto add_block = [&](int j, const double* blk) {
-            const int nb = L.node_of[j];
-            if (nb < first || nb >= first + count) return;
-            double* dst = D + static_cast<size_t>(3 * a) * m + 3 * (nb - first);
-            for (int r = 0; r < 3; ++r)
-              for (int c = 0; c < 3; ++c) dst[r * m + c] += blk[3 * r + c];
-          };
-          for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) add_block(M.cols[k], M.vals + 9 * k);
-          if (M.cpl_row_ptr)
-            for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) add_block(M.cpl_cols[k], M.cpl_vals + 9 * k);
-        }
-      }
       for (int a = count; a < B; ++a)  // padding of the last domain: identity
         for (int r = 0; r < 3; ++r) D[static_cast<size_t>(3 * a + r) * m + 3 * a + r] = 1.0;
       mas_detail::cholesky_in_place(D, m);

@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
+#include <omp.h>
 #include <random>
 #include <set>
 
@@ -161,6 +162,54 @@ TEST(MasPreconditioner, LevelsAreNestedPartitionsOfTheFreeVertices) {
     for (int v = 0; v < s.n(); ++v) EXPECT_EQ(seen[v], s.fixed[v] ? 0 : 1) << "level " << l << " vertex " << v;
   }
   EXPECT_LE(P.level(P.levels() - 1).nodes, 16 * 16);
+}
+
+// The coarse levels' one or two domains hold hundreds of vertices each and are gathered in
+// parts by several threads: the apply must still be Σ_l R_lᵀ D_l⁻¹ R_l r with D_l the exact
+// Galerkin blocks R_l A R_lᵀ per domain (built here in double from the levels' partitions), and
+// the same bits at one thread and at two.
+TEST(MasPreconditioner, ApplyIsTheSumOfTheLevelsGalerkinBlockSolvesAtAnyThreadCount) {
+  System s = make_system(make_rect(0.3, 0.3, 0.01), 400, 11);
+  s.fixed[3] = 1;
+  const int B = 16;
+  Mas P(s.n(), B);
+  P.setup(s.view());
+  ASSERT_GE(P.levels(), 3);
+  const Eigen::VectorXd r = random_vector(3 * s.n(), 12);
+  const Eigen::SparseMatrix<double> A = s.dense().sparseView();
+  Eigen::VectorXd ref = Eigen::VectorXd::Zero(3 * s.n());
+  int largest_domain = 0;
+  for (int l = 0; l < P.levels(); ++l) {
+    const mas_detail::LevelView L = P.level(l);
+    for (int d = 0; d < L.domains; ++d) {
+      const int first = d * B, count = std::min(B, L.nodes - first);
+      largest_domain = std::max(largest_domain, L.offsets[first + count] - L.offsets[first]);
+      std::vector<Eigen::Triplet<double>> t;  // restriction to the domain's nodes
+      for (int a = 0; a < count; ++a)
+        for (int e = L.offsets[first + a]; e < L.offsets[first + a + 1]; ++e)
+          for (int c = 0; c < 3; ++c) t.emplace_back(3 * a + c, 3 * L.members[e] + c, 1.0);
+      Eigen::SparseMatrix<double> R(3 * count, 3 * s.n());
+      R.setFromTriplets(t.begin(), t.end());
+      const Eigen::MatrixXd D = Eigen::MatrixXd(R * A * R.transpose());
+      const Eigen::VectorXd rd = R * r;
+      ref += R.transpose() * D.ldlt().solve(rd);
+    }
+  }
+  ASSERT_GT(largest_domain, mas_detail::kPartVertices) << "no domain is gathered in parts";
+  for (int i = 0; i < s.n(); ++i)
+    if (s.fixed[i]) ref.segment<3>(3 * i) = r.segment<3>(3 * i);
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  Mas one(s.n(), B);
+  one.setup(s.view());
+  const Eigen::VectorXd z1 = apply(one, r);
+  omp_set_num_threads(2);
+  Mas two(s.n(), B);
+  two.setup(s.view());
+  const Eigen::VectorXd z2 = apply(two, r);
+  omp_set_num_threads(threads);
+  EXPECT_LT((z2 - ref).norm(), 1e-4 * ref.norm());  // the factors are stored in single precision
+  for (int k = 0; k < z1.size(); ++k) ASSERT_EQ(z1[k], z2[k]) << "entry " << k;
 }
 
 TEST(MasPreconditioner, DirichletRowsPassThroughAndDoNotLeak) {
