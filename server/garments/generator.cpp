@@ -82,6 +82,12 @@ Real pick(Real given, Real fallback, const char* name) {
   require(std::isfinite(given) && given > 0, fmt::format("{} must be positive (got {})", name, given));
   return given;
 }
+/// pick for a size in metres: at most kMaxGarmentSize.
+Real pick_size(Real given, Real fallback, const char* name) {
+  const Real v = pick(given, fallback, name);
+  require(v <= kMaxGarmentSize, fmt::format("{} must be at most {} m (got {})", name, kMaxGarmentSize, given));
+  return v;
+}
 
 /// Sizes after applying a type's defaults.
 struct Sizes {
@@ -102,21 +108,21 @@ Sizes resolve(const std::string& type, const GarmentParams& p) {
   if (type == "pleat_skirt") d_len = 0.65, d_width = 0.60;
   if (type == "cake_skirt") d_len = 0.70, d_width = 0.80;
   Sizes s;
-  s.length = pick(p.length, d_len, "length");
-  s.width = pick(p.width, d_width, "width");
-  s.waist = pick(p.waist_width, d_waist, "waist_width");
-  s.neck = pick(p.neck_width, 0.20, "neck_width");
-  s.front_neck = pick(p.front_neck_depth, 0.08, "front_neck_depth");
-  s.back_neck = pick(p.back_neck_depth, 0.02, "back_neck_depth");
-  s.shoulder = pick(p.shoulder_width, type == "dress" ? 0.34 : s.width - 0.10, "shoulder_width");
-  s.drop = pick(p.shoulder_drop, 0.03, "shoulder_drop");
-  s.armhole = pick(p.armhole_depth, type == "dress" ? 0.22 : 0.28, "armhole_depth");
-  s.sleeve = pick(p.sleeve_length, long_sl ? 0.60 : 0.25, "sleeve_length");
-  s.opening = pick(p.sleeve_opening, long_sl ? 0.12 : 0.18, "sleeve_opening");
+  s.length = pick_size(p.length, d_len, "length");
+  s.width = pick_size(p.width, d_width, "width");
+  s.waist = pick_size(p.waist_width, d_waist, "waist_width");
+  s.neck = pick_size(p.neck_width, 0.20, "neck_width");
+  s.front_neck = pick_size(p.front_neck_depth, 0.08, "front_neck_depth");
+  s.back_neck = pick_size(p.back_neck_depth, 0.02, "back_neck_depth");
+  s.shoulder = pick_size(p.shoulder_width, type == "dress" ? 0.34 : s.width - 0.10, "shoulder_width");
+  s.drop = pick_size(p.shoulder_drop, 0.03, "shoulder_drop");
+  s.armhole = pick_size(p.armhole_depth, type == "dress" ? 0.22 : 0.28, "armhole_depth");
+  s.sleeve = pick_size(p.sleeve_length, long_sl ? 0.60 : 0.25, "sleeve_length");
+  s.opening = pick_size(p.sleeve_opening, long_sl ? 0.12 : 0.18, "sleeve_opening");
   s.angle = pick(p.sleeve_angle_deg, long_sl ? 45 : 75, "sleeve_angle_deg");
-  s.hood_len = pick(p.hood_length, 0.32, "hood_length");
-  s.hood_w = pick(p.hood_width, 0.30, "hood_width");
-  s.front_gap = pick(p.front_gap, 0.03, "front_gap");
+  s.hood_len = pick_size(p.hood_length, 0.32, "hood_length");
+  s.hood_w = pick_size(p.hood_width, 0.30, "hood_width");
+  s.front_gap = pick_size(p.front_gap, 0.03, "front_gap");
   s.fold_scale = p.fold_bend_scale == 0 ? 0.1 : p.fold_bend_scale;
   require(std::isfinite(s.fold_scale) && s.fold_scale >= 0 && s.fold_scale <= 100,
           fmt::format("fold_bend_scale must be in [0, 100] (got {})", p.fold_bend_scale));

@@ -15,6 +15,9 @@ namespace gd::garments {
 /// circumference). A value of 0 means the type's default (docs/garments.md lists them); the
 /// defaults are adult sizes, the T-shirt's close to RGBench's LargeT mesh (0.77 m long, 0.98 m
 /// wide across the sleeves).
+/// The largest size, m, a generated garment's parameters may take (a coat is ~1 m long).
+inline constexpr Real kMaxGarmentSize = 5.0;
+
 struct GarmentParams {
   Real length = 0;            ///< collar (or waist) to hem along x; towel: its extent along x
   Real width = 0;             ///< tops: chest width; towel: extent along y; skirts: hem width

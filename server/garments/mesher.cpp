@@ -16,6 +16,7 @@
 #include <utility>
 
 #include "sim/demand.h"
+#include "sim/types.h"
 
 namespace gd::garments {
 namespace {
@@ -60,7 +61,20 @@ PanelMesh mesh_panel(const std::vector<Vec2>& boundary, const std::vector<std::v
       prev = v;
     }
   }
-  CGAL::refine_Delaunay_mesh_2(cdt, Criteria(kMesherAspectBound, max_edge));
+  // CGAL's refinement (what refine_Delaunay_mesh_2 runs), a point at a time under a budget: a
+  // panel whose sizes are far apart in scale (a 1e9 m towel at 200 vertices) would take billions
+  // of points to meet the angle bound, for minutes and gigabytes.
+  const long budget = mesher_point_budget(boundary, max_edge);
+  CGAL::Delaunay_mesher_2<CDT, Criteria> mesher(cdt, Criteria(kMesherAspectBound, max_edge));
+  mesher.init();
+  while (!mesher.is_refinement_done()) {
+    mesher.step_by_step_refine_mesh();
+    if (static_cast<long>(cdt.number_of_vertices()) > budget)
+      throw sim::InputError(fmt::format(
+          "a garment panel needs more than {} mesh points at a spacing of {:.3g} m: its sizes are too far apart in "
+          "scale (e.g. a very long, very narrow panel); give sizes of similar magnitude or more vertices",
+          budget, max_edge));
+  }
 
   PanelMesh out;
   std::map<CDT::Vertex_handle, int> index;
@@ -90,6 +104,17 @@ PanelMesh mesh_panel(const std::vector<Vec2>& boundary, const std::vector<std::v
             [](const Vec2& a, const Vec2& b) { return std::tie(a.x(), a.y()) < std::tie(b.x(), b.y()); });
   out.split_points.erase(std::unique(out.split_points.begin(), out.split_points.end()), out.split_points.end());
   return out;
+}
+
+long mesher_point_budget(const std::vector<Vec2>& boundary, Real max_edge) {
+  Real area = 0;  // shoelace
+  for (size_t i = 0; i < boundary.size(); ++i) {
+    const Vec2& a = boundary[i];
+    const Vec2& b = boundary[(i + 1) % boundary.size()];
+    area += a.x() * b.y() - a.y() * b.x();
+  }
+  const Real equilateral = std::abs(0.5 * area) / (max_edge * max_edge * std::sqrt(3.0) / 4);
+  return static_cast<long>(std::min<Real>(1e9, kMesherBudgetFactor * equilateral + boundary.size() + kMesherBudgetFloor));
 }
 
 std::vector<Vec2> sample_polyline(const std::vector<Vec2>& pts, Real h) {

@@ -17,6 +17,16 @@ using sim::Vec2;
 /// θmin ≈ 20.7°.
 inline constexpr Real kMesherAspectBound = 0.125;
 
+/// The refinement's point budget: kMesherBudgetFactor x the panel's area in equilateral triangles
+/// of side max_edge, plus the outline's points, plus kMesherBudgetFloor (a sane garment's panels
+/// take a few times the area estimate near their small features; a degenerate one, like a 1e9 m
+/// towel at 200 vertices, would take billions of points).
+inline constexpr Real kMesherBudgetFactor = 50;
+inline constexpr Real kMesherBudgetFloor = 20000;
+
+/// The most points mesh_panel lets CGAL's refinement insert into a panel (see above).
+long mesher_point_budget(const std::vector<Vec2>& boundary, Real max_edge);
+
 /// The triangulation of one panel in layout coordinates.
 struct PanelMesh {
   std::vector<Vec2> points;            ///< every vertex of the triangulation
@@ -33,7 +43,8 @@ struct PanelMesh {
 /// Meshes the polygon `boundary` (closed, counter-clockwise, each corner once, sampled at the
 /// wanted spacing) with the polylines `folds` (sampled; their points may coincide with boundary
 /// points) as interior constraints. Triangles get edges no longer than `max_edge` and angles of
-/// at least ~20.7° away from sharp input corners. GD_DEMANDs a valid polygon.
+/// at least ~20.7° away from sharp input corners. GD_DEMANDs a valid polygon; throws
+/// sim::InputError when the refinement would exceed mesher_point_budget (sizes far apart in scale).
 PanelMesh mesh_panel(const std::vector<Vec2>& boundary, const std::vector<std::vector<Vec2>>& folds,
                      Real max_edge);
 

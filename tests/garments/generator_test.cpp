@@ -1,4 +1,5 @@
 #include "garments/generator.h"
+#include "garments/mesher.h"
 
 #include <gtest/gtest.h>
 
@@ -243,6 +244,45 @@ TEST(Generator, BadInputIsRejectedWithAClearMessage) {
   GarmentParams narrow;
   narrow.neck_width = 0.7;
   EXPECT_THROW(make_garment("tshirt", 1000, narrow), sim::InputError);
+}
+
+// A towel 1e9 m long at 200 vertices kept CGAL refining for minutes at ~300 MB (a service
+// request that never answered): sizes are bounded, and the message names the parameter and the
+// bound; within the bound, a panel too narrow for its length stops at the mesher's point budget
+// instead of running on.
+TEST(GarmentGenerator, AbsurdSizesAreRefusedBeforeMeshing) {
+  GarmentParams huge;
+  huge.length = 1e9;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    make_garment("towel", 200, huge);
+    FAIL() << "no error";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("length"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("5 m"), std::string::npos) << e.what();
+  }
+  GarmentParams hood;
+  hood.hood_width = 6;
+  EXPECT_THROW(make_garment("hoodie", 1000, hood), sim::InputError);
+  GarmentParams largest;  // the bound itself is allowed
+  largest.length = kMaxGarmentSize;
+  largest.width = 0.5;
+  EXPECT_GT(make_garment("towel", 400, largest).length, 4.9);
+
+  // Straight to the mesher: a 1 km by 1 mm strip meshed at 10 m edges needs ~1e6 points to
+  // keep its angles; it stops at the budget (20,000 here) with a message saying what to change.
+  const std::vector<Vec2> strip = {{0, 0}, {1000, 0}, {1000, 0.001}, {0, 0.001}};
+  EXPECT_LT(mesher_point_budget(strip, 10), 30000);
+  try {
+    mesh_panel(strip, {}, 10);
+    FAIL() << "no error";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("too far apart in scale"), std::string::npos) << e.what();
+  }
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 20.0);
+  // A sane panel is far inside its budget.
+  const std::vector<Vec2> square = {{0, 0}, {0.5, 0}, {0.5, 0.5}, {0, 0.5}};
+  EXPECT_LT(10 * static_cast<long>(mesh_panel(square, {}, 0.02).points.size()), mesher_point_budget(square, 0.02));
 }
 
 TEST(GarmentParamsByName, EveryNameSetsItsSizeAndTheGarmentFollows) {
