@@ -1,4 +1,5 @@
-// gd-server: parses flags, builds the server (server.h), waits for SIGTERM/SIGINT, drains, exits 0.
+// gd-server: parses flags, builds the server (server.h), waits for SIGTERM/SIGINT, drains, exits 0
+// (1 when a second signal or a call that never finishes cuts the drain short).
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
@@ -62,6 +63,11 @@ int main(int argc, char** argv) {
   app.add_option("--max-vertices", o.max_vertices, "vertices per scene")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--max-substeps", o.max_substeps, "substeps per StepScenes call")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--max-message-mb", o.max_message_mb, "largest message received or sent, MiB")->check(CLI::Range(1, 2000))->capture_default_str();
+  app.add_option("--max-queued-frames-mb", o.max_queued_frames_mb,
+                 "frames one StreamFrames subscription queues for a client that reads slower than its scenes step, MiB "
+                 "(past it the oldest are dropped and counted in dropped_frames)")
+      ->check(CLI::Range(1, 4096))
+      ->capture_default_str();
   app.add_option("--job-workers", o.job_workers, "jobs run at once")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--max-job-steps", o.max_job_steps,
                  "simulation steps per job (its simulated time over dt; 0: no limit): a longer job is refused or "
@@ -105,12 +111,7 @@ int main(int argc, char** argv) {
   std::printf("listening on %s\n", server->address().c_str());
   std::fflush(stdout);
 
-  std::thread watcher([&] {
-    int sig = 0;
-    sigwait(&sigs, &sig);
-    gd::log().info("signal {}: draining", sig);
-    server->drain();
-  });
+  std::thread watcher([&] { server->drain_on_signal(sigs); });
   server->wait();
   watcher.join();
   server.reset();

@@ -6,8 +6,11 @@
 #include <spdlog/fmt/fmt.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <mutex>
+#include <thread>
 
 #include "service/job_queue.h"
 #include "service/mesh_library.h"
@@ -25,6 +28,7 @@ namespace fs = std::filesystem;
 
 namespace {
 constexpr const char* kServiceName = "garmentdynamics.v1.GarmentDynamics";
+constexpr int kShutdownSeconds = 5;  ///< Server::Shutdown's deadline for in-flight calls
 }
 
 struct Server::Impl {
@@ -70,6 +74,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     po.max_scenes = o.max_scenes;
     po.max_vertices = o.max_vertices;
     po.max_substeps = o.max_substeps;
+    po.max_queued_frame_bytes = static_cast<size_t>(o.max_queued_frames_mb) << 20;
     po.max_reply_bytes = max_bytes;
     po.backend = o.backend;
     im.scenes = std::make_unique<ScenePool>(po);
@@ -139,9 +144,28 @@ void Server::drain() {
     im.service->stop_accepting();
     im.jobs->drain(im.options.grace_seconds);
     im.service->begin_drain();
-    im.server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
+    im.server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(kShutdownSeconds));
     gd::log().info("drained; shut down");
   });
+}
+
+void Server::drain_on_signal(const sigset_t& signals) {
+  int sig = 0;
+  sigwait(&signals, &sig);
+  gd::log().info("signal {}: draining", sig);
+  const double budget = impl_->options.grace_seconds + kShutdownSeconds + kDrainOverrunSeconds;
+  std::thread([signals, budget] {
+    timespec wait{};
+    wait.tv_sec = static_cast<time_t>(std::ceil(budget));
+    const int again = sigtimedwait(&signals, nullptr, &wait);
+    if (again > 0)
+      gd::log().error("signal {} during the drain: exiting now, without waiting for it", again);
+    else
+      gd::log().error("the drain is still running after {:.0f} s (a call does not finish): exiting now", budget);
+    gd::log().flush();
+    std::_Exit(1);
+  }).detach();
+  drain();
 }
 
 }  // namespace gd::service

@@ -6,6 +6,7 @@
 /// get a grace period and are then interrupted, streams end, in-flight calls finish, then the
 /// server shuts down. No gRPC types in this header.
 
+#include <csignal>
 #include <memory>
 #include <string>
 
@@ -25,11 +26,15 @@ struct ServerOptions {
   int max_vertices = 50000;
   int max_substeps = 1000;
   int max_message_mb = 64;           ///< receive and send limit per message
+  int max_queued_frames_mb = 16;     ///< frames one StreamFrames subscription queues for a slow reader
   int job_workers = 1;
   long max_job_steps = 2'000'000;    ///< simulation steps per job (0: no limit)
   bool plots = false;
   double grace_seconds = 10;         ///< drain: how long running jobs may still take
 };
+
+/// Seconds a drain may overrun its budget before drain_on_signal ends the process.
+inline constexpr int kDrainOverrunSeconds = 10;
 
 class Server {
  public:
@@ -46,6 +51,12 @@ class Server {
   void wait();
   /// Drains and shuts down (see the file comment); returns when done. Thread-safe, idempotent.
   void drain();
+  /// Waits for one of `signals` (blocked in every thread), then drains. A second signal during
+  /// the drain, or a drain still running kDrainOverrunSeconds past its budget (the grace period
+  /// plus the 5 s shutdown deadline), ends the process at once with exit code 1 after an error
+  /// line: a call stuck in work that never looks at its context cannot keep the server alive
+  /// (jobs it left running are INTERRUPTED at the next start, as after kill -9).
+  void drain_on_signal(const sigset_t& signals);
 
  private:
   Server();

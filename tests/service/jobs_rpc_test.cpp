@@ -215,6 +215,41 @@ TEST(JobsRpc, SigtermDrainsInterruptsTheRunningJobAndExitsZero) {
   EXPECT_EQ(rep.job().message(), "server stopped while the job ran");
 }
 
+// An operator who does not want to wait out a long grace period sends the signal again: the
+// process ends at once (exit 1), and the job it cut short is INTERRUPTED at the next start.
+TEST(JobsRpc, ASecondSigtermEndsTheDrainAtOnce) {
+  TempDir dir;
+  const std::string data = dir.str() + "/data";
+  std::string id;
+  {
+    ServerProcess server(data, {"--grace-seconds", "120"});
+    auto stub = server.stub();
+    pb::SubmitJobResponse sub;
+    ASSERT_TRUE(stub->SubmitJob(ctx().get(), long_grasp(), &sub).ok());
+    id = sub.job_id();
+    wait_running(*stub, id);
+    ::kill(server.pid(), SIGTERM);
+    int h = 1;  // the drain has begun once health turns NOT_SERVING
+    for (int i = 0; i < 200 && h == 1; ++i) {
+      h = health_status(server.channel());
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    ASSERT_EQ(h, 2) << "health did not turn NOT_SERVING";
+    const auto t0 = std::chrono::steady_clock::now();
+    EXPECT_EQ(server.signal_and_wait(SIGTERM, 30), 1) << server.log();
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 10.0)
+        << "the second signal waited for the 120 s grace period";
+    EXPECT_NE(server.log().find("during the drain: exiting now"), std::string::npos) << server.log();
+  }
+  ServerProcess server(data);
+  auto stub = server.stub();
+  pb::GetReportRequest gr;
+  gr.set_job_id(id);
+  pb::GetReportResponse rep;
+  ASSERT_TRUE(stub->GetReport(ctx().get(), gr, &rep).ok());
+  EXPECT_EQ(rep.job().status(), pb::JOB_INTERRUPTED);
+}
+
 TEST(JobsRpc, CancelJobStopsQueuedAndRunningJobsAndLongJobsAreBounded) {
   TempDir dir;
   ServerProcess server(dir.str() + "/data", {"--job-workers", "1", "--max-job-steps", "20000"});
