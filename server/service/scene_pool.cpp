@@ -32,7 +32,18 @@ bool FrameSubscription::pop(SceneSnapshot* out, int timeout_ms) {
   if (frames_.empty()) return false;
   *out = std::move(frames_.front());
   frames_.pop_front();
+  queued_bytes_ -= frame_bytes(*out);
   return true;
+}
+
+size_t FrameSubscription::frame_bytes(const SceneSnapshot& s) {
+  return sizeof(SceneSnapshot) + s.scene_id.size() + s.failure.size() +
+         (s.positions.size() + s.velocities.size()) * sizeof(Vec3);
+}
+
+int64_t FrameSubscription::dropped() {
+  std::lock_guard<std::mutex> lock(mu_);
+  return dropped_;
 }
 
 bool FrameSubscription::finished() {
@@ -43,6 +54,13 @@ bool FrameSubscription::finished() {
 void FrameSubscription::push(SceneSnapshot s) {
   {
     std::lock_guard<std::mutex> lock(mu_);
+    const size_t bytes = frame_bytes(s);
+    while (!frames_.empty() && queued_bytes_ + bytes > max_bytes_) {  // the oldest frames go first
+      queued_bytes_ -= frame_bytes(frames_.front());
+      frames_.pop_front();
+      ++dropped_;
+    }
+    queued_bytes_ += bytes;
     frames_.push_back(std::move(s));
   }
   cv_.notify_all();
@@ -665,7 +683,7 @@ Status ScenePool::subscribe(const std::vector<std::string>& ids, int every, std:
   if (every < 0) return Status::InvalidArgument(fmt::format("every must be >= 1 (got {})", every));
   std::vector<std::shared_ptr<Entry>> entries;
   GD_RETURN_IF_ERROR(lookup(ids, &entries));
-  auto sub = std::make_shared<FrameSubscription>(every == 0 ? 1 : every, entries.size());
+  auto sub = std::make_shared<FrameSubscription>(every == 0 ? 1 : every, entries.size(), options().max_queued_frame_bytes);
   for (const auto& e : entries) {
     std::lock_guard<std::mutex> lock(e->mu);
     if (e->destroyed) sub->scene_closed();

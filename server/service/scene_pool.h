@@ -62,6 +62,9 @@ struct PoolOptions {
   /// Largest reply a step or state call may make, bytes (the server's --max-message-mb; 0: no
   /// limit): a call whose reply would not fit is refused before any scene changes.
   size_t max_reply_bytes = 0;
+  /// Most bytes of frames one subscription queues for a client that reads slower than its scenes
+  /// step (flag --max-queued-frames-mb); past it the oldest frames are dropped (FrameSubscription).
+  size_t max_queued_frame_bytes = size_t(16) << 20;
   sim::BackendKind backend = sim::BackendKind::kCpu;
 };
 
@@ -154,10 +157,17 @@ struct CreatedScenes {
 
 /// Receives the frames of subscribed scenes (StreamFrames without its own steps): a frame is
 /// queued whenever a scene's step count reaches a multiple of `every`. Closed when all its
-/// scenes are destroyed or the pool goes away.
+/// scenes are destroyed or the pool goes away. The queue holds at most `max_bytes` of frames
+/// (frame_bytes; always the newest frame): a subscriber that reads slower than its scenes step
+/// loses the oldest frames, counted by dropped(), instead of growing the server without bound.
 class FrameSubscription {
  public:
-  explicit FrameSubscription(int every, size_t scenes) : every_(every), open_scenes_(scenes) {}
+  FrameSubscription(int every, size_t scenes, size_t max_bytes)
+      : every_(every), open_scenes_(scenes), max_bytes_(max_bytes) {}
+  /// What a frame counts against the queue's bytes: its vectors plus a fixed overhead.
+  static size_t frame_bytes(const SceneSnapshot& s);
+  /// Frames dropped so far because the queue was full.
+  int64_t dropped();
   /// Waits up to `timeout_ms` for a frame. Returns true and fills `out` when one came.
   bool pop(SceneSnapshot* out, int timeout_ms);
   /// True when every subscribed scene is gone and no frame is left.
@@ -174,6 +184,9 @@ class FrameSubscription {
   std::deque<SceneSnapshot> frames_;
   int every_;
   size_t open_scenes_;
+  size_t max_bytes_;
+  size_t queued_bytes_ = 0;
+  int64_t dropped_ = 0;
 };
 
 /// The default home pose of an arm: 0.3 m above its base, gripper pointing down.

@@ -144,8 +144,8 @@ grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFram
     std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
     int frames = 0;
     pb::StreamFramesResponse msg;
-    auto send = [&](const SceneSnapshot& s) {
-      msg.Clear();
+    auto send = [&](const SceneSnapshot& s) {  // keeps msg's dropped_frames
+      msg.clear_state();
       to_proto(s, true, msg.mutable_state());
       ++frames;
       return writer->Write(msg);
@@ -190,6 +190,7 @@ grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFram
     SceneSnapshot s;
     while (!stop()) {
       if (sub->pop(&s, 100)) {
+        msg.set_dropped_frames(sub->dropped());
         if (!send(s)) return Status::Ok();
         if (req->max_frames() > 0 && frames >= req->max_frames()) return Status::Ok();
       } else if (sub->finished()) {

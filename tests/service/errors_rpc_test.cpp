@@ -111,6 +111,7 @@ TEST(ErrorsRpc, EveryBadRequestGetsItsCodeAndTheServerKeepsServing) {
       {"jaw radius of the whole garment", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_settings()->set_jaw_radius(1e300); return create(s, r); }},
       {"negative count", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_count(-3); return create(s, r); }},
       {"no garment", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.clear_garment(); return create(s, r); }},
+      {"garment a billion metres long", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); (*r.mutable_garment_params())["length"] = 1e9; return create(s, r); }},
       {"bad randomization", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_randomization()->set_yaw_deg(-1); return create(s, r); }},
       {"too many scenes", C::RESOURCE_EXHAUSTED, [](auto& s) { auto r = towel(); r.set_count(3); return create(s, r); }},
       {"too many vertices", C::RESOURCE_EXHAUSTED, [](auto& s) { auto r = towel(); r.set_vertices(5000); return create(s, r); }},

@@ -205,5 +205,42 @@ TEST(ScenePool, SubscribersGetEveryKthStep) {
   EXPECT_TRUE(sub->finished());
 }
 
+// A subscriber that never reads: the queue keeps the newest frames within its bytes and counts
+// what it dropped (a stalled client grew the server by ~21 MB per 1000 steps of a 1000-vertex
+// scene, without bound).
+TEST(ScenePool, ASlowSubscriberKeepsTheNewestFramesWithinItsBytes) {
+  PoolOptions o = small_pool();
+  o.max_queued_frame_bytes = 64 << 10;
+  ScenePool pool(o);
+  CreatedScenes c;
+  ASSERT_TRUE(pool.create(towel(), &c).ok());
+  std::shared_ptr<FrameSubscription> sub;
+  ASSERT_TRUE(pool.subscribe(c.ids, 1, &sub).ok());
+  StepRequest req;
+  req.scene_ids = c.ids;
+  req.substeps = 40;
+  std::vector<SceneSnapshot> out;
+  ASSERT_TRUE(pool.step(req, &out).ok());
+  std::vector<SceneSnapshot> frames;
+  SceneSnapshot f;
+  while (sub->pop(&f, 0)) frames.push_back(f);
+  ASSERT_FALSE(frames.empty());
+  const size_t bytes = FrameSubscription::frame_bytes(frames.front());
+  EXPECT_GT(40 * bytes, o.max_queued_frame_bytes) << "the test does not overflow the queue";
+  EXPECT_LE(frames.size() * bytes, o.max_queued_frame_bytes);
+  EXPECT_EQ(sub->dropped() + static_cast<int64_t>(frames.size()), 40);
+  for (size_t k = 0; k < frames.size(); ++k)  // the newest, in order, ending at the last step
+    EXPECT_EQ(frames[k].steps, 40 - static_cast<int64_t>(frames.size() - 1 - k));
+  // A frame larger than the whole budget still gets through (the newest is always kept).
+  FrameSubscription tiny(1, 1, 1);
+  SceneSnapshot big;
+  big.positions.resize(1000);
+  tiny.push(big);
+  tiny.push(big);
+  EXPECT_EQ(tiny.dropped(), 1);
+  EXPECT_TRUE(tiny.pop(&f, 0));
+  EXPECT_FALSE(tiny.pop(&f, 0));
+}
+
 }  // namespace
 }  // namespace gd::service
