@@ -23,6 +23,13 @@
 /// gd-server child process on loopback and through gd::service::ScenePool in this process,
 /// interleaved; prints ms per batched step of each and their ratio (service_case.h).
 ///
+///   gd-bench load [--json] [--clients 16] [--seconds 10] [--vertices 400] [--garment towel]
+///                 [--substeps 1] [--threads N] [--server HOST:PORT] [--server-binary P]
+///
+/// Many clients at once, each stepping its own scene on one gd-server (a child on loopback unless
+/// --server): calls and scene-steps per second, latency p50/p99/max, errors by code, the server's
+/// memory (load_case.h).
+///
 ///   gd-bench export --case drape/5000|fold/5000 --out DIR [--side 0.5] [--material cotton] [--simulate K]
 ///
 /// Writes the case's exact scene (mesh.obj, rest.obj, scene.json; scene_export.h) for the peer
@@ -41,6 +48,7 @@
 #include <vector>
 
 #include "scene_export.h"
+#include "load_case.h"
 #include "service_case.h"
 #include "sim/demand.h"
 #include "sim/log.h"
@@ -319,6 +327,25 @@ int main(int argc, char** argv) {
   svc->add_flag("--no-self-contact", svc_no_self_contact, "Scenes without cloth self-contact");
   svc->add_option("--server-binary", svc_opt.server_binary, "gd-server to start (default: the one beside gd-bench)");
 
+  gd::bench::LoadCaseOptions load_opt;
+  bool load_json = false;
+  auto* load = app.add_subcommand("load", "Many clients stepping their own scenes on one gd-server at once: throughput, latency, errors, memory");
+  load->add_flag("--json", load_json, "Print one JSON array (one object) on stdout (and nothing else)");
+  load->add_option("--clients", load_opt.clients, "Concurrent clients, one scene and one channel each")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  load->add_option("--seconds", load_opt.seconds, "Length of the timed window")->check(CLI::PositiveNumber)->capture_default_str();
+  load->add_option("--vertices", load_opt.vertices, "Target vertices per scene")->check(CLI::PositiveNumber)->capture_default_str();
+  load->add_option("--garment", load_opt.garment, "Garment type")->capture_default_str();
+  load->add_option("--substeps", load_opt.substeps, "Substeps per StepScenes call")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  load->add_option("--threads", load_opt.threads, "Scene workers of the started gd-server (0: all cores)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  load->add_option("--server", load_opt.server, "HOST:PORT of a running gd-server (default: start one on loopback)");
+  load->add_option("--server-binary", load_opt.server_binary, "gd-server to start (default: the one beside gd-bench)");
+
   gd::bench::ExportOptions exp_opt;
   auto* export_cmd =
       app.add_subcommand("export", "Write a case's scene (mesh.obj, rest.obj, scene.json) for bench/peers");
@@ -370,6 +397,16 @@ int main(int argc, char** argv) {
       return 2;
     }
     return 0;
+  }
+
+  if (*load) {
+    const auto r = gd::bench::run_load_case(load_opt);
+    if (load_json) {
+      std::printf("%s\n", nlohmann::json::array({gd::bench::to_json(r)}).dump(2).c_str());
+    } else {
+      gd::bench::print_table(r);
+    }
+    return r.error.empty() ? 0 : 1;
   }
 
   if (*svc) {

@@ -49,3 +49,27 @@ def test_preconditioner_flag_is_honoured():
     assert c["preconditioner"] == "block-jacobi"
     (c,) = run_bench("--cases", "drape", "--preconditioner", "mas", "--mas-domain", "8")
     assert c["preconditioner"] == "mas"
+
+
+def test_load_steps_many_clients_on_a_real_server():
+    """gd-bench load starts a gd-server beside it, steps one scene per client for the window and
+    reports throughput, latency percentiles in order, no errors, and the server's memory."""
+    out = subprocess.run([str(BENCH), "load", "--json", "--clients", "3", "--seconds", "1", "--vertices", "200"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    (c,) = json.loads(out.stdout)
+    assert "error" not in c, c
+    assert c["clients"] == 3 and c["vertices"] > 150
+    assert c["calls"] > 3 and c["errors"] == {}
+    assert c["scene_steps_per_s"] == pytest.approx(c["calls"] / c["seconds"])
+    assert 0 < c["p50_ms"] <= c["p99_ms"] <= c["max_ms"]
+    assert c["rss_start_mb"] > 0 and c["rss_loaded_mb"] >= c["rss_start_mb"] * 0.9
+    assert "[load]" in out.stderr  # progress on stderr
+
+
+def test_load_names_an_unreachable_server():
+    out = subprocess.run([str(BENCH), "load", "--json", "--clients", "1", "--seconds", "1", "--server", "127.0.0.1:1"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 1
+    (c,) = json.loads(out.stdout)
+    assert "error" in c and c["calls"] == 0
