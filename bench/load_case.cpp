@@ -15,6 +15,7 @@
 
 #include "gd/client.h"
 #include "gd/server_process.h"
+#include "server_binary.h"
 
 namespace gd::bench {
 
@@ -45,12 +46,6 @@ double percentile(std::vector<double>& v, double q) {
   const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size() - 1) + 0.5));
   std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
   return v[k];
-}
-
-std::string default_server_binary() {
-  std::error_code ec;
-  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  return ec ? std::string("gd-server") : (self.parent_path() / "gd-server").string();
 }
 
 }  // namespace

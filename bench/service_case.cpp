@@ -12,6 +12,7 @@
 
 #include "gd/client.h"
 #include "gd/server_process.h"
+#include "server_binary.h"
 #include "service/scene_pool.h"
 
 namespace gd::bench {
@@ -33,12 +34,6 @@ double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-std::string default_server_binary() {
-  std::error_code ec;
-  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  return ec ? std::string("gd-server") : (self.parent_path() / "gd-server").string();
 }
 
 void check(const service::Status& s, const char* what) {

@@ -219,7 +219,9 @@ int64_t Client::stream(const std::vector<std::string>& ids, const StreamOptions&
   while (reader->Read(&msg)) {
     ++frames;
     try {
-      if (!on_frame(from_proto(msg.state(), "StreamFrames"))) stopped = true;
+      SceneState frame = from_proto(msg.state(), "StreamFrames");
+      frame.dropped_frames = msg.dropped_frames();
+      if (!on_frame(frame)) stopped = true;
     } catch (...) {
       error = std::current_exception();
     }

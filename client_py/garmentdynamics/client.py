@@ -53,6 +53,9 @@ class SceneState:
     velocities: Optional[np.ndarray]  # (N, 3) float32, None unless asked for
     arms: Dict[str, dict] = field(default_factory=dict)   # "left"/"right" -> {closed, held_vertices}
     stats: dict = field(default_factory=dict)             # newton/pcg iterations, contacts, wall_ms
+    # Frames of a subscribing stream (steps=0) only: frames the server dropped so far because this
+    # client read slower than its scenes stepped (oldest first; at most --max-queued-frames-mb queued).
+    dropped_frames: int = 0
 
     @property
     def failed(self) -> bool:
@@ -320,7 +323,9 @@ class Client:
             timeout=self.stream_timeout if timeout is None else timeout)
         try:
             for msg in call:
-                yield SceneState.from_proto(msg.state)
+                frame = SceneState.from_proto(msg.state)
+                frame.dropped_frames = msg.dropped_frames
+                yield frame
         finally:
             call.cancel()
 

@@ -101,6 +101,7 @@ def test_stream_frames_made_by_the_stream(client):
             steps = [f.steps for f in frames if f.scene_id == sid]
             assert steps == [2, 4, 6]
         assert all(f.positions.shape == (client.scene_info(ids[0])["vertex_count"], 3) for f in frames)
+        assert all(f.dropped_frames == 0 for f in frames)  # a stream that steps waits for its reader
     finally:
         client.destroy(ids)
 

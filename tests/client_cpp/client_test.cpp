@@ -165,6 +165,7 @@ TEST_F(ClientTest, StreamsFramesUntilTheStreamsOwnStepsAreDone) {
   const int64_t frames = client_.stream(created.ids, opt, [&](const SceneState& s) {
     EXPECT_FALSE(s.failed) << s.failure;
     EXPECT_EQ(s.positions.size(), 3u * created.info.vertex_count);
+    EXPECT_EQ(s.dropped_frames, 0) << "a stream that steps waits for its reader";
     steps_seen[s.id].push_back(s.steps);
     return true;
   });

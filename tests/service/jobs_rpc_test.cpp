@@ -174,6 +174,30 @@ int health_status(const std::shared_ptr<grpc::Channel>& ch) {
   return bytes.empty() ? 0 : -2;
 }
 
+/// Sends SIGTERM and waits up to 2 s for the drain to show: returns the last health status
+/// (2: NOT_SERVING).
+int sigterm_and_wait_for_drain(ServerProcess& server) {
+  ::kill(server.pid(), SIGTERM);
+  int h = 1;
+  for (int i = 0; i < 200 && h == 1; ++i) {
+    h = health_status(server.channel());
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return h;
+}
+
+/// A job's record as a fresh server on the same data directory reports it.
+pb::JobInfo job_after_restart(const std::string& data, const std::string& id) {
+  ServerProcess server(data);
+  auto stub = server.stub();
+  pb::GetReportRequest gr;
+  gr.set_job_id(id);
+  pb::GetReportResponse rep;
+  const grpc::Status st = stub->GetReport(ctx().get(), gr, &rep);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return rep.job();
+}
+
 TEST(JobsRpc, SigtermDrainsInterruptsTheRunningJobAndExitsZero) {
   TempDir dir;
   const std::string data = dir.str() + "/data";
@@ -186,14 +210,8 @@ TEST(JobsRpc, SigtermDrainsInterruptsTheRunningJobAndExitsZero) {
     ASSERT_TRUE(stub->SubmitJob(ctx().get(), long_grasp(), &sub).ok());
     id = sub.job_id();
     wait_running(*stub, id);
-    ::kill(server.pid(), SIGTERM);
     // Draining: the job has a 1 s grace period, during which health says NOT_SERVING.
-    int h = 1;
-    for (int i = 0; i < 100 && h == 1; ++i) {
-      h = health_status(server.channel());
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    EXPECT_EQ(h, 2) << "health did not turn NOT_SERVING";
+    EXPECT_EQ(sigterm_and_wait_for_drain(server), 2) << "health did not turn NOT_SERVING";
     pb::SubmitJobResponse refused;
     const grpc::Status st = stub->SubmitJob(ctx().get(), short_grasp("late"), &refused);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAVAILABLE) << st.error_message();
@@ -205,14 +223,9 @@ TEST(JobsRpc, SigtermDrainsInterruptsTheRunningJobAndExitsZero) {
     EXPECT_EQ(create.error_code(), grpc::StatusCode::UNAVAILABLE) << "a scene created during the drain";
     EXPECT_EQ(server.signal_and_wait(0, 30), 0) << server.log();
   }
-  ServerProcess server(data);
-  auto stub = server.stub();
-  pb::GetReportRequest gr;
-  gr.set_job_id(id);
-  pb::GetReportResponse rep;
-  ASSERT_TRUE(stub->GetReport(ctx().get(), gr, &rep).ok());
-  EXPECT_EQ(rep.job().status(), pb::JOB_INTERRUPTED);
-  EXPECT_EQ(rep.job().message(), "server stopped while the job ran");
+  const pb::JobInfo job = job_after_restart(data, id);
+  EXPECT_EQ(job.status(), pb::JOB_INTERRUPTED);
+  EXPECT_EQ(job.message(), "server stopped while the job ran");
 }
 
 // An operator who does not want to wait out a long grace period sends the signal again: the
@@ -228,26 +241,14 @@ TEST(JobsRpc, ASecondSigtermEndsTheDrainAtOnce) {
     ASSERT_TRUE(stub->SubmitJob(ctx().get(), long_grasp(), &sub).ok());
     id = sub.job_id();
     wait_running(*stub, id);
-    ::kill(server.pid(), SIGTERM);
-    int h = 1;  // the drain has begun once health turns NOT_SERVING
-    for (int i = 0; i < 200 && h == 1; ++i) {
-      h = health_status(server.channel());
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    ASSERT_EQ(h, 2) << "health did not turn NOT_SERVING";
+    ASSERT_EQ(sigterm_and_wait_for_drain(server), 2) << "health did not turn NOT_SERVING";
     const auto t0 = std::chrono::steady_clock::now();
     EXPECT_EQ(server.signal_and_wait(SIGTERM, 30), 1) << server.log();
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 10.0)
         << "the second signal waited for the 120 s grace period";
     EXPECT_NE(server.log().find("during the drain: exiting now"), std::string::npos) << server.log();
   }
-  ServerProcess server(data);
-  auto stub = server.stub();
-  pb::GetReportRequest gr;
-  gr.set_job_id(id);
-  pb::GetReportResponse rep;
-  ASSERT_TRUE(stub->GetReport(ctx().get(), gr, &rep).ok());
-  EXPECT_EQ(rep.job().status(), pb::JOB_INTERRUPTED);
+  EXPECT_EQ(job_after_restart(data, id).status(), pb::JOB_INTERRUPTED);
 }
 
 TEST(JobsRpc, CancelJobStopsQueuedAndRunningJobsAndLongJobsAreBounded) {

@@ -203,6 +203,46 @@ TEST(ScenesRpc, StreamFramesFollowsStepScenesUntilMaxFramesOrDestroy) {
   }
 }
 
+// A subscriber that does not read while its scene takes 600 steps: the server queues at most
+// --max-queued-frames-mb and drops the oldest frames; what the client then reads plus what the
+// server says it dropped is every frame, and the newest frames all arrive, in order.
+TEST(ScenesRpc, ASlowSubscriberLosesTheOldestFramesAndIsToldHowMany) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data", {"--max-queued-frames-mb", "1"});
+  auto stub = server.stub();
+  pb::CreateScenesResponse created;
+  ASSERT_TRUE(stub->CreateScenes(ctx().get(), towel(1, 1000), &created).ok());
+  const std::string id = created.scene_ids(0);
+  pb::StreamFramesRequest req;
+  req.add_scene_ids(id);
+  auto c = ctx(120);
+  auto reader = stub->StreamFrames(c.get(), req);
+  reader->WaitForInitialMetadata();  // subscribed; nothing read until the steps are done
+  pb::StepScenesRequest s;
+  s.add_scene_ids(id);
+  s.set_substeps(600);
+  pb::StepScenesResponse r;
+  ASSERT_TRUE(stub->StepScenes(ctx(120).get(), s, &r).ok());
+  pb::DestroyScenesRequest d;
+  d.add_scene_ids(id);
+  pb::DestroyScenesResponse dr;
+  ASSERT_TRUE(stub->DestroyScenes(ctx().get(), d, &dr).ok());
+  std::vector<int64_t> steps;
+  int64_t dropped = 0;
+  pb::StreamFramesResponse msg;
+  while (reader->Read(&msg)) {
+    steps.push_back(msg.state().steps());
+    EXPECT_GE(msg.dropped_frames(), dropped) << "the count only grows";
+    dropped = msg.dropped_frames();
+  }
+  ASSERT_TRUE(reader->Finish().ok());
+  ASSERT_FALSE(steps.empty());
+  EXPECT_GT(dropped, 0) << "600 frames of a 1000-vertex scene fit in a 1 MiB queue";
+  EXPECT_EQ(static_cast<int64_t>(steps.size()) + dropped, 600);
+  EXPECT_EQ(steps.back(), 600);
+  for (size_t k = 1; k < steps.size(); ++k) EXPECT_GT(steps[k], steps[k - 1]);
+}
+
 TEST(ScenesRpc, AStepPastItsDeadlineStopsAndFreesItsScene) {
   // 400 substeps under a 0.3 s deadline ran to the end (75 s) and held the scene's lock all along.
   TempDir dir;

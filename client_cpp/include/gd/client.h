@@ -179,6 +179,10 @@ struct SceneState {
   std::vector<float> velocities;       ///< N*3, when asked for
   std::vector<ArmState> arms;
   StepStats stats;
+  /// Frames of a subscribing stream only (StreamOptions::steps = 0): how many frames the server
+  /// has dropped so far because this client read slower than its scenes stepped (it queues at
+  /// most --max-queued-frames-mb per stream, oldest frames dropped first).
+  int64_t dropped_frames = 0;
 };
 
 struct CreatedScenes {
