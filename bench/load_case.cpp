@@ -53,6 +53,9 @@ double percentile(std::vector<double>& v, double q) {
 LoadCaseResult run_load_case(const LoadCaseOptions& opt) {
   LoadCaseResult r;
   r.options = opt;
+  // The scenes made so far, so a run that fails half-way leaves none on a shared server.
+  std::vector<std::unique_ptr<Client>> clients;
+  std::vector<std::string> ids;
   try {
     std::optional<ServerProcess> child;
     std::string address = opt.server;
@@ -67,8 +70,6 @@ LoadCaseResult run_load_case(const LoadCaseOptions& opt) {
       r.rss_start_mb = rss_mb(child->pid());
     }
     // Every client: its own channel and scene.
-    std::vector<std::unique_ptr<Client>> clients;
-    std::vector<std::string> ids(opt.clients);
     ClientOptions co;
     co.deadline = std::chrono::minutes(2);
     const auto t_setup = Clock::now();
@@ -78,7 +79,7 @@ LoadCaseResult run_load_case(const LoadCaseOptions& opt) {
       spec.garment = opt.garment;
       spec.vertices = opt.vertices;
       const CreatedScenes made = clients.back()->create_scenes(spec);
-      ids[c] = made.ids.at(0);
+      ids.push_back(made.ids.at(0));
       r.vertices = made.info.vertex_count;
     }
     std::fprintf(stderr, "[load] %d scenes of %d vertices on %s in %.1f s; stepping for %.0f s\n", opt.clients,
@@ -127,9 +128,16 @@ LoadCaseResult run_load_case(const LoadCaseOptions& opt) {
     r.max_ms = latencies.empty() ? 0 : *std::max_element(latencies.begin(), latencies.end());
     if (child) r.rss_loaded_mb = rss_mb(child->pid());
     for (int c = 0; c < opt.clients; ++c) clients[c]->destroy({ids[c]});
+    ids.clear();
     if (child) r.rss_end_mb = rss_mb(child->pid());
   } catch (const std::exception& e) {
     r.error = e.what();
+    for (size_t c = 0; c < ids.size(); ++c) {  // best effort: the server may be the failure
+      try {
+        clients[c]->destroy({ids[c]});
+      } catch (const std::exception&) {
+      }
+    }
   }
   return r;
 }
