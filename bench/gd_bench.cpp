@@ -262,6 +262,7 @@ int main(int argc, char** argv) {
   double newton_rtol = -1, newton_atol = -1, pcg_newton_fraction = -1, pcg_tol = -1, dt = -1;
   std::string contact_hessian_arg = "default";
   std::string bending_hessian_arg = "default";
+  std::string linear_solver_arg = "pcg";
   app.add_flag("--json", json, "Print one JSON array of results on stdout (and nothing else)");
   app.add_option("--steps", steps, "Timed steps per case")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--warmup", warmup, "Untimed warm-up steps per case")
@@ -303,6 +304,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--bending-hessian", bending_hessian_arg, "Bending Hessian")
       ->check(CLI::IsMember({"default", "gauss-newton", "projected-exact"}))
+      ->capture_default_str();
+  app.add_option("--linear-solver", linear_solver_arg,
+                 "Linear solver of each Newton iteration (direct: sparse LDLT, to tell the Newton iteration's own "
+                 "convergence from PCG's inexactness)")
+      ->check(CLI::IsMember({"pcg", "direct"}))
       ->capture_default_str();
   gd::bench::ServiceCaseOptions svc_opt;
   bool svc_json = false, svc_no_self_contact = false;
@@ -384,6 +390,7 @@ int main(int argc, char** argv) {
     if (contact_hessian_arg == "gauss-newton") opt.contact_hessian = gd::sim::ContactHessianKind::kGaussNewton;
     if (bending_hessian_arg == "gauss-newton") opt.bending_hessian = gd::sim::BendingHessianKind::kGaussNewton;
     if (bending_hessian_arg == "projected-exact") opt.bending_hessian = gd::sim::BendingHessianKind::kProjectedExact;
+    if (linear_solver_arg == "direct") opt.linear_solver = gd::sim::LinearSolverKind::kDirect;
     opt.validate();
     return opt;
   };
