@@ -79,6 +79,13 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   std::string server;
   app.add_option("--server", server, "HOST:PORT of a gd-server: `run` becomes a job there; needed by the remote commands");
+  gd::cli::ConnectionFlags connection;
+  app.add_option("--token-file", connection.token_file,
+                 "with --server: a file whose first line is the bearer token (default: $GD_TOKEN_FILE)");
+  app.add_option("--tls-ca", connection.tls_ca, "with --server: connect over TLS, trusting this PEM CA or certificate");
+  app.add_flag("--tls", connection.tls, "with --server: connect over TLS, trusting the system's CAs");
+  app.add_option("--tls-cert", connection.tls_cert, "with --server: PEM client certificate (mutual TLS)");
+  app.add_option("--tls-key", connection.tls_key, "with --server: PEM key of --tls-cert");
 
   ExperimentConfig cfg;
   bool quiet = false, no_self_contact = false, no_plots = false;
@@ -207,11 +214,11 @@ int main(int argc, char** argv) {
       r.trajectory_file = cfg.trajectory_file;
       r.out_dir = cfg.out_dir;
       r.quiet = quiet;
-      return gd::cli::run_remote(server, r);
+      return gd::cli::run_remote(server, gd::cli::client_options(connection), r);
     }
     if (remote.selected()) {
       if (server.empty()) throw gd::sim::InputError("this command talks to a server: give --server HOST:PORT");
-      return remote.execute(server);
+      return remote.execute(server, gd::cli::client_options(connection));
     }
     if (!server.empty()) throw gd::sim::InputError("--server goes with run or a remote command, not this one");
     if (*run) {

@@ -1,8 +1,10 @@
 #include "remote_commands.h"
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <sstream>
 #include <nlohmann/json.hpp>
 
 #include "array_files.h"
@@ -70,8 +72,41 @@ int report_client_error(const ClientError& e) {
                                                                                        : kExitRpcError;
 }
 
-int run_remote(const std::string& server, const RemoteRun& run) {
-  Client client(server);
+ClientOptions client_options(const ConnectionFlags& f) {
+  ClientOptions o;
+  auto text = [](const std::string& path, const char* flag) {
+    if (!std::filesystem::is_regular_file(path))
+      throw gd::sim::InputError(std::string(flag) + ": no file '" + path + "'");
+    return read_file(path);
+  };
+  std::string token_file = f.token_file;
+  const char* flag = "--token-file";
+  if (token_file.empty() && std::getenv("GD_TOKEN_FILE")) {
+    token_file = std::getenv("GD_TOKEN_FILE");
+    flag = "GD_TOKEN_FILE";
+  }
+  if (!token_file.empty()) {
+    std::istringstream lines(text(token_file, flag));
+    std::string line;
+    while (o.token.empty() && std::getline(lines, line)) {  // the first token line, trimmed
+      const auto a = line.find_first_not_of(" \t\r"), b = line.find_last_not_of(" \t\r");
+      if (a != std::string::npos && line[a] != '#') o.token = line.substr(a, b - a + 1);
+    }
+    if (o.token.empty()) throw gd::sim::InputError(std::string(flag) + ": '" + token_file + "' holds no token");
+  }
+  o.tls = f.tls || !f.tls_ca.empty();
+  if (!f.tls_ca.empty()) o.tls_root_certificates = text(f.tls_ca, "--tls-ca");
+  if (f.tls_cert.empty() != f.tls_key.empty()) throw gd::sim::InputError("give both --tls-cert and --tls-key");
+  if (!f.tls_cert.empty()) {
+    o.tls = true;
+    o.tls_client_certificate = text(f.tls_cert, "--tls-cert");
+    o.tls_client_key = text(f.tls_key, "--tls-key");
+  }
+  return o;
+}
+
+int run_remote(const std::string& server, const ClientOptions& options, const RemoteRun& run) {
+  Client client(server, options);
   JobSpec job = run.job;
   if (!run.garment_obj.empty()) {
     const auto mesh = client.upload_mesh(std::filesystem::path(run.garment_obj).stem().string(),
@@ -179,8 +214,8 @@ bool RemoteCommands::selected() const {
   return false;
 }
 
-int RemoteCommands::execute(const std::string& server) {
-  Client client(server);
+int RemoteCommands::execute(const std::string& server, const ClientOptions& options) {
+  Client client(server, options);
   if (info_->parsed()) return do_info(client);
   if (garments_->parsed()) return do_garments(client);
   if (materials_->parsed()) return do_materials(client);

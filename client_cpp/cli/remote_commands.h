@@ -35,7 +35,18 @@ struct RemoteRun {
 
 /// Submits the run as a job, draws a progress bar from WatchJob, then fetches the report and
 /// writes its files (summary.json, OBJs, CSVs, plots) into out_dir. Returns the exit code.
-int run_remote(const std::string& server, const RemoteRun& run);
+int run_remote(const std::string& server, const ClientOptions& options, const RemoteRun& run);
+
+/// How to reach a server securely, from gd's flags (files named on the command line).
+struct ConnectionFlags {
+  std::string token_file;     ///< --token-file (else $GD_TOKEN_FILE when set)
+  std::string tls_ca;         ///< --tls-ca: PEM roots to trust (implies TLS)
+  bool tls = false;           ///< --tls: TLS with the system's roots
+  std::string tls_cert, tls_key;  ///< --tls-cert/--tls-key: a client certificate (mutual TLS)
+};
+/// ClientOptions with the token and PEM files read. Throws sim::InputError naming the flag of a
+/// missing or empty file.
+ClientOptions client_options(const ConnectionFlags& flags);
 
 /// The remote-only subcommands (info, garments, materials, create, step, report, reports,
 /// destroy, upload), added to `app` on construction; their options live here.
@@ -45,7 +56,7 @@ class RemoteCommands {
   /// True when the parsed command line chose one of them.
   bool selected() const;
   /// Runs the chosen subcommand against `server`; returns the exit code.
-  int execute(const std::string& server);
+  int execute(const std::string& server, const ClientOptions& options);
 
  private:
   CLI::App* info_ = nullptr;

@@ -10,6 +10,7 @@
 #include <grpcpp/support/byte_buffer.h>
 
 #include <future>
+#include <stdexcept>
 #include <utility>
 
 #include "convert.h"
@@ -118,8 +119,10 @@ struct Client::Impl {
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<pb::GarmentDynamics::Stub> stub;
 
-  void set_deadline(grpc::ClientContext& ctx, bool streaming) const {
+  /// A call's deadline and, with a token, its authorization metadata.
+  void prepare(grpc::ClientContext& ctx, bool streaming) const {
     ctx.set_deadline(std::chrono::system_clock::now() + (streaming ? options.stream_deadline : options.deadline));
+    if (!options.token.empty()) ctx.AddMetadata("authorization", "Bearer " + options.token);
   }
 
   /// One unary call of the generated stub.
@@ -127,7 +130,7 @@ struct Client::Impl {
   Resp call(const char* rpc, grpc::Status (pb::GarmentDynamics::Stub::*method)(grpc::ClientContext*, const Req&, Resp*),
             const Req& request) {
     grpc::ClientContext ctx;
-    set_deadline(ctx, false);
+    prepare(ctx, false);
     Resp response;
     check(((*stub).*method)(&ctx, request, &response), rpc);
     return response;
@@ -140,7 +143,17 @@ Client::Client(const std::string& target, ClientOptions options) : impl_(std::ma
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(options.max_message_bytes);
   args.SetMaxSendMessageSize(options.max_message_bytes);
-  impl_->channel = grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args);
+  std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
+  if (options.tls || !options.tls_root_certificates.empty()) {
+    if (options.tls_client_certificate.empty() != options.tls_client_key.empty())
+      throw std::invalid_argument("give both tls_client_certificate and tls_client_key (or neither)");
+    grpc::SslCredentialsOptions ssl;
+    ssl.pem_root_certs = options.tls_root_certificates;  // empty: the system's roots
+    ssl.pem_cert_chain = options.tls_client_certificate;
+    ssl.pem_private_key = options.tls_client_key;
+    credentials = grpc::SslCredentials(ssl);
+  }
+  impl_->channel = grpc::CreateCustomChannel(target, credentials, args);
   impl_->stub = pb::GarmentDynamics::NewStub(impl_->channel);
 }
 
@@ -210,7 +223,7 @@ int64_t Client::stream(const std::vector<std::string>& ids, const StreamOptions&
   req.set_steps(options.steps);
   req.set_max_frames(options.max_frames);
   grpc::ClientContext ctx;
-  impl_->set_deadline(ctx, true);
+  impl_->prepare(ctx, true);
   auto reader = impl_->stub->StreamFrames(&ctx, req);
   pb::StreamFramesResponse msg;
   int64_t frames = 0;
@@ -254,7 +267,7 @@ JobInfo Client::watch_job(const std::string& job_id, const std::function<void(co
   pb::WatchJobRequest req;
   req.set_job_id(job_id);
   grpc::ClientContext ctx;
-  impl_->set_deadline(ctx, true);
+  impl_->prepare(ctx, true);
   auto reader = impl_->stub->WatchJob(&ctx, req);
   pb::WatchJobResponse msg;
   JobInfo last;
@@ -343,7 +356,7 @@ ServerInfo Client::server_info() {
 HealthStatus Client::health(const std::string& service) {
   grpc::GenericStub generic(impl_->channel);
   grpc::ClientContext ctx;
-  impl_->set_deadline(ctx, false);
+  impl_->prepare(ctx, false);
   const std::string bytes = encode_health_request(service);
   grpc::Slice slice(bytes);
   grpc::ByteBuffer request(&slice, 1), response;

@@ -100,7 +100,7 @@ ServerProcess::ServerProcess(ServerProcessOptions options) : options_(std::move(
       port_ = options_.port > 0 ? options_.port : read_port(port_file);
       if (port_ > 0) {
         address_ = options_.host + ":" + std::to_string(port_);
-        ClientOptions co;
+        ClientOptions co = options_.client;
         co.deadline = std::chrono::milliseconds(1000);
         client = std::make_unique<Client>(address_, co);
       }

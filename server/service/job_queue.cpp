@@ -182,6 +182,7 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
 
   JobRecord rec;
   rec.job_id = id;
+  rec.owner = spec.owner;
   rec.status = JobState::kQueued;
   rec.garment = spec.garment.empty() ? spec.mesh_id : spec.garment;
   rec.material = cfg->material;
@@ -332,7 +333,8 @@ void JobQueue::run_job(const std::string& id) {
                  final_rec.message.empty() ? "" : ": " + final_rec.message);
 }
 
-Status JobQueue::cancel(const std::string& job_id, JobRecord* out) {
+Status JobQueue::cancel(const std::string& job_id, JobRecord* out, const std::string& caller) {
+  GD_RETURN_IF_ERROR(info(job_id, out, caller));  // another caller's job: NOT_FOUND, untouched
   bool dropped = false;
   {
     std::lock_guard<std::mutex> lock(mu_);
@@ -364,39 +366,50 @@ Status JobQueue::cancel(const std::string& job_id, JobRecord* out) {
   return Status::Ok();
 }
 
-Status JobQueue::info(const std::string& job_id, JobRecord* out) {
+namespace {
+Status unknown_job(const std::string& job_id) {  // the store's message for an unknown id
+  return Status::NotFound(fmt::format("no job '{}' on this server; ListReports lists the jobs", job_id));
+}
+}  // namespace
+
+Status JobQueue::info(const std::string& job_id, JobRecord* out, const std::string& caller) {
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto it = live_.find(job_id);
     if (it != live_.end()) {
+      if (!job_visible(it->second.record.owner, caller)) return unknown_job(job_id);
       *out = it->second.record;
       return Status::Ok();
     }
   }
   StoredReport r;
   GD_RETURN_IF_ERROR(store_.get(job_id, &r));
+  if (!job_visible(r.job.owner, caller)) return unknown_job(job_id);
   *out = r.job;
   return Status::Ok();
 }
 
-Status JobQueue::wait(const std::string& job_id, uint64_t* version, JobRecord* out, int timeout_ms) {
+Status JobQueue::wait(const std::string& job_id, uint64_t* version, JobRecord* out, int timeout_ms,
+                      const std::string& caller) {
   std::unique_lock<std::mutex> lock(mu_);
   auto it = live_.find(job_id);
   if (it == live_.end()) {
     lock.unlock();
-    GD_RETURN_IF_ERROR(info(job_id, out));
+    GD_RETURN_IF_ERROR(info(job_id, out, caller));
     *version = 1;
     return Status::Ok();
   }
+  if (!job_visible(it->second.record.owner, caller)) return unknown_job(job_id);
   cv_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] { return it->second.version != *version; });
   *out = it->second.record;
   *version = it->second.version;
   return Status::Ok();
 }
 
-Status JobQueue::report(const std::string& job_id, bool include_files, size_t max_file_bytes, JobReport* out) {
+Status JobQueue::report(const std::string& job_id, bool include_files, size_t max_file_bytes, JobReport* out,
+                        const std::string& caller) {
   JobRecord live;
-  GD_RETURN_IF_ERROR(info(job_id, &live));
+  GD_RETURN_IF_ERROR(info(job_id, &live, caller));
   if (!job_finished(live.status))
     return Status::FailedPrecondition(fmt::format("job '{}' is {} ({:.0f}% done); wait for it to finish (WatchJob)",
                                                   job_id, job_state_name(live.status), 100 * live.progress));
@@ -428,11 +441,11 @@ Status JobQueue::report(const std::string& job_id, bool include_files, size_t ma
   return Status::Ok();
 }
 
-Status JobQueue::list(int limit, int offset, std::vector<JobRecord>* out, int* total) {
+Status JobQueue::list(int limit, int offset, std::vector<JobRecord>* out, int* total, const std::string& caller) {
   if (limit < 0 || offset < 0) return Status::InvalidArgument("limit and offset must be >= 0");
   if (limit == 0) limit = 100;
   if (limit > 10000) return Status::InvalidArgument("limit must be at most 10000");
-  GD_RETURN_IF_ERROR(store_.list(limit, offset, out, total));
+  GD_RETURN_IF_ERROR(store_.list(limit, offset, out, total, caller));
   std::lock_guard<std::mutex> lock(mu_);
   for (JobRecord& r : *out) {  // live progress of this process's jobs
     auto it = live_.find(r.job_id);

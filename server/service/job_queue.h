@@ -56,6 +56,7 @@ struct JobSpec {
   std::string label;
   std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
   std::map<std::string, double> task_params;     ///< TaskParams by name
+  std::string owner;                ///< the submitting caller's principal (JobRecord::owner)
 };
 
 struct JobQueueOptions {
@@ -92,22 +93,27 @@ class JobQueue {
 
   /// Validates and queues a job. UNAVAILABLE while draining.
   Status submit(const JobSpec& spec, std::string* job_id);
+  // Every lookup names its caller (a principal, "" on a server without tokens): a job the caller
+  // may not see (job_visible) is NOT_FOUND, with the same message as an unknown id.
+
   /// The job's record (live progress for this process's jobs). NOT_FOUND for unknown ids.
-  Status info(const std::string& job_id, JobRecord* out);
+  Status info(const std::string& job_id, JobRecord* out, const std::string& caller = {});
   /// Waits up to timeout_ms for the job's record to change from `*version`, then returns the
   /// record and its version (version 0 on the first call returns at once).
-  Status wait(const std::string& job_id, uint64_t* version, JobRecord* out, int timeout_ms);
+  Status wait(const std::string& job_id, uint64_t* version, JobRecord* out, int timeout_ms,
+              const std::string& caller = {});
   /// The report of a finished job; FAILED_PRECONDITION while it is queued or running. With
   /// include_files the files' bytes too (skipping frames/, at most max_file_bytes in total).
-  Status report(const std::string& job_id, bool include_files, size_t max_file_bytes, JobReport* out);
-  /// Jobs newest first (limit 0: 100).
-  Status list(int limit, int offset, std::vector<JobRecord>* out, int* total);
+  Status report(const std::string& job_id, bool include_files, size_t max_file_bytes, JobReport* out,
+                const std::string& caller = {});
+  /// The jobs the caller may see, newest first (limit 0: 100).
+  Status list(int limit, int offset, std::vector<JobRecord>* out, int* total, const std::string& caller = {});
   /// Jobs queued or running now.
   int active() const;
   /// Cancels a job: a queued one is dropped at once, a running one stops at its next step; both
   /// end CANCELLED (the running one keeps the files it wrote). FAILED_PRECONDITION for a finished
   /// job, NOT_FOUND for an unknown one. `out` receives the record as it stands after the call.
-  Status cancel(const std::string& job_id, JobRecord* out);
+  Status cancel(const std::string& job_id, JobRecord* out, const std::string& caller = {});
 
   /// Stops taking jobs, waits up to grace_seconds for the running ones, then interrupts them and
   /// the queued ones. Idempotent.

@@ -76,6 +76,16 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--plots", o.plots, "draw the PNG plots of capture jobs (needs Python with matplotlib)");
   app.add_option("--grace-seconds", o.grace_seconds, "on SIGTERM: how long running jobs may still take")->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--auth-token-file", o.auth_token_file,
+                 "bearer tokens, one per line ('#' comments): every call but the health check must send one "
+                 "(metadata 'authorization: Bearer TOKEN'); each token sees only the scenes and jobs it made")
+      ->check(CLI::ExistingFile);
+  app.add_option("--tls-cert", o.tls_cert, "PEM certificate chain: serve TLS (with --tls-key)")->check(CLI::ExistingFile);
+  app.add_option("--tls-key", o.tls_key, "PEM private key of --tls-cert")->check(CLI::ExistingFile);
+  app.add_option("--tls-client-ca", o.tls_client_ca, "PEM CA: require client certificates signed by it (mutual TLS)")
+      ->check(CLI::ExistingFile);
+  app.add_flag("--allow-unauthenticated", o.allow_unauthenticated,
+               "listen on a non-loopback --host without --auth-token-file (a network you trust)");
   app.add_option("--log-format", log_format, "text | json (one JSON object per line)")->check(CLI::IsMember({"text", "json"}))->capture_default_str();
   app.add_option("--log-level", log_level, "trace | debug | info | warn | error")->capture_default_str();
   CLI11_PARSE(app, argc, argv);

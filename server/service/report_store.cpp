@@ -4,8 +4,8 @@
 #include <sqlite3.h>
 
 #include <ctime>
-#include <random>
 
+#include "service/auth.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 
@@ -33,15 +33,12 @@ std::string now_iso8601() {
 }
 
 std::string new_id(const std::string& prefix) {
-  static std::mutex mu;
-  static std::mt19937_64 rng(std::random_device{}());
   const std::time_t t = std::time(nullptr);
   std::tm tm{};
   gmtime_r(&t, &tm);
   char buf[32];
   std::strftime(buf, sizeof buf, "%Y%m%dT%H%M%S", &tm);
-  std::lock_guard<std::mutex> lock(mu);
-  return fmt::format("{}{}-{:08x}", prefix, buf, static_cast<uint32_t>(rng()));
+  return fmt::format("{}{}-{}", prefix, buf, random_hex(16));
 }
 
 namespace {
@@ -82,7 +79,7 @@ class Stmt {
 
 constexpr const char* kJobColumns =
     "job_id, status, progress, sim_time, end_time, message, garment, material, task, label, created_at, "
-    "finished_at, request_json";
+    "finished_at, request_json, owner";
 
 JobRecord read_job(const Stmt& s) {
   JobRecord j;
@@ -99,6 +96,7 @@ JobRecord read_job(const Stmt& s) {
   j.created_at = s.text(10);
   j.finished_at = s.text(11);
   j.request_json = s.text(12);
+  j.owner = s.text(13);
   return j;
 }
 
@@ -168,6 +166,12 @@ ReportStore::ReportStore(const std::string& path) : path_(path) {
       PRAGMA user_version = 1;
     )sql");
     must("COMMIT");
+    version = 1;
+  }
+  if (version < 2) {  // jobs.owner: the principal of the token that submitted the job ('' without tokens)
+    must("BEGIN IMMEDIATE");
+    must("ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''; PRAGMA user_version = 2;");
+    must("COMMIT");
   }
 }
 
@@ -193,11 +197,11 @@ Status ReportStore::insert_job(const JobRecord& j) {
   std::lock_guard<std::mutex> lock(mu_);
   Stmt s(db_,
          "INSERT INTO jobs(job_id, status, progress, sim_time, end_time, message, garment, material, task, label, "
-         "created_at, finished_at, request_json) VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?)");
+         "created_at, finished_at, request_json, owner) VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
   if (!s.ok()) return error("prepare insert job");
   s.bind(1, j.job_id).bind(2, static_cast<int>(j.status)).bind(3, j.progress).bind(4, j.sim_time).bind(5, j.end_time);
   s.bind(6, j.message).bind(7, j.garment).bind(8, j.material).bind(9, j.task).bind(10, j.label);
-  s.bind(11, j.created_at).bind(12, j.finished_at).bind(13, j.request_json);
+  s.bind(11, j.created_at).bind(12, j.finished_at).bind(13, j.request_json).bind(14, j.owner);
   if (s.step() != SQLITE_DONE) return error("insert job " + j.job_id);
   return Status::Ok();
 }
@@ -275,7 +279,7 @@ Status ReportStore::get(const std::string& job_id, StoredReport* out) {
     if (rc == SQLITE_DONE) return Status::NotFound(fmt::format("no job '{}' on this server; ListReports lists the jobs", job_id));
     if (rc != SQLITE_ROW) return error("get " + job_id);
     out->job = read_job(s);
-    out->summary_json = s.text(13);
+    out->summary_json = s.text(14);
   }
   Stmt f(db_, "SELECT name FROM report_files WHERE job_id = ? ORDER BY name");
   if (!f.ok()) return error("prepare files");
@@ -287,16 +291,20 @@ Status ReportStore::get(const std::string& job_id, StoredReport* out) {
   return Status::Ok();
 }
 
-Status ReportStore::list(int limit, int offset, std::vector<JobRecord>* out, int* total) {
+Status ReportStore::list(int limit, int offset, std::vector<JobRecord>* out, int* total, const std::string& owner) {
   std::lock_guard<std::mutex> lock(mu_);
+  constexpr const char* kVisible = "(?1 = '' OR owner = '' OR owner = ?1)";  // job_visible() in SQL
   {
-    Stmt c(db_, "SELECT COUNT(*) FROM jobs");
-    if (!c.ok() || c.step() != SQLITE_ROW) return error("count jobs");
+    Stmt c(db_, fmt::format("SELECT COUNT(*) FROM jobs WHERE {}", kVisible).c_str());
+    if (!c.ok()) return error("prepare count");
+    c.bind(1, owner);
+    if (c.step() != SQLITE_ROW) return error("count jobs");
     *total = static_cast<int>(c.integer(0));
   }
-  Stmt s(db_, fmt::format("SELECT {} FROM jobs ORDER BY seq DESC LIMIT ? OFFSET ?", kJobColumns).c_str());
+  Stmt s(db_, fmt::format("SELECT {} FROM jobs WHERE {} ORDER BY seq DESC LIMIT ?2 OFFSET ?3", kJobColumns, kVisible)
+                  .c_str());
   if (!s.ok()) return error("prepare list");
-  s.bind(1, limit).bind(2, offset);
+  s.bind(1, owner).bind(2, limit).bind(3, offset);
   out->clear();
   int rc;
   while ((rc = s.step()) == SQLITE_ROW) out->push_back(read_job(s));

@@ -42,7 +42,16 @@ struct JobRecord {
   std::string created_at;  ///< ISO 8601 UTC
   std::string finished_at;
   std::string request_json;  ///< the submitted request (for reference)
+  /// The principal of the token that submitted the job (TokenSet, auth.h); "" without tokens.
+  std::string owner;
 };
+
+/// Whether a caller (a principal, "" on a server without tokens) may see a job of `owner`: its
+/// own jobs, jobs stored before tokens were used (owner ""), and every job when it runs without
+/// tokens.
+inline bool job_visible(const std::string& owner, const std::string& caller) {
+  return caller.empty() || owner.empty() || owner == caller;
+}
 
 /// A job with its report.
 struct StoredReport {
@@ -63,12 +72,13 @@ struct MeshRecord {
 
 /// The current time, ISO 8601 UTC with seconds ("2026-01-31T12:00:00Z").
 std::string now_iso8601();
-/// A new id unique across restarts: prefix + UTC timestamp + random suffix ("j-20260131T120000-1a2b3c4d").
+/// A new id unique across restarts and unguessable: prefix + UTC timestamp + 128 random bits
+/// ("j-20260131T120000-" and 32 hex digits).
 std::string new_id(const std::string& prefix);
 
 class ReportStore {
  public:
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;  ///< 2: jobs.owner
 
   /// Opens (creating if needed) the database at `path`. Throws sim::InputError when it cannot be
   /// opened or was written by a newer schema.
@@ -92,8 +102,8 @@ class ReportStore {
                            std::vector<std::string>* ids = nullptr);
   /// The job and its report; NOT_FOUND for an unknown id.
   Status get(const std::string& job_id, StoredReport* out);
-  /// Jobs newest first, and the total count.
-  Status list(int limit, int offset, std::vector<JobRecord>* out, int* total);
+  /// Jobs `caller` may see (job_visible) newest first, and their total count.
+  Status list(int limit, int offset, std::vector<JobRecord>* out, int* total, const std::string& caller = {});
 
   Status insert_mesh(const MeshRecord& mesh);
   /// NOT_FOUND for an unknown id.

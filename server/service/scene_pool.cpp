@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "experiment/experiment.h"
+#include "service/auth.h"
 #include "garments/generator.h"
 #include "sim/demand.h"
 #include "sim/log.h"
@@ -138,6 +139,7 @@ bool finite(const Vec3& v) { return v.allFinite(); }
 struct ScenePool::Entry {
   std::mutex mu;
   std::string id;
+  std::string owner;  ///< the creating caller's principal
   std::shared_ptr<const Template> tmpl;
   uint64_t seed = 0;
   std::unique_ptr<sim::Scene> scene;
@@ -231,7 +233,8 @@ int ScenePool::size() const {
   return static_cast<int>(scenes_.size());
 }
 
-Status ScenePool::lookup(const std::vector<std::string>& ids, std::vector<std::shared_ptr<Entry>>* out) const {
+Status ScenePool::lookup(const std::vector<std::string>& ids, const std::string& owner,
+                         std::vector<std::shared_ptr<Entry>>* out) const {
   if (ids.empty()) return Status::InvalidArgument("no scene ids given; pass the ids that CreateScenes returned");
   std::set<std::string> seen;
   out->clear();
@@ -240,7 +243,7 @@ Status ScenePool::lookup(const std::vector<std::string>& ids, std::vector<std::s
     if (!seen.insert(id).second)
       return Status::InvalidArgument(fmt::format("scene '{}' is named twice; name each scene once per call", id));
     auto it = scenes_.find(id);
-    if (it == scenes_.end())
+    if (it == scenes_.end() || it->second->owner != owner)  // another owner's scene: as if unknown
       return Status::NotFound(fmt::format("no scene '{}' on this server (destroyed, never created, or created "
                                           "before a restart); create scenes with CreateScenes", id));
     out->push_back(it->second);
@@ -391,7 +394,9 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     {
       std::lock_guard<std::mutex> lock(mu_);
       for (auto& e : made) {
-        e->id = fmt::format("s-{}", next_id_++);
+        do e->id = "s-" + random_hex(16);
+        while (scenes_.count(e->id));
+        e->owner = spec.owner;
         scenes_[e->id] = e;
         out->ids.push_back(e->id);
       }
@@ -410,12 +415,12 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
 }
 
 Status ScenePool::reset(const std::vector<std::string>& ids, const std::vector<uint64_t>& seeds,
-                        std::vector<SceneSnapshot>* out) {
+                        std::vector<SceneSnapshot>* out, const std::string& owner) {
   if (!seeds.empty() && seeds.size() != 1 && seeds.size() != ids.size())
     return Status::InvalidArgument(fmt::format("give no seed, one seed, or one per scene ({}); got {}", ids.size(),
                                                seeds.size()));
   std::vector<std::shared_ptr<Entry>> entries;
-  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  GD_RETURN_IF_ERROR(lookup(ids, owner, &entries));
   auto locks = lock_all(entries);
   GD_RETURN_IF_ERROR(check_alive(entries));
   std::vector<std::string> errors(entries.size());
@@ -523,7 +528,7 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
   if (ids.empty())
     for (const SceneAction& a : req.actions) ids.push_back(a.scene_id);
   std::vector<std::shared_ptr<Entry>> entries;
-  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  GD_RETURN_IF_ERROR(lookup(ids, req.owner, &entries));
   GD_RETURN_IF_ERROR(check_reply_size(entries, req.include_positions, req.include_velocities,
                                       options_.max_reply_bytes));
   std::map<std::string, size_t> index;
@@ -635,9 +640,10 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
   return Status::Ok();
 }
 
-Status ScenePool::state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out) {
+Status ScenePool::state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out,
+                        const std::string& owner) {
   std::vector<std::shared_ptr<Entry>> entries;
-  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  GD_RETURN_IF_ERROR(lookup(ids, owner, &entries));
   GD_RETURN_IF_ERROR(check_reply_size(entries, true, include_velocities, options_.max_reply_bytes));
   out->clear();
   for (const auto& e : entries) {
@@ -648,22 +654,24 @@ Status ScenePool::state(const std::vector<std::string>& ids, bool include_veloci
   return Status::Ok();
 }
 
-Status ScenePool::check(const std::vector<std::string>& ids) const {
+Status ScenePool::check(const std::vector<std::string>& ids, const std::string& owner) const {
   std::vector<std::shared_ptr<Entry>> entries;
-  return lookup(ids, &entries);
+  return lookup(ids, owner, &entries);
 }
 
-std::vector<std::string> ScenePool::existing(const std::vector<std::string>& ids) const {
+std::vector<std::string> ScenePool::existing(const std::vector<std::string>& ids, const std::string& owner) const {
   std::lock_guard<std::mutex> lock(mu_);
   std::vector<std::string> out;
-  for (const std::string& id : ids)
-    if (scenes_.count(id)) out.push_back(id);
+  for (const std::string& id : ids) {
+    auto it = scenes_.find(id);
+    if (it != scenes_.end() && it->second->owner == owner) out.push_back(id);
+  }
   return out;
 }
 
-Status ScenePool::destroy(const std::vector<std::string>& ids, int* destroyed) {
+Status ScenePool::destroy(const std::vector<std::string>& ids, int* destroyed, const std::string& owner) {
   std::vector<std::shared_ptr<Entry>> entries;
-  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  GD_RETURN_IF_ERROR(lookup(ids, owner, &entries));
   {
     std::lock_guard<std::mutex> lock(mu_);
     for (const auto& e : entries) scenes_.erase(e->id);
@@ -679,10 +687,11 @@ Status ScenePool::destroy(const std::vector<std::string>& ids, int* destroyed) {
   return Status::Ok();
 }
 
-Status ScenePool::subscribe(const std::vector<std::string>& ids, int every, std::shared_ptr<FrameSubscription>* out) {
+Status ScenePool::subscribe(const std::vector<std::string>& ids, int every, std::shared_ptr<FrameSubscription>* out,
+                            const std::string& owner) {
   if (every < 0) return Status::InvalidArgument(fmt::format("every must be >= 1 (got {})", every));
   std::vector<std::shared_ptr<Entry>> entries;
-  GD_RETURN_IF_ERROR(lookup(ids, &entries));
+  GD_RETURN_IF_ERROR(lookup(ids, owner, &entries));
   auto sub = std::make_shared<FrameSubscription>(every == 0 ? 1 : every, entries.size(), options().max_queued_frame_bytes);
   for (const auto& e : entries) {
     std::lock_guard<std::mutex> lock(e->mu);

@@ -85,6 +85,7 @@ struct SceneSpec {
   double yaw_deg = 0;            ///< randomisation: yaw uniform in [-yaw_deg, yaw_deg]
   double offset_m = 0;           ///< randomisation: x/y offsets uniform in [-offset_m, offset_m]
   std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
+  std::string owner;             ///< the caller's principal (see ScenePool: ownership)
 };
 
 /// One arm's command for the end of a step.
@@ -113,6 +114,7 @@ struct StepRequest {
   /// Asked between substeps (the call's deadline passed or the client left): the scenes stop at
   /// a step boundary and step() returns CANCELLED. Empty: never.
   std::function<bool()> cancelled;
+  std::string owner;                   ///< the caller's principal (see ScenePool: ownership)
 };
 
 /// One arm's state in a snapshot.
@@ -192,6 +194,11 @@ class FrameSubscription {
 /// The default home pose of an arm: 0.3 m above its base, gripper pointing down.
 Eigen::Isometry3d home_pose(tasks::Arm arm);
 
+/// Ownership: every scene belongs to the principal that created it (SceneSpec::owner; with
+/// --auth-token-file the fingerprint of the caller's token, else ""). Every call names its caller
+/// (`owner`); a scene of another owner is NOT_FOUND with the same message as an unknown id, so
+/// ids reveal nothing across tenants. Scene ids are "s-" and 32 hex digits from the system's
+/// CSPRNG (random_hex): unguessable.
 class ScenePool {
  public:
   /// Starts the worker threads. Throws sim::InputError for nonsensical options (negative limits).
@@ -210,32 +217,34 @@ class ScenePool {
   /// Rebuilds scenes in their initial state, randomised by `seeds`: empty = each scene's creation
   /// seed, one = for all, else one per scene. Positions are bit-identical for the same seed.
   Status reset(const std::vector<std::string>& ids, const std::vector<uint64_t>& seeds,
-               std::vector<SceneSnapshot>* out);
+               std::vector<SceneSnapshot>* out, const std::string& owner = {});
   /// Applies the actions and advances the scenes req.substeps steps each, in parallel. Input is
   /// checked before any scene changes.
   Status step(const StepRequest& req, std::vector<SceneSnapshot>* out);
   /// Current states.
-  Status state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out);
+  Status state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out,
+               const std::string& owner = {});
   /// OK when every id names a live scene, each once (else lookup's NOT_FOUND / INVALID_ARGUMENT).
-  Status check(const std::vector<std::string>& ids) const;
+  Status check(const std::vector<std::string>& ids, const std::string& owner = {}) const;
   /// The ids among `ids` that name live scenes, in order.
-  std::vector<std::string> existing(const std::vector<std::string>& ids) const;
+  std::vector<std::string> existing(const std::vector<std::string>& ids, const std::string& owner = {}) const;
   /// Destroys scenes (all ids must exist). `destroyed` receives how many.
-  Status destroy(const std::vector<std::string>& ids, int* destroyed);
+  Status destroy(const std::vector<std::string>& ids, int* destroyed, const std::string& owner = {});
   /// Subscribes to the frames of scenes (see FrameSubscription). Unsubscribe by dropping the pointer.
-  Status subscribe(const std::vector<std::string>& ids, int every, std::shared_ptr<FrameSubscription>* out);
+  Status subscribe(const std::vector<std::string>& ids, int every, std::shared_ptr<FrameSubscription>* out,
+                   const std::string& owner = {});
 
   struct Entry;  ///< one scene (private to the implementation)
 
  private:
-  Status lookup(const std::vector<std::string>& ids, std::vector<std::shared_ptr<Entry>>* out) const;
+  Status lookup(const std::vector<std::string>& ids, const std::string& owner,
+                std::vector<std::shared_ptr<Entry>>* out) const;
 
   PoolOptions options_;
   ThreadPool pool_;
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Entry>> scenes_;
   int reserved_ = 0;      ///< slots held by creates in progress
-  uint64_t next_id_ = 1;
 };
 
 }  // namespace gd::service

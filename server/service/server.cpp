@@ -9,14 +9,18 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
+#include <sstream>
 #include <thread>
 
+#include "service/auth.h"
 #include "service/job_queue.h"
 #include "service/mesh_library.h"
 #include "service/report_store.h"
 #include "service/scene_pool.h"
 #include "service/service.h"
+#include "sim/demand.h"
 #include "sim/log.h"
 
 #ifndef GD_VERSION
@@ -29,6 +33,36 @@ namespace fs = std::filesystem;
 namespace {
 constexpr const char* kServiceName = "garmentdynamics.v1.GarmentDynamics";
 constexpr int kShutdownSeconds = 5;  ///< Server::Shutdown's deadline for in-flight calls
+
+/// A PEM file's text; throws sim::InputError naming the flag.
+std::string read_pem(const std::string& path, const char* flag) {
+  std::ifstream f(path, std::ios::binary);
+  std::ostringstream ss;
+  if (f) ss << f.rdbuf();
+  if (!f || ss.str().find("-----BEGIN") == std::string::npos)
+    throw sim::InputError(fmt::format("cannot read a PEM file from '{}' ({})", path, flag));
+  return ss.str();
+}
+
+/// Insecure, or TLS (and mTLS) from the options' PEM files. Throws sim::InputError.
+std::shared_ptr<grpc::ServerCredentials> server_credentials(const ServerOptions& o) {
+  if (o.tls_cert.empty() != o.tls_key.empty())
+    throw sim::InputError("give both --tls-cert and --tls-key (or neither)");
+  if (o.tls_cert.empty()) {
+    if (!o.tls_client_ca.empty()) throw sim::InputError("--tls-client-ca needs --tls-cert and --tls-key");
+    return grpc::InsecureServerCredentials();
+  }
+  grpc::SslServerCredentialsOptions ssl(o.tls_client_ca.empty()
+                                            ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                                            : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+  ssl.pem_key_cert_pairs.push_back({read_pem(o.tls_key, "--tls-key"), read_pem(o.tls_cert, "--tls-cert")});
+  if (!o.tls_client_ca.empty()) ssl.pem_root_certs = read_pem(o.tls_client_ca, "--tls-client-ca");
+  return grpc::SslServerCredentials(ssl);
+}
+}  // namespace
+
+bool is_loopback_host(const std::string& host) {
+  return host == "localhost" || host == "::1" || host == "[::1]" || host.rfind("127.", 0) == 0;
 }
 
 struct Server::Impl {
@@ -60,6 +94,21 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
   if (o.max_message_mb < 1 || o.max_message_mb > 2000)
     return fail(Status::InvalidArgument("--max-message-mb must be in [1, 2000]"));
   if (o.job_workers < 1) return fail(Status::InvalidArgument("--job-workers must be >= 1"));
+  if (o.auth_token_file.empty() && !o.allow_unauthenticated && !is_loopback_host(o.host))
+    return fail(Status::InvalidArgument(fmt::format(
+        "--host {} is reachable from other machines: give --auth-token-file FILE (and --tls-cert/--tls-key), or "
+        "--allow-unauthenticated on a network you trust", o.host)));
+  TokenSet tokens;
+  std::shared_ptr<grpc::ServerCredentials> credentials;
+  try {
+    if (!o.auth_token_file.empty()) tokens = TokenSet::load(o.auth_token_file);
+    credentials = server_credentials(o);
+  } catch (const std::exception& e) {
+    return fail(Status::InvalidArgument(e.what()));
+  }
+  if (tokens.enabled() && o.tls_cert.empty() && !is_loopback_host(o.host))
+    gd::log().warn("bearer tokens over plaintext on {}: anyone on the path can read them; add --tls-cert/--tls-key",
+                   o.host);
   std::unique_ptr<Server> s(new Server());
   Impl& im = *s->impl_;
   im.options = o;
@@ -93,6 +142,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
   }
   HandlerOptions ho;
   ho.version = GD_VERSION;
+  ho.tokens = tokens;
   ho.max_reply_bytes = max_bytes;
   ho.max_report_file_bytes = std::min<size_t>(32u << 20, max_bytes - std::min<size_t>(max_bytes / 2, 1u << 20));
   im.service = std::make_unique<GarmentDynamicsService>(*im.scenes, *im.jobs, *im.meshes, ho);
@@ -105,7 +155,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
   // --port is 0 (a server on two ports, one of them in --port-file), and a second server could
   // bind a port this one holds without an error (grpc/grpc#11920, #24730).
   b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
-  b.AddListeningPort(addr, grpc::InsecureServerCredentials(), &im.port);
+  b.AddListeningPort(addr, credentials, &im.port);
   b.RegisterService(im.service.get());
   b.SetMaxReceiveMessageSize(static_cast<int>(max_bytes));
   b.SetMaxSendMessageSize(static_cast<int>(max_bytes));
@@ -120,9 +170,11 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     h->SetServingStatus(true);
     h->SetServingStatus(kServiceName, true);
   }
-  gd::log().info("gd-server {} on {}:{} ({} scene threads, backend {}, data in {})", GD_VERSION, o.host, im.port,
-                 im.scenes->threads(), o.backend == sim::BackendKind::kCpu ? "cpu" : o.backend == sim::BackendKind::kCuda ? "cuda" : "auto",
-                 o.data_dir);
+  gd::log().info("gd-server {} on {}:{} ({} scene threads, backend {}, data in {}; {}, {})", GD_VERSION, o.host,
+                 im.port, im.scenes->threads(),
+                 o.backend == sim::BackendKind::kCpu ? "cpu" : o.backend == sim::BackendKind::kCuda ? "cuda" : "auto",
+                 o.data_dir, o.tls_cert.empty() ? "plaintext" : o.tls_client_ca.empty() ? "TLS" : "mutual TLS",
+                 tokens.enabled() ? fmt::format("{} bearer token(s)", tokens.size()) : std::string("no tokens"));
   return s;
 }
 

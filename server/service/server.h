@@ -31,7 +31,17 @@ struct ServerOptions {
   long max_job_steps = 2'000'000;    ///< simulation steps per job (0: no limit)
   bool plots = false;
   double grace_seconds = 10;         ///< drain: how long running jobs may still take
+  /// Security (docs/service.md, "Tokens and TLS").
+  std::string auth_token_file;       ///< bearer tokens, one per line (empty: no authentication)
+  std::string tls_cert, tls_key;     ///< PEM certificate chain and private key: serve TLS (both or neither)
+  std::string tls_client_ca;         ///< PEM CA: require client certificates signed by it (mTLS; needs TLS)
+  /// Listen on a non-loopback host without tokens (refused otherwise: anyone who can reach the
+  /// port could run, read and destroy everything).
+  bool allow_unauthenticated = false;
 };
+
+/// Whether `host` names only this machine (127.0.0.0/8, ::1, localhost).
+bool is_loopback_host(const std::string& host);
 
 /// Seconds a drain may overrun its budget before drain_on_signal ends the process.
 inline constexpr int kDrainOverrunSeconds = 10;

@@ -31,6 +31,20 @@ std::string request_id(grpc::ServerContext* ctx) {
 
 }  // namespace
 
+Status GarmentDynamicsService::authenticate(Ctx* ctx, std::string* owner) const {
+  owner->clear();
+  if (!options_.tokens.enabled()) return Status::Ok();
+  const auto& md = ctx->client_metadata();
+  auto it = md.find("authorization");
+  if (it == md.end())
+    return Status::Unauthenticated("this server needs a bearer token: send metadata 'authorization: Bearer TOKEN' "
+                                   "(gd --token-file FILE, Client(token_file=...), ClientOptions::token)");
+  *owner = options_.tokens.principal(std::string(it->second.data(), it->second.size()));
+  if (owner->empty())
+    return Status::Unauthenticated("unknown bearer token: use a token from this server's --auth-token-file");
+  return Status::Ok();
+}
+
 GarmentDynamicsService::GarmentDynamicsService(ScenePool& scenes, JobQueue& jobs, MeshLibrary& meshes,
                                                HandlerOptions options)
     : scenes_(scenes), jobs_(jobs), meshes_(meshes), options_(std::move(options)) {}
@@ -38,12 +52,13 @@ GarmentDynamicsService::GarmentDynamicsService(ScenePool& scenes, JobQueue& jobs
 template <class F>
 grpc::Status GarmentDynamicsService::handle(Ctx* ctx, const char* method, bool info_level, F&& body) {
   const auto t0 = std::chrono::steady_clock::now();
-  std::string rid;
+  Call call;
   Status st;
   try {
-    rid = request_id(ctx);
-    ctx->AddInitialMetadata("x-request-id", rid);
-    st = body(rid);
+    call.request_id = request_id(ctx);
+    ctx->AddInitialMetadata("x-request-id", call.request_id);
+    st = authenticate(ctx, &call.owner);  // before the body: no work for an unknown caller
+    if (st.ok()) st = body(call);
   } catch (const std::exception& e) {
     st = Status::Internal(fmt::format("{} failed unexpectedly: {}", method, e.what()));
   } catch (...) {
@@ -55,8 +70,8 @@ grpc::Status GarmentDynamicsService::handle(Ctx* ctx, const char* method, bool i
     const auto level = !st.ok() && st.code() == Code::kInternal ? spdlog::level::err
                        : info_level                              ? spdlog::level::info
                                                                  : spdlog::level::debug;
-    gd::log().log(level, "rpc {} {} {} {:.1f} ms{}{}", rid, method, code_name(st.code()), ms, st.ok() ? "" : ": ",
-                  st.message());
+    gd::log().log(level, "rpc {} {}{}{} {} {:.1f} ms{}{}", call.request_id, method, call.owner.empty() ? "" : " by ",
+                  call.owner, code_name(st.code()), ms, st.ok() ? "" : ": ", st.message());
   } catch (...) {
   }
   return to_grpc(st);
@@ -64,10 +79,11 @@ grpc::Status GarmentDynamicsService::handle(Ctx* ctx, const char* method, bool i
 
 grpc::Status GarmentDynamicsService::CreateScenes(Ctx* ctx, const pb::CreateScenesRequest* req,
                                                   pb::CreateScenesResponse* resp) {
-  return handle(ctx, "CreateScenes", true, [&](const std::string&) {
+  return handle(ctx, "CreateScenes", true, [&](const Call& call) {
     if (refusing_) return Status::Unavailable("the server is shutting down; create the scenes on another server");
     SceneSpec spec;
     GD_RETURN_IF_ERROR(to_scene_spec(*req, &spec));
+    spec.owner = call.owner;
     if (req->source_case() == pb::CreateScenesRequest::kMeshId) {
       MeshRecord m;
       GD_RETURN_IF_ERROR(meshes_.get(req->mesh_id(), &m));
@@ -83,7 +99,7 @@ grpc::Status GarmentDynamicsService::CreateScenes(Ctx* ctx, const pb::CreateScen
     const size_t bytes = resp->ByteSizeLong();
     if (options_.max_reply_bytes > 0 && bytes > options_.max_reply_bytes) {
       int destroyed = 0;
-      scenes_.destroy(created.ids, &destroyed);
+      scenes_.destroy(created.ids, &destroyed, call.owner);
       const size_t per_scene = resp->states_size() > 0 ? resp->states(0).ByteSizeLong() : 1;
       const size_t states = per_scene * created.ids.size();
       const size_t fixed = bytes > states ? bytes - states : 0;  // the shared rest shape and ids
@@ -100,11 +116,11 @@ grpc::Status GarmentDynamicsService::CreateScenes(Ctx* ctx, const pb::CreateScen
 
 grpc::Status GarmentDynamicsService::ResetScenes(Ctx* ctx, const pb::ResetScenesRequest* req,
                                                  pb::ResetScenesResponse* resp) {
-  return handle(ctx, "ResetScenes", false, [&](const std::string&) {
+  return handle(ctx, "ResetScenes", false, [&](const Call& call) {
     std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
     std::vector<uint64_t> seeds(req->seeds().begin(), req->seeds().end());
     std::vector<SceneSnapshot> states;
-    GD_RETURN_IF_ERROR(scenes_.reset(ids, seeds, &states));
+    GD_RETURN_IF_ERROR(scenes_.reset(ids, seeds, &states, call.owner));
     for (const SceneSnapshot& s : states) to_proto(s, false, resp->add_states());
     return Status::Ok();
   });
@@ -112,9 +128,10 @@ grpc::Status GarmentDynamicsService::ResetScenes(Ctx* ctx, const pb::ResetScenes
 
 grpc::Status GarmentDynamicsService::StepScenes(Ctx* ctx, const pb::StepScenesRequest* req,
                                                 pb::StepScenesResponse* resp) {
-  return handle(ctx, "StepScenes", false, [&](const std::string&) {
+  return handle(ctx, "StepScenes", false, [&](const Call& call) {
     StepRequest r;
     GD_RETURN_IF_ERROR(to_step_request(*req, &r));
+    r.owner = call.owner;
     r.cancelled = [ctx] { return ctx->IsCancelled(); };  // deadline passed or client gone
     std::vector<SceneSnapshot> states;
     GD_RETURN_IF_ERROR(scenes_.step(r, &states));
@@ -124,10 +141,10 @@ grpc::Status GarmentDynamicsService::StepScenes(Ctx* ctx, const pb::StepScenesRe
 }
 
 grpc::Status GarmentDynamicsService::GetState(Ctx* ctx, const pb::GetStateRequest* req, pb::GetStateResponse* resp) {
-  return handle(ctx, "GetState", false, [&](const std::string&) {
+  return handle(ctx, "GetState", false, [&](const Call& call) {
     std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
     std::vector<SceneSnapshot> states;
-    GD_RETURN_IF_ERROR(scenes_.state(ids, req->include_velocities(), &states));
+    GD_RETURN_IF_ERROR(scenes_.state(ids, req->include_velocities(), &states, call.owner));
     for (const SceneSnapshot& s : states) to_proto(s, true, resp->add_states());
     return Status::Ok();
   });
@@ -135,7 +152,7 @@ grpc::Status GarmentDynamicsService::GetState(Ctx* ctx, const pb::GetStateReques
 
 grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFramesRequest* req,
                                                   grpc::ServerWriter<pb::StreamFramesResponse>* writer) {
-  return handle(ctx, "StreamFrames", false, [&](const std::string&) -> Status {
+  return handle(ctx, "StreamFrames", false, [&](const Call& call) -> Status {
     if (req->every() < 0) return Status::InvalidArgument(fmt::format("every must be >= 1 (got {})", req->every()));
     if (req->steps() < 0) return Status::InvalidArgument(fmt::format("steps must be >= 0 (got {})", req->steps()));
     if (req->max_frames() < 0)
@@ -155,18 +172,19 @@ grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFram
       if (every > scenes_.options().max_substeps)
         return Status::ResourceExhausted(fmt::format("every {} is over the server's limit of {} steps per call",
                                                      every, scenes_.options().max_substeps));
-      GD_RETURN_IF_ERROR(scenes_.check(ids));  // unknown ids: NOT_FOUND (destroyed later: the stream goes on)
+      GD_RETURN_IF_ERROR(scenes_.check(ids, call.owner));  // unknown ids: NOT_FOUND (destroyed later: the stream goes on)
       int done = 0;
       while (done < req->steps() && !ids.empty()) {
         if (stop()) return Status::Ok();
         StepRequest r;
         r.scene_ids = ids;
         r.substeps = std::min(every, req->steps() - done);
+        r.owner = call.owner;
         r.cancelled = stop;
         std::vector<SceneSnapshot> states;
         const Status stepped = scenes_.step(r, &states);
         if (stepped.code() == Code::kNotFound) {  // scenes destroyed under the stream: go on with the rest
-          std::vector<std::string> alive = scenes_.existing(ids);
+          std::vector<std::string> alive = scenes_.existing(ids, call.owner);
           if (alive.size() == ids.size()) return stepped;
           ids = std::move(alive);
           continue;
@@ -185,7 +203,7 @@ grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFram
       return Status::Ok();
     }
     std::shared_ptr<FrameSubscription> sub;
-    GD_RETURN_IF_ERROR(scenes_.subscribe(ids, every, &sub));
+    GD_RETURN_IF_ERROR(scenes_.subscribe(ids, every, &sub, call.owner));
     writer->SendInitialMetadata();  // tells the client the subscription is in place
     SceneSnapshot s;
     while (!stop()) {
@@ -203,19 +221,20 @@ grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFram
 
 grpc::Status GarmentDynamicsService::DestroyScenes(Ctx* ctx, const pb::DestroyScenesRequest* req,
                                                    pb::DestroyScenesResponse* resp) {
-  return handle(ctx, "DestroyScenes", true, [&](const std::string&) {
+  return handle(ctx, "DestroyScenes", true, [&](const Call& call) {
     std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
     int n = 0;
-    GD_RETURN_IF_ERROR(scenes_.destroy(ids, &n));
+    GD_RETURN_IF_ERROR(scenes_.destroy(ids, &n, call.owner));
     resp->set_destroyed(n);
     return Status::Ok();
   });
 }
 
 grpc::Status GarmentDynamicsService::SubmitJob(Ctx* ctx, const pb::SubmitJobRequest* req, pb::SubmitJobResponse* resp) {
-  return handle(ctx, "SubmitJob", true, [&](const std::string&) {
+  return handle(ctx, "SubmitJob", true, [&](const Call& call) {
     JobSpec spec;
     GD_RETURN_IF_ERROR(to_job_spec(*req, &spec));
+    spec.owner = call.owner;
     std::string id;
     GD_RETURN_IF_ERROR(jobs_.submit(spec, &id));
     resp->set_job_id(id);
@@ -225,13 +244,13 @@ grpc::Status GarmentDynamicsService::SubmitJob(Ctx* ctx, const pb::SubmitJobRequ
 
 grpc::Status GarmentDynamicsService::WatchJob(Ctx* ctx, const pb::WatchJobRequest* req,
                                               grpc::ServerWriter<pb::WatchJobResponse>* writer) {
-  return handle(ctx, "WatchJob", true, [&](const std::string&) -> Status {
+  return handle(ctx, "WatchJob", true, [&](const Call& call) -> Status {
     if (req->job_id().empty()) return Status::InvalidArgument("no job_id given; use the id SubmitJob returned");
     uint64_t version = 0;
     JobRecord rec;
     pb::WatchJobResponse msg;
     for (;;) {
-      GD_RETURN_IF_ERROR(jobs_.wait(req->job_id(), &version, &rec, 500));
+      GD_RETURN_IF_ERROR(jobs_.wait(req->job_id(), &version, &rec, 500, call.owner));
       msg.Clear();
       to_proto(rec, msg.mutable_job());
       if (!writer->Write(msg)) return Status::Ok();
@@ -242,20 +261,21 @@ grpc::Status GarmentDynamicsService::WatchJob(Ctx* ctx, const pb::WatchJobReques
 }
 
 grpc::Status GarmentDynamicsService::CancelJob(Ctx* ctx, const pb::CancelJobRequest* req, pb::CancelJobResponse* resp) {
-  return handle(ctx, "CancelJob", true, [&](const std::string&) {
+  return handle(ctx, "CancelJob", true, [&](const Call& call) {
     if (req->job_id().empty()) return Status::InvalidArgument("no job_id given; ListReports lists the jobs");
     JobRecord j;
-    GD_RETURN_IF_ERROR(jobs_.cancel(req->job_id(), &j));
+    GD_RETURN_IF_ERROR(jobs_.cancel(req->job_id(), &j, call.owner));
     to_proto(j, resp->mutable_job());
     return Status::Ok();
   });
 }
 
 grpc::Status GarmentDynamicsService::GetReport(Ctx* ctx, const pb::GetReportRequest* req, pb::GetReportResponse* resp) {
-  return handle(ctx, "GetReport", false, [&](const std::string&) {
+  return handle(ctx, "GetReport", false, [&](const Call& call) {
     if (req->job_id().empty()) return Status::InvalidArgument("no job_id given; ListReports lists the jobs");
     JobReport r;
-    GD_RETURN_IF_ERROR(jobs_.report(req->job_id(), req->include_files(), options_.max_report_file_bytes, &r));
+    GD_RETURN_IF_ERROR(
+        jobs_.report(req->job_id(), req->include_files(), options_.max_report_file_bytes, &r, call.owner));
     to_proto(r.job, resp->mutable_job());
     resp->set_summary_json(r.summary_json);
     for (const std::string& n : r.file_names) resp->add_file_names(n);
@@ -270,10 +290,10 @@ grpc::Status GarmentDynamicsService::GetReport(Ctx* ctx, const pb::GetReportRequ
 
 grpc::Status GarmentDynamicsService::ListReports(Ctx* ctx, const pb::ListReportsRequest* req,
                                                  pb::ListReportsResponse* resp) {
-  return handle(ctx, "ListReports", false, [&](const std::string&) {
+  return handle(ctx, "ListReports", false, [&](const Call& call) {
     std::vector<JobRecord> jobs;
     int total = 0;
-    GD_RETURN_IF_ERROR(jobs_.list(req->limit(), req->offset(), &jobs, &total));
+    GD_RETURN_IF_ERROR(jobs_.list(req->limit(), req->offset(), &jobs, &total, call.owner));
     for (const JobRecord& j : jobs) to_proto(j, resp->add_jobs());
     resp->set_total(total);
     return Status::Ok();
@@ -282,7 +302,7 @@ grpc::Status GarmentDynamicsService::ListReports(Ctx* ctx, const pb::ListReports
 
 grpc::Status GarmentDynamicsService::ListGarments(Ctx* ctx, const pb::ListGarmentsRequest*,
                                                   pb::ListGarmentsResponse* resp) {
-  return handle(ctx, "ListGarments", false, [&](const std::string&) {
+  return handle(ctx, "ListGarments", false, [&](const Call&) {
     for (const std::string& g : garments::garment_types()) resp->add_garments(g);
     std::vector<MeshRecord> meshes;
     GD_RETURN_IF_ERROR(meshes_.list(&meshes));
@@ -299,7 +319,7 @@ grpc::Status GarmentDynamicsService::ListGarments(Ctx* ctx, const pb::ListGarmen
 
 grpc::Status GarmentDynamicsService::ListMaterials(Ctx* ctx, const pb::ListMaterialsRequest*,
                                                    pb::ListMaterialsResponse* resp) {
-  return handle(ctx, "ListMaterials", false, [&](const std::string&) {
+  return handle(ctx, "ListMaterials", false, [&](const Call&) {
     const sim::MaterialLibrary lib = sim::MaterialLibrary::load_default();
     for (const std::string& n : lib.names()) {
       const sim::Material& m = lib.get(n);
@@ -314,7 +334,7 @@ grpc::Status GarmentDynamicsService::ListMaterials(Ctx* ctx, const pb::ListMater
 
 grpc::Status GarmentDynamicsService::UploadMesh(Ctx* ctx, const pb::UploadMeshRequest* req,
                                                 pb::UploadMeshResponse* resp) {
-  return handle(ctx, "UploadMesh", true, [&](const std::string&) {
+  return handle(ctx, "UploadMesh", true, [&](const Call&) {
     if (refusing_) return Status::Unavailable("the server is shutting down; upload the mesh to another server");
     MeshRecord m;
     GD_RETURN_IF_ERROR(meshes_.upload(req->name(), req->obj(), &m));
@@ -327,7 +347,7 @@ grpc::Status GarmentDynamicsService::UploadMesh(Ctx* ctx, const pb::UploadMeshRe
 
 grpc::Status GarmentDynamicsService::GetServerInfo(Ctx* ctx, const pb::GetServerInfoRequest*,
                                                    pb::GetServerInfoResponse* resp) {
-  return handle(ctx, "GetServerInfo", false, [&](const std::string&) {
+  return handle(ctx, "GetServerInfo", false, [&](const Call&) {
     resp->set_version(options_.version);
     const sim::BackendKind b = scenes_.options().backend;
     resp->set_backend(b == sim::BackendKind::kCpu ? "cpu" : b == sim::BackendKind::kCuda ? "cuda" : "auto");

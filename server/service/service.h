@@ -4,12 +4,17 @@
 /// (convert.h), calls a core (ScenePool, JobQueue, MeshLibrary) that returns a Status, and
 /// translates back. No exception crosses a handler (an unexpected one becomes INTERNAL). Every
 /// call is logged with its request id (the client's x-request-id metadata, else a generated one,
-/// sent back as initial metadata), method and status code. Included only by server.cpp.
+/// sent back as initial metadata), method, caller and status code. With tokens
+/// (HandlerOptions::tokens), every call is authenticated before its handler does anything: no
+/// or an unknown bearer token is UNAUTHENTICATED; the token's principal owns the scenes and jobs
+/// the call makes and is the only one to see them (ScenePool, JobQueue). Included only by
+/// server.cpp.
 
 #include <atomic>
 #include <string>
 
 #include "garmentdynamics/v1/garmentdynamics.grpc.pb.h"
+#include "service/auth.h"
 #include "service/job_queue.h"
 #include "service/mesh_library.h"
 #include "service/scene_pool.h"
@@ -21,6 +26,7 @@ struct HandlerOptions {
   size_t max_report_file_bytes = 32u << 20;  ///< GetReport include_files cap
   size_t max_reply_bytes = 0;                 ///< largest reply (--max-message-mb; 0: no limit)
   std::string version;
+  TokenSet tokens;                            ///< --auth-token-file (empty: no authentication)
 };
 
 class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynamics::Service {
@@ -65,7 +71,14 @@ class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynami
                       ::garmentdynamics::v1::GetServerInfoResponse* resp) override;
 
  private:
-  /// Runs a handler body with logging and exception containment.
+  /// Who makes a call.
+  struct Call {
+    std::string request_id;
+    std::string owner;  ///< the principal of the caller's token ("" without tokens)
+  };
+  /// OK and the caller's principal in *owner, or UNAUTHENTICATED (tokens on, none or an unknown one).
+  Status authenticate(Ctx* ctx, std::string* owner) const;
+  /// Runs a handler body with authentication, logging and exception containment.
   template <class F>
   grpc::Status handle(Ctx* ctx, const char* method, bool info_level, F&& body);
 

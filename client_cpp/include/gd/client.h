@@ -85,6 +85,15 @@ struct ClientOptions {
   std::chrono::milliseconds stream_deadline{3'600'000};
   /// Largest message accepted or sent, bytes (positions of many big scenes are large).
   int max_message_bytes = 256 << 20;
+  /// Bearer token sent with every call (a server with --auth-token-file needs one; empty: none).
+  /// Send it over TLS beyond loopback: in plaintext anyone on the path can read it.
+  std::string token;
+  /// TLS: connect over TLS when `tls` is set or root certificates are given (PEM text, e.g. a
+  /// self-signed server certificate; empty with tls: the system's roots).
+  bool tls = false;
+  std::string tls_root_certificates;
+  /// PEM client certificate chain and key, for a server that requires them (--tls-client-ca).
+  std::string tls_client_certificate, tls_client_key;
 };
 
 // ------------------------------------------------------------------------------------------------

@@ -29,6 +29,9 @@ struct ServerProcessOptions {
   std::vector<std::string> args;       ///< further flags, e.g. {"--threads", "2"}
   std::chrono::milliseconds start_timeout{30'000};
   std::string log_file;                ///< the server's stdout and stderr go here ("": inherited)
+  /// How the readiness check connects: TLS roots for a server with --tls-cert (the health check
+  /// needs no token). Its deadline is replaced by a short one.
+  ClientOptions client;
 };
 
 class ServerProcess {

@@ -37,10 +37,11 @@ std::vector<std::string> lines(const std::string& s) {
 
 class CliTest : public ServerTest {
  protected:
-  /// Runs `gd ARGS` (arguments are shell words without quotes) and collects its output.
-  CliRun gd(const std::string& args) {
+  /// Runs `gd ARGS` (arguments are shell words without quotes) and collects its output; with
+  /// `whole`, ARGS is the whole command line (e.g. with environment assignments in front).
+  CliRun gd(const std::string& args, bool whole = false) {
     const auto err_file = fresh_dir("cli_stderr") / "stderr.txt";
-    const std::string cmd = std::string(GD_CLI_BINARY) + " " + args + " 2>" + err_file.string();
+    const std::string cmd = (whole ? args : std::string(GD_CLI_BINARY) + " " + args) + " 2>" + err_file.string();
     CliRun r;
     FILE* p = ::popen(cmd.c_str(), "r");
     if (p == nullptr) return r;
@@ -256,6 +257,31 @@ TEST_F(CliTest, ExitCodes) {
   r = gd("--server 127.0.0.1:1 info");
   EXPECT_EQ(r.rc, 3) << r.err;
   EXPECT_NE(r.err.find("unreachable"), std::string::npos) << r.err;
+}
+
+TEST_F(CliTest, ATokenFileOrGdTokenFileReachesAServerThatNeedsTokens) {
+  const auto dir = fresh_dir("cli_tokens");
+  const std::string token = "cli-token-0123456789abcdef01234";
+  std::ofstream(dir / "tokens") << token << "\n";
+  std::ofstream(dir / "mine") << "# my token\n" << token << "\n";
+  ServerProcessOptions o;
+  o.binary = GD_SERVER_BINARY;
+  o.data_dir = (dir / "data").string();
+  o.log_file = (dir / "server.log").string();
+  o.args = {"--auth-token-file", (dir / "tokens").string()};
+  ServerProcess secured(o);
+  const std::string at = "--server " + secured.address();
+  CliRun r = gd(at + " info");
+  EXPECT_EQ(r.rc, 3);
+  EXPECT_NE(r.err.find("UNAUTHENTICATED"), std::string::npos) << r.err;
+  r = gd(at + " --token-file " + (dir / "mine").string() + " info");
+  EXPECT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("backend cpu"), std::string::npos) << r.out;
+  r = gd("GD_TOKEN_FILE=" + (dir / "mine").string() + " " + std::string(GD_CLI_BINARY) + " " + at + " info", true);
+  EXPECT_EQ(r.rc, 0) << r.err;
+  r = gd(at + " --token-file " + (dir / "missing").string() + " info");
+  EXPECT_EQ(r.rc, 2);
+  EXPECT_NE(r.err.find("--token-file: no file"), std::string::npos) << r.err;
 }
 
 }  // namespace
