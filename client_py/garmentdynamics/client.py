@@ -13,9 +13,17 @@ surface unchanged as grpc.RpcError: `err.code()` is the server's status code (NO
 INVALID_ARGUMENT, RESOURCE_EXHAUSTED, FAILED_PRECONDITION, ...) and `err.details()` its message.
 Bad arguments detected before a call is made (wrong shapes, unknown keys) raise ValueError or
 TypeError.
+
+Servers with tokens and TLS (gd-server --auth-token-file, --tls-cert/--tls-key, --tls-client-ca):
+
+    Client("gd.example.org:50051", token_file="~/.config/gd/token", root_certificates="ca.pem")
+
+sends `authorization: Bearer <token>` with every call and speaks TLS (see Client and
+garmentdynamics.credentials). Without token/token_file, $GD_TOKEN_FILE names the token file.
 """
 
 import json
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +32,7 @@ from typing import Dict, Iterator, List, Optional, Sequence, Union
 import grpc
 import numpy as np
 
+from . import credentials as _creds
 from . import health
 from ._proto import pb, pb_grpc
 from .actions import scene_action
@@ -115,19 +124,55 @@ class Client:
         target: "host:port" of the server.
         timeout: deadline of every unary call, s.
         stream_timeout: deadline of the streaming calls (stream, watch_job), s; None = no deadline.
-        options: extra gRPC channel options [(key, value), ...].
+        options: extra gRPC channel options [(key, value), ...] (e.g.
+            ("grpc.ssl_target_name_override", "gd.example.org") when the target's address is not
+            a name in the server's certificate).
+
+    Keyword-only, for servers with tokens and TLS:
+        token: the bearer token sent as `authorization: Bearer <token>` on every call (unary and
+            streaming). Tokens are at least 16 printable ASCII characters without spaces.
+        token_file: a file holding the token (its first line that is neither blank nor a '#'
+            comment, whitespace stripped). Give token or token_file, not both; with neither,
+            $GD_TOKEN_FILE names the token file when set. A missing or empty file is a ValueError
+            naming it.
+        tls: speak TLS, trusting the system's root certificates unless root_certificates is given.
+        root_certificates: PEM bytes, PEM text or a path: the CA certificates (or the server's
+            self-signed certificate) to trust; implies tls.
+        certificate_chain, private_key: the client certificate and its key (PEM bytes or paths),
+            for a server started with --tls-client-ca (mutual TLS); both or neither; imply tls.
+
+    A token is sent over plaintext too when no TLS is asked for: do that on loopback only, and
+    use TLS to reach a server on another machine.
     """
 
     def __init__(self, target: str = "127.0.0.1:50051", timeout: float = 60.0,
                  stream_timeout: Optional[float] = 24 * 3600.0, options: Sequence = (),
-                 _server: Optional[LocalServer] = None):
+                 _server: Optional[LocalServer] = None, *, token: Optional[str] = None,
+                 token_file: Union[None, str, "os.PathLike[str]"] = None, tls: bool = False,
+                 root_certificates: Union[None, bytes, str, "os.PathLike[str]"] = None,
+                 certificate_chain: Union[None, bytes, str, "os.PathLike[str]"] = None,
+                 private_key: Union[None, bytes, str, "os.PathLike[str]"] = None):
+        self._closed = True  # until the channel exists (close() from __del__ after a failed __init__)
         self.target = target
         self.timeout = timeout
         self.stream_timeout = stream_timeout
         self.server = _server
+        # Everything that can be wrong with the options is reported before a channel exists.
+        token = _creds.resolve_token(token, token_file)
+        channel_creds = _creds.channel_credentials(tls=tls, root_certificates=root_certificates,
+                                                   certificate_chain=certificate_chain, private_key=private_key)
+        self.tls = channel_creds is not None
+        self.authenticated = token is not None   # whether calls carry a token (the token is not kept here)
         opts = [("grpc.max_receive_message_length", _MAX_MESSAGE), ("grpc.max_send_message_length", _MAX_MESSAGE),
                 ("grpc.keepalive_time_ms", 60000), ("grpc.keepalive_timeout_ms", 20000)]
-        self._channel = grpc.insecure_channel(target, options=opts + list(options))
+        opts += list(options)
+        if channel_creds is not None:
+            channel = grpc.secure_channel(target, channel_creds, options=opts)
+        else:
+            channel = grpc.insecure_channel(target, options=opts)
+        if token is not None:
+            channel = grpc.intercept_channel(channel, _creds.TokenInterceptor(token))
+        self._channel = channel
         self._stub = pb_grpc.GarmentDynamicsStub(self._channel)
         self._scene_info: Dict[str, dict] = {}
         self._closed = False
@@ -138,7 +183,10 @@ class Client:
     @classmethod
     def spawn(cls, data_dir: Optional[str] = None, threads: Optional[int] = None,
               server_bin: Optional[str] = None, extra_args: Sequence[str] = (),
-              start_timeout: float = 60.0, **client_kwargs) -> "Client":
+              start_timeout: float = 60.0, *, auth_token_file: Union[None, str, "os.PathLike[str]"] = None,
+              tls_cert: Union[None, str, "os.PathLike[str]"] = None,
+              tls_key: Union[None, str, "os.PathLike[str]"] = None,
+              tls_client_ca: Union[None, str, "os.PathLike[str]"] = None, **client_kwargs) -> "Client":
         """Starts a local gd-server on a free loopback port and returns a Client connected to
         it; close() (or leaving the `with` block) stops the server.
 
@@ -149,10 +197,29 @@ class Client:
             server_bin: the gd-server executable; default $GD_SERVER_BIN, `gd-server` on PATH,
                 or build/bin/gd-server of the checkout this package was built from.
             extra_args: more command-line arguments for gd-server.
-            client_kwargs: passed to Client (timeout, stream_timeout, options).
+            auth_token_file, tls_cert, tls_key, tls_client_ca: the server's --auth-token-file,
+                --tls-cert, --tls-key and --tls-client-ca. Unless client_kwargs say otherwise,
+                the client then uses the first token of auth_token_file (token_file=) and trusts
+                tls_cert (root_certificates=; right for a self-signed certificate). With
+                tls_client_ca, give the client's certificate_chain= and private_key=.
+            client_kwargs: passed to Client (timeout, stream_timeout, options, token, token_file,
+                tls, root_certificates, certificate_chain, private_key); the TLS ones are also
+                used to wait for the server's health service.
         """
+        if auth_token_file is not None and "token" not in client_kwargs and "token_file" not in client_kwargs:
+            client_kwargs["token_file"] = auth_token_file
+        if tls_cert is not None and "root_certificates" not in client_kwargs and not client_kwargs.get("tls"):
+            client_kwargs["root_certificates"] = tls_cert
+        # the client's options are checked before a server is started
+        _creds.resolve_token(client_kwargs.get("token"), client_kwargs.get("token_file"))
+        credentials = _creds.channel_credentials(
+            tls=bool(client_kwargs.get("tls", False)), root_certificates=client_kwargs.get("root_certificates"),
+            certificate_chain=client_kwargs.get("certificate_chain"), private_key=client_kwargs.get("private_key"))
         server = LocalServer(data_dir=data_dir, threads=threads, server_bin=server_bin,
-                             extra_args=extra_args, start_timeout=start_timeout).start()
+                             extra_args=extra_args, start_timeout=start_timeout, auth_token_file=auth_token_file,
+                             tls_cert=tls_cert, tls_key=tls_key, tls_client_ca=tls_client_ca,
+                             credentials=credentials, channel_options=client_kwargs.get("options", ()))
+        server.start()
         try:
             return cls(server.target, _server=server, **client_kwargs)
         except BaseException:

@@ -7,7 +7,7 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Union
 
 import grpc
 
@@ -48,11 +48,39 @@ class LocalServer:
     The server is started with `--port 0 --port-file FILE` and reports the port it bound in FILE;
     start() then waits until the gRPC health service says SERVING. stop() sends SIGTERM (graceful
     drain) and kills the process if it has not exited after `stop_timeout` seconds.
+
+    auth_token_file, tls_cert, tls_key, tls_client_ca: the server's --auth-token-file,
+    --tls-cert, --tls-key, --tls-client-ca. A server that speaks TLS is waited for over a channel
+    with `credentials` (grpc.ChannelCredentials, e.g. garmentdynamics.credentials.
+    channel_credentials(root_certificates=tls_cert)) and `channel_options`; the health service
+    needs no token.
     """
 
     def __init__(self, data_dir: Optional[str] = None, threads: Optional[int] = None,
                  server_bin: Optional[str] = None, extra_args: Sequence[str] = (),
-                 start_timeout: float = 60.0, stop_timeout: float = 10.0, host: str = "127.0.0.1"):
+                 start_timeout: float = 60.0, stop_timeout: float = 10.0, host: str = "127.0.0.1", *,
+                 auth_token_file: Union[None, str, "os.PathLike[str]"] = None,
+                 tls_cert: Union[None, str, "os.PathLike[str]"] = None,
+                 tls_key: Union[None, str, "os.PathLike[str]"] = None,
+                 tls_client_ca: Union[None, str, "os.PathLike[str]"] = None,
+                 credentials: Optional[grpc.ChannelCredentials] = None, channel_options: Sequence = ()):
+        if (tls_cert is None) != (tls_key is None):
+            raise ValueError("give tls_cert and tls_key together (or neither)")
+        if tls_client_ca is not None and tls_cert is None:
+            raise ValueError("tls_client_ca (mutual TLS) needs tls_cert and tls_key")
+        if tls_cert is not None and credentials is None:
+            raise ValueError("a server with tls_cert is waited for over TLS: pass credentials= "
+                             "(garmentdynamics.credentials.channel_credentials(root_certificates=...))")
+        self.security_args = []
+        for flag, path in (("--auth-token-file", auth_token_file), ("--tls-cert", tls_cert), ("--tls-key", tls_key),
+                           ("--tls-client-ca", tls_client_ca)):
+            if path is not None:
+                p = Path(os.fspath(path)).expanduser().resolve()
+                if not p.is_file():
+                    raise ValueError(f"{flag} file {str(p)!r} does not exist")
+                self.security_args += [flag, str(p)]
+        self.credentials = credentials
+        self.channel_options = list(channel_options)
         self.binary = find_server_binary(server_bin)
         self._tmp = tempfile.mkdtemp(prefix="gd-server-")
         self.data_dir = str(Path(data_dir).resolve()) if data_dir else str(Path(self._tmp) / "data")
@@ -75,7 +103,7 @@ class LocalServer:
                "--data-dir", self.data_dir]
         if self.threads:
             cmd += ["--threads", str(int(self.threads))]
-        return cmd + self.extra_args
+        return cmd + self.security_args + self.extra_args
 
     def log_tail(self, n: int = 40) -> str:
         try:
@@ -99,15 +127,28 @@ class LocalServer:
                 if time.monotonic() > deadline:
                     raise TimeoutError(f"gd-server did not write its port within {self.start_timeout} s")
                 time.sleep(0.05)
-            with grpc.insecure_channel(self.target) as channel:
+            if self.credentials is not None:
+                channel = grpc.secure_channel(self.target, self.credentials, options=self.channel_options)
+            else:
+                channel = grpc.insecure_channel(self.target, options=self.channel_options)
+            last_error = ""
+            with channel:
                 while True:
                     self._check_alive()
                     remaining = deadline - time.monotonic()
                     if remaining <= 0:
+                        hint = ""
+                        if self.credentials is not None and last_error:
+                            hint = " (do the client's TLS credentials match the server's certificate?)"
                         raise TimeoutError(f"gd-server at {self.target} was not SERVING within "
-                                           f"{self.start_timeout} s")
-                    if health.is_serving(channel, timeout=min(2.0, remaining)):
-                        return self
+                                           f"{self.start_timeout} s; last error: {last_error or 'none'}{hint}")
+                    try:
+                        if health.check(channel, timeout=min(2.0, remaining)) == health.SERVING:
+                            return self
+                    except grpc.RpcError as err:
+                        if err.code() == grpc.StatusCode.UNIMPLEMENTED:
+                            raise RuntimeError("the server has no gRPC health service") from None
+                        last_error = f"{err.code().name}: {err.details()}"
                     time.sleep(0.05)
         except BaseException as exc:
             tail = self.log_tail()

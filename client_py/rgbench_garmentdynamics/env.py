@@ -21,6 +21,14 @@ What it reads from cfg (an omegaconf DictConfig or a plain dict), as RGBench's f
 and its own optional block env.garment_dynamics:
 
     target        "host:port" of a running gd-server (default: spawn one locally)
+    token_file    with target: the file of the server's token (--auth-token-file), sent on
+                  every call; default $GD_TOKEN_FILE when set. (`token` works too, but a token in
+                  a config ends up in the run's saved config: prefer the file.)
+    tls           with target: speak TLS (system roots unless root_certificates)
+    root_certificates, certificate_chain, private_key
+                  with target: PEM paths: the CA to trust, and the client certificate + key for a
+                  server with --tls-client-ca (mutual TLS); absolute paths, as Hydra may change
+                  the working directory
     server_bin, data_dir, threads   for the spawned server
     garment, vertices               a generated garment when cloth.model_path is absent (default tshirt, 2000)
     material      fabric name (default cotton)
@@ -114,9 +122,12 @@ class GarmentDynamicsEnv(_Base):
         cfg: RGBench's run config (cfg.active_run), a DictConfig or a dict.
         client: an existing garmentdynamics.Client to use (left open by close()); default: connect
             to env.garment_dynamics.target, or spawn a local gd-server (stopped by close()).
+        client_kwargs: more keyword arguments of the Client made here (over the config's
+            token_file, tls, root_certificates, ... keys), e.g. {"token_file": "/run/gd/token"}.
     """
 
-    def __init__(self, cfg: Any, client: Optional[Client] = None, **kwargs):
+    def __init__(self, cfg: Any, client: Optional[Client] = None, client_kwargs: Optional[dict] = None,
+                 **kwargs):
         self.cfg = cfg
         gd = cfg_get(cfg, "env.garment_dynamics", {}) or {}
         self.sim_type = str(cfg_get(cfg, "sim_model.type", "fixed_point"))
@@ -159,10 +170,10 @@ class GarmentDynamicsEnv(_Base):
         self._own_client = client is None
         if client is None:
             if gd.get("target"):
-                client = Client(str(gd["target"]))
+                client = Client(str(gd["target"]), **self._client_options(gd, client_kwargs))
             else:
                 client = Client.spawn(data_dir=gd.get("data_dir"), threads=gd.get("threads"),
-                                      server_bin=gd.get("server_bin"))
+                                      server_bin=gd.get("server_bin"), **(client_kwargs or {}))
         self.client = client
         self.scene_id = None
         try:
@@ -172,6 +183,23 @@ class GarmentDynamicsEnv(_Base):
             raise
         self._vertices: Optional[np.ndarray] = None
         self._failed = False
+
+    @staticmethod
+    def _client_options(gd, client_kwargs: Optional[dict]) -> dict:
+        """The Client's token and TLS options from env.garment_dynamics, then client_kwargs."""
+        options = {}
+        for key in ("token", "token_file", "root_certificates", "certificate_chain", "private_key"):
+            value = gd.get(key)
+            if value is not None and value != "":
+                options[key] = str(value)
+        if gd.get("tls") is not None:
+            options["tls"] = bool(gd.get("tls"))
+        client_kwargs = dict(client_kwargs or {})
+        if "token" in client_kwargs or "token_file" in client_kwargs:  # one source for the token
+            options.pop("token", None)
+            options.pop("token_file", None)
+        options.update(client_kwargs)
+        return options
 
     def _create_scene(self, gd) -> None:
         self.pin_mode = "server"  # the server's fixed-point pins (grasp/fold, auto)

@@ -28,6 +28,9 @@ class GarmentEnv(gym.Env):
 
     client: an existing Client (left open by close()); else `target` ("host:port") is connected,
     else a local gd-server is spawned with `spawn_kwargs` (Client.spawn) and stopped on close().
+    client_kwargs: options of the Client made for `target` or the spawned server, e.g.
+    {"token_file": "~/.config/gd/token", "root_certificates": "ca.pem"} for a server with tokens
+    and TLS (see garmentdynamics.Client).
     """
 
     metadata = {"render_modes": []}
@@ -36,11 +39,12 @@ class GarmentEnv(gym.Env):
                  spawn_kwargs: Optional[dict] = None, garment: str = "towel", material: str = "cotton",
                  vertices: int = 150, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
-                 yaw_deg: float = 10.0, offset_m: float = 0.02):
+                 yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None):
         self._scenes = SceneBatch(1, client=client, target=target, spawn_kwargs=spawn_kwargs, garment=garment,
                                   material=material, vertices=vertices, task=task,
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
-                                  self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m)
+                                  self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m,
+                                  client_kwargs=client_kwargs)
         self.observation_space = observation_space(self._scenes.vertex_count)
         self.action_space = action_space()
         self.task = task

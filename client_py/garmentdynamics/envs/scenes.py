@@ -15,18 +15,27 @@ class SceneBatch:
 
     client: an existing Client (left open on close()), or None to connect to `target`, or, when
     that is None too, to spawn a local gd-server with `spawn_kwargs` (both closed on close()).
+    client_kwargs: keyword arguments of the Client made here (Client(target, **client_kwargs) or
+    Client.spawn(**spawn_kwargs, **client_kwargs)): token, token_file, tls, root_certificates,
+    certificate_chain, private_key, timeout, ...
     """
 
     def __init__(self, count: int, client: Optional[Client] = None, target: Optional[str] = None,
                  spawn_kwargs: Optional[dict] = None, garment: str = "towel", material: str = "cotton",
                  vertices: int = 150, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
-                 yaw_deg: float = 10.0, offset_m: float = 0.02):
+                 yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None):
         if max_episode_steps < 1 or substeps < 1:
             raise ValueError("max_episode_steps and substeps must be at least 1")
+        self.client = None
+        if client is not None and client_kwargs:
+            raise ValueError("client_kwargs are for the Client the environment makes; an existing client= "
+                             "already has its options")
         self._own_client = client is None
         if client is None:
-            client = Client(target) if target is not None else Client.spawn(**(spawn_kwargs or {}))
+            kwargs = dict(client_kwargs or {})
+            client = (Client(target, **kwargs) if target is not None
+                      else Client.spawn(**{**(spawn_kwargs or {}), **kwargs}))
         self.client = client
         self.count = count
         self.substeps = substeps

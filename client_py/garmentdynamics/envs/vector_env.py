@@ -25,6 +25,9 @@ class GarmentVectorEnv(VectorEnv):
     None draws them from np_random). options={"reset_mask": bool array} resets only those scenes.
 
     infos: "time", "steps", "failed" arrays (with the "_key" masks of gymnasium's convention).
+
+    client, target, spawn_kwargs, client_kwargs: the server, as in GarmentEnv (client_kwargs: the
+    options of the Client made here, e.g. token_file= and root_certificates=).
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -33,13 +36,14 @@ class GarmentVectorEnv(VectorEnv):
                  spawn_kwargs: Optional[dict] = None, garment: str = "towel", material: str = "cotton",
                  vertices: int = 150, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
-                 yaw_deg: float = 10.0, offset_m: float = 0.02):
+                 yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None):
         if num_envs < 1:
             raise ValueError("num_envs must be at least 1")
         self._scenes = SceneBatch(num_envs, client=client, target=target, spawn_kwargs=spawn_kwargs,
                                   garment=garment, material=material, vertices=vertices, task=task,
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
-                                  self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m)
+                                  self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m,
+                                  client_kwargs=client_kwargs)
         self.num_envs = num_envs
         self.single_observation_space = observation_space(self._scenes.vertex_count)
         self.single_action_space = action_space()
