@@ -600,13 +600,21 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
   const int solver_threads = n >= threads() ? 1 : std::max(1, threads() / n);
   std::atomic<bool> stopped{false};
   std::atomic<int> done_substeps{0};
-  pool_.run(n, [&](int i) {
+  // Each scene's substeps run in slices of about kSliceSeconds (at least one step): between
+  // slices the scene goes to the back of the pool's queue, so a slow scene holds a worker one
+  // slice at a time and the scenes of other calls get their turns (docs/service.md, "A slow
+  // scene in a batch").
+  std::vector<int> left(n, substeps);
+  std::vector<double> seconds(n, 0.0);
+  for (const auto& e : entries) e->newton = e->pcg = e->contacts = 0;
+  pool_.run_slices(n, [&](int i) {
     Entry& e = *entries[i];
     omp_set_num_threads(solver_threads);
     const auto t0 = std::chrono::steady_clock::now();
-    e.newton = e.pcg = e.contacts = 0;
+    auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+    bool more = false;
     try {
-      for (int k = 0; k < substeps; ++k) {
+      while (left[i] > 0) {
         if (stopped || (req.cancelled && req.cancelled())) {  // the caller is gone: stop at a step boundary
           stopped = true;
           break;
@@ -614,21 +622,30 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
         ++done_substeps;
         const double t_next = e.scene->time() + e.scene->options().dt;
         if (!tasks::run_until(*e.scene, *e.controller, t_next)) break;
+        --left[i];
         ++e.steps;
         const sim::StepStats& st = e.scene->last_stats();
         e.newton += st.newton_iters;
         e.pcg += st.pcg_iters;
         e.contacts = st.contacts;
         e.publish();
+        if (left[i] > 0 && elapsed() >= kSliceSeconds) {  // the rest in a later slice
+          more = true;
+          break;
+        }
       }
     } catch (const std::exception& ex) {
       e.error = fmt::format("step failed: {}", ex.what());
+      more = false;
     }
-    e.wall_ms = 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    seconds[i] += elapsed();
+    if (more) return true;
+    e.wall_ms = 1e3 * seconds[i];
     if (e.failed()) {
       gd::log().warn("scene {} failed at step {}: {}", e.id, e.steps, e.error.empty() ? e.scene->failure() : e.error);
       e.publish();
     }
+    return false;
   });
   if (stopped)
     return Status(Code::kCancelled,

@@ -242,6 +242,10 @@ class ScenePool {
 
   PoolOptions options_;
   ThreadPool pool_;
+  /// A step call runs each scene's substeps in slices of about this long (at least one step)
+  /// and queues the scene again behind other calls' scenes between slices.
+  static constexpr double kSliceSeconds = 0.01;
+
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Entry>> scenes_;
   int reserved_ = 0;      ///< slots held by creates in progress

@@ -34,18 +34,33 @@ void ThreadPool::loop() {
 }
 
 void ThreadPool::run(int n, const std::function<void(int)>& fn) {
+  run_slices(n, [&](int i) {
+    fn(i);
+    return false;
+  });
+}
+
+void ThreadPool::run_slices(int n, const std::function<bool(int)>& fn) {
   if (n <= 0) return;
   std::mutex done_mu;
   std::condition_variable done_cv;
   int left = n;
+  // Slice of task i: run it, then queue its next slice at the back, or count the task done.
+  std::function<void(int)> slice = [&](int i) {
+    if (fn(i)) {
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        queue_.emplace_back([&slice, i] { slice(i); });
+      }
+      cv_.notify_one();
+      return;
+    }
+    std::lock_guard<std::mutex> l(done_mu);
+    if (--left == 0) done_cv.notify_one();
+  };
   {
     std::lock_guard<std::mutex> lock(mu_);
-    for (int i = 0; i < n; ++i)
-      queue_.emplace_back([&, i] {
-        fn(i);
-        std::lock_guard<std::mutex> l(done_mu);
-        if (--left == 0) done_cv.notify_one();
-      });
+    for (int i = 0; i < n; ++i) queue_.emplace_back([&slice, i] { slice(i); });
   }
   cv_.notify_all();
   std::unique_lock<std::mutex> lock(done_mu);

@@ -2,7 +2,9 @@
 /// \file
 /// A fixed set of worker threads that runs batches of tasks: run(n, fn) calls fn(0..n-1) on the
 /// workers and returns when all n are done. Several callers may run batches at the same time;
-/// their tasks share the workers first come, first served.
+/// their tasks share the workers first come, first served. run_slices splits long tasks into
+/// slices that go to the back of the queue between calls, so a caller's long task holds a worker
+/// for one slice at a time and the workers go round every caller's tasks in turn.
 
 #include <condition_variable>
 #include <cstddef>
@@ -27,6 +29,10 @@ class ThreadPool {
 
   /// Runs fn(i) for i in [0, n) on the workers and waits for all of them. fn must not throw.
   void run(int n, const std::function<void(int)>& fn);
+  /// Runs task i in slices: fn(i) does one slice and returns whether task i has more; an
+  /// unfinished task is queued again behind every task queued meanwhile. Returns when every task
+  /// is done. A task's slices never overlap. fn must not throw.
+  void run_slices(int n, const std::function<bool(int)>& fn);
 
  private:
   void loop();

@@ -4,8 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <limits>
+#include <thread>
 
 namespace gd::service {
 namespace {
@@ -181,6 +184,52 @@ TEST(ScenePool, FailedSceneIsMarkedWhileTheOthersCarryOn) {
   std::vector<SceneSnapshot> r;
   ASSERT_TRUE(pool.reset({c.ids[0]}, {}, &r).ok());
   EXPECT_FALSE(r[0].failed);
+}
+
+TEST(ScenePool, ASlowBatchHoldsAWorkerOneSliceAtATimeSoAnotherCallerIsServedMeanwhile) {
+  using Clock = std::chrono::steady_clock;
+  PoolOptions o = small_pool();
+  o.max_vertices = 5000;
+  o.max_substeps = 400;
+  ScenePool pool(o);
+  // Caller A: two large self-contact towels, 400 steps each, one per worker: seconds of work.
+  SceneSpec big = towel(2);
+  big.vertices = 1500;
+  big.self_contact = true;
+  CreatedScenes slow, quick;
+  ASSERT_TRUE(pool.create(big, &slow).ok());
+  ASSERT_TRUE(pool.create(towel(1), &quick).ok());
+  StepRequest first;  // B's first step builds its contact structures: not part of the wait measured
+  first.scene_ids = quick.ids;
+  std::vector<SceneSnapshot> warm;
+  ASSERT_TRUE(pool.step(first, &warm).ok());
+  std::atomic<bool> a_done{false};
+  double a_seconds = 0;
+  std::thread a([&] {
+    StepRequest req;
+    req.scene_ids = slow.ids;
+    req.substeps = 400;
+    std::vector<SceneSnapshot> out;
+    const auto t0 = Clock::now();
+    EXPECT_TRUE(pool.step(req, &out).ok());
+    a_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    a_done = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // A's scenes hold both workers
+  // Caller B: one small towel, one step. First come, first served would keep it waiting for all
+  // of A's steps; slices make it wait for one step of A's at most.
+  StepRequest req;
+  req.scene_ids = quick.ids;
+  std::vector<SceneSnapshot> out;
+  const auto t0 = Clock::now();
+  ASSERT_TRUE(pool.step(req, &out).ok());
+  const double b_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  const bool b_first = !a_done;
+  a.join();
+  EXPECT_TRUE(b_first) << "B waited for A's whole call: " << b_seconds << " s vs " << a_seconds << " s";
+  EXPECT_LT(b_seconds, 0.25 * a_seconds) << "B " << b_seconds << " s, A " << a_seconds << " s";
+  EXPECT_EQ(out.at(0).steps, 2);
+  std::printf("slow batch %.3f s; one step of another caller meanwhile %.4f s\n", a_seconds, b_seconds);
 }
 
 TEST(ScenePool, SubscribersGetEveryKthStep) {
