@@ -68,6 +68,11 @@ int main(int argc, char** argv) {
                  "(past it the oldest are dropped and counted in dropped_frames)")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();
+  app.add_option("--max-streams", o.max_streams,
+                 "StreamFrames and WatchJob calls open at once, each holding a server thread; more are refused "
+                 "(0: no limit)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   app.add_option("--job-workers", o.job_workers, "jobs run at once")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--max-job-steps", o.max_job_steps,
                  "simulation steps per job (its simulated time over dt; 0: no limit): a longer job is refused or "

@@ -143,6 +143,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
   HandlerOptions ho;
   ho.version = GD_VERSION;
   ho.tokens = tokens;
+  ho.max_streams = o.max_streams;
   ho.max_reply_bytes = max_bytes;
   ho.max_report_file_bytes = std::min<size_t>(32u << 20, max_bytes - std::min<size_t>(max_bytes / 2, 1u << 20));
   im.service = std::make_unique<GarmentDynamicsService>(*im.scenes, *im.jobs, *im.meshes, ho);

@@ -27,6 +27,7 @@ struct ServerOptions {
   int max_substeps = 1000;
   int max_message_mb = 64;           ///< receive and send limit per message
   int max_queued_frames_mb = 16;     ///< frames one StreamFrames subscription queues for a slow reader
+  int max_streams = 64;              ///< StreamFrames and WatchJob calls open at once (0: no limit)
   int job_workers = 1;
   long max_job_steps = 2'000'000;    ///< simulation steps per job (0: no limit)
   bool plots = false;

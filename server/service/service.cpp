@@ -45,6 +45,12 @@ Status GarmentDynamicsService::authenticate(Ctx* ctx, std::string* owner) const 
   return Status::Ok();
 }
 
+Status GarmentDynamicsService::stream_limit() const {
+  return Status::ResourceExhausted(fmt::format(
+      "{} streams (StreamFrames, WatchJob) are open on this server, its limit (--max-streams); close one, or "
+      "poll with GetState / GetReport", options_.max_streams));
+}
+
 GarmentDynamicsService::GarmentDynamicsService(ScenePool& scenes, JobQueue& jobs, MeshLibrary& meshes,
                                                HandlerOptions options)
     : scenes_(scenes), jobs_(jobs), meshes_(meshes), options_(std::move(options)) {}
@@ -153,6 +159,8 @@ grpc::Status GarmentDynamicsService::GetState(Ctx* ctx, const pb::GetStateReques
 grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFramesRequest* req,
                                                   grpc::ServerWriter<pb::StreamFramesResponse>* writer) {
   return handle(ctx, "StreamFrames", false, [&](const Call& call) -> Status {
+    const StreamSlot slot(open_streams_, options_.max_streams);
+    if (!slot.ok()) return stream_limit();
     if (req->every() < 0) return Status::InvalidArgument(fmt::format("every must be >= 1 (got {})", req->every()));
     if (req->steps() < 0) return Status::InvalidArgument(fmt::format("steps must be >= 0 (got {})", req->steps()));
     if (req->max_frames() < 0)
@@ -245,6 +253,8 @@ grpc::Status GarmentDynamicsService::SubmitJob(Ctx* ctx, const pb::SubmitJobRequ
 grpc::Status GarmentDynamicsService::WatchJob(Ctx* ctx, const pb::WatchJobRequest* req,
                                               grpc::ServerWriter<pb::WatchJobResponse>* writer) {
   return handle(ctx, "WatchJob", true, [&](const Call& call) -> Status {
+    const StreamSlot slot(open_streams_, options_.max_streams);
+    if (!slot.ok()) return stream_limit();
     if (req->job_id().empty()) return Status::InvalidArgument("no job_id given; use the id SubmitJob returned");
     uint64_t version = 0;
     JobRecord rec;

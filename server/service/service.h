@@ -25,6 +25,10 @@ namespace gd::service {
 struct HandlerOptions {
   size_t max_report_file_bytes = 32u << 20;  ///< GetReport include_files cap
   size_t max_reply_bytes = 0;                 ///< largest reply (--max-message-mb; 0: no limit)
+  /// Streams (StreamFrames, WatchJob) open at once (--max-streams): each holds a server thread
+  /// while it lasts, so more are refused (RESOURCE_EXHAUSTED) rather than growing the threads
+  /// without bound. 0: no limit.
+  int max_streams = 64;
   std::string version;
   TokenSet tokens;                            ///< --auth-token-file (empty: no authentication)
 };
@@ -86,6 +90,20 @@ class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynami
   JobQueue& jobs_;
   MeshLibrary& meshes_;
   HandlerOptions options_;
+  /// Counts an open stream for its lifetime; ok() is false (and nothing counted) past max_streams.
+  class StreamSlot {
+   public:
+    StreamSlot(std::atomic<int>& open, int max) : open_(open) { ok_ = open_.fetch_add(1) < max || max <= 0; }
+    ~StreamSlot() { open_.fetch_sub(1); }
+    bool ok() const { return ok_; }
+
+   private:
+    std::atomic<int>& open_;
+    bool ok_ = false;
+  };
+  Status stream_limit() const;
+
+  std::atomic<int> open_streams_{0};
   std::atomic<bool> draining_{false};
   std::atomic<bool> refusing_{false};
 };

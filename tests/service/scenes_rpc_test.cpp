@@ -157,6 +157,52 @@ TEST(ScenesRpc, AStreamThatStepsGoesOnWithoutItsDestroyedScenesThenEndsOk) {
   EXPECT_TRUE(second_gone) << "the stream did not go on with the second scene alone";
 }
 
+// Every open stream holds a server thread: past --max-streams a stream is refused at once
+// (naming the flag) while unary calls go on, and a closed stream frees its slot.
+TEST(ScenesRpc, StreamsPastMaxStreamsAreRefusedAndAClosedOneFreesItsSlot) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data", {"--max-streams", "2"});
+  auto stub = server.stub();
+  const std::vector<std::string> ids = create(*stub, 1);
+  pb::StreamFramesRequest req;
+  req.add_scene_ids(ids[0]);
+  using Reader = std::unique_ptr<grpc::ClientReader<pb::StreamFramesResponse>>;
+  std::vector<std::unique_ptr<grpc::ClientContext>> contexts;
+  std::vector<Reader> readers;
+  for (int k = 0; k < 2; ++k) {  // two idle subscribers
+    contexts.push_back(ctx());
+    readers.push_back(stub->StreamFrames(contexts.back().get(), req));
+    readers.back()->WaitForInitialMetadata();
+  }
+  {
+    auto c = ctx();
+    auto third = stub->StreamFrames(c.get(), req);
+    pb::StreamFramesResponse msg;
+    EXPECT_FALSE(third->Read(&msg));
+    const grpc::Status st = third->Finish();
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_NE(st.error_message().find("--max-streams"), std::string::npos) << st.error_message();
+  }
+  pb::GetStateRequest g;
+  g.add_scene_ids(ids[0]);
+  pb::GetStateResponse gr;
+  EXPECT_TRUE(stub->GetState(ctx().get(), g, &gr).ok());
+  contexts[0]->TryCancel();  // the first subscriber leaves
+  readers[0]->Finish();
+  bool admitted = false;
+  for (int attempt = 0; attempt < 50 && !admitted; ++attempt) {  // the handler notices within ~0.1 s
+    auto c = ctx();
+    auto again = stub->StreamFrames(c.get(), req);
+    again->WaitForInitialMetadata();
+    c->TryCancel();
+    admitted = again->Finish().error_code() != grpc::StatusCode::RESOURCE_EXHAUSTED;
+    if (!admitted) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_TRUE(admitted);
+  contexts[1]->TryCancel();
+  readers[1]->Finish();
+}
+
 TEST(ScenesRpc, StreamFramesFollowsStepScenesUntilMaxFramesOrDestroy) {
   TempDir dir;
   ServerProcess server(dir.str() + "/data");
