@@ -89,6 +89,20 @@ struct Certificates {
   }
 };
 
+/// A gd-server serving TLS with the test certificates, and `args`. ServerProcess's raw channel is
+/// plaintext, so these start through gd::ServerProcess, whose readiness check uses `client`.
+gd::ServerProcessOptions tls_server(const TempDir& dir, const Certificates& certs, std::vector<std::string> args,
+                                    const ClientOptions& client) {
+  gd::ServerProcessOptions o;
+  o.binary = server_binary();
+  o.data_dir = dir.str() + "/data";
+  o.log_file = dir.str() + "/server.log";
+  o.args = {"--tls-cert", certs.server_cert.string(), "--tls-key", certs.server_key.string()};
+  o.args.insert(o.args.end(), args.begin(), args.end());
+  o.client = client;
+  return o;
+}
+
 TEST(AuthRpc, CallsWithoutAKnownTokenAreRefusedBeforeAnyWorkButTheHealthCheckAnswers) {
   TempDir dir;
   ServerProcess server(dir.str() + "/data", {"--auth-token-file", write_tokens(dir)});
@@ -175,15 +189,8 @@ TEST(AuthRpc, TlsServesTrustedClientsAndRefusesPlaintextOnes) {
   ClientOptions tls;
   tls.tls_root_certificates = read_text(certs.ca);
   tls.token = kAlice;
-  // ServerProcess's own raw channel is plaintext: start through gd::ServerProcess with TLS roots.
-  gd::ServerProcessOptions o;
-  o.binary = server_binary();
-  o.data_dir = dir.str() + "/data";
-  o.log_file = dir.str() + "/server.log";
-  o.args = {"--auth-token-file", write_tokens(dir), "--tls-cert", certs.server_cert.string(), "--tls-key",
-            certs.server_key.string()};
-  o.client = tls;
-  gd::ServerProcess server(o);
+  gd::ServerProcess server(
+      tls_server(dir, certs, {"--auth-token-file", write_tokens(dir)}, tls));
   Client trusted(server.address(), tls);
   EXPECT_EQ(trusted.server_info().scenes, 0);
   EXPECT_EQ(code_of([&] { Client(server.address(), with_token(kAlice)).server_info(); }), StatusCode::kUnavailable);
@@ -200,14 +207,7 @@ TEST(AuthRpc, MutualTlsAdmitsOnlyClientsWithACertificateFromTheGivenCa) {
   with_cert.tls_root_certificates = read_text(certs.ca);
   with_cert.tls_client_certificate = read_text(certs.client_cert);
   with_cert.tls_client_key = read_text(certs.client_key);
-  gd::ServerProcessOptions o;
-  o.binary = server_binary();
-  o.data_dir = dir.str() + "/data";
-  o.log_file = dir.str() + "/server.log";
-  o.args = {"--tls-cert", certs.server_cert.string(), "--tls-key", certs.server_key.string(), "--tls-client-ca",
-            certs.ca.string()};
-  o.client = with_cert;
-  gd::ServerProcess server(o);
+  gd::ServerProcess server(tls_server(dir, certs, {"--tls-client-ca", certs.ca.string()}, with_cert));
   EXPECT_EQ(Client(server.address(), with_cert).server_info().scenes, 0);
   ClientOptions without_cert = with_cert;
   without_cert.tls_client_certificate.clear();
