@@ -12,8 +12,8 @@
 #include <thread>
 
 #include "experiment/experiment.h"
-#include "service/auth.h"
 #include "garments/generator.h"
+#include "service/auth.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
