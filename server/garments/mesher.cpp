@@ -67,8 +67,10 @@ PanelMesh mesh_panel(const std::vector<Vec2>& boundary, const std::vector<std::v
   const long budget = mesher_point_budget(boundary, max_edge);
   CGAL::Delaunay_mesher_2<CDT, Criteria> mesher(cdt, Criteria(kMesherAspectBound, max_edge));
   mesher.init();
+  long steps = 0;
   while (!mesher.is_refinement_done()) {
     mesher.step_by_step_refine_mesh();
+    if (++steps % kMesherCancelCheckPoints == 0) MeshingCancellation::check();
     if (static_cast<long>(cdt.number_of_vertices()) > budget)
       throw sim::InputError(fmt::format(
           "a garment panel needs more than {} mesh points at a spacing of {:.3g} m: its sizes are too far apart in "
@@ -104,6 +106,22 @@ PanelMesh mesh_panel(const std::vector<Vec2>& boundary, const std::vector<std::v
             [](const Vec2& a, const Vec2& b) { return std::tie(a.x(), a.y()) < std::tie(b.x(), b.y()); });
   out.split_points.erase(std::unique(out.split_points.begin(), out.split_points.end()), out.split_points.end());
   return out;
+}
+
+namespace {
+thread_local MeshingCancellation* innermost_cancellation = nullptr;
+}
+
+MeshingCancellation::MeshingCancellation(std::function<bool()> cancelled)
+    : cancelled_(std::move(cancelled)), outer_(innermost_cancellation) {
+  innermost_cancellation = this;
+}
+
+MeshingCancellation::~MeshingCancellation() { innermost_cancellation = outer_; }
+
+void MeshingCancellation::check() {
+  const MeshingCancellation* c = innermost_cancellation;
+  if (c && c->cancelled_ && c->cancelled_()) throw MeshingCancelled();
 }
 
 long mesher_point_budget(const std::vector<Vec2>& boundary, Real max_edge) {

@@ -4,6 +4,8 @@
 /// mesher.cpp), plus the curve sampling and spacing helpers the garment assembly uses.
 
 #include <Eigen/Core>
+#include <functional>
+#include <stdexcept>
 #include <vector>
 
 #include "sim/types.h"
@@ -26,6 +28,33 @@ inline constexpr Real kMesherBudgetFloor = 20000;
 
 /// The most points mesh_panel lets CGAL's refinement insert into a panel (see above).
 long mesher_point_budget(const std::vector<Vec2>& boundary, Real max_edge);
+
+/// Thrown by mesh_panel when the calling thread's MeshingCancellation says the mesh is no longer
+/// wanted (the call that asked for it went away or passed its deadline, the job was cancelled).
+class MeshingCancelled : public std::runtime_error {
+ public:
+  MeshingCancelled() : std::runtime_error("meshing cancelled: the garment is no longer wanted") {}
+};
+
+/// While alive, mesh_panel on this thread asks `cancelled` every kMesherCancelCheckPoints
+/// refinement points and throws MeshingCancelled once it answers true: meshing a large garment
+/// takes seconds, and a caller that is gone should not keep a thread busy with it. Scopes nest
+/// (the innermost one is asked).
+class MeshingCancellation {
+ public:
+  explicit MeshingCancellation(std::function<bool()> cancelled);
+  ~MeshingCancellation();
+  MeshingCancellation(const MeshingCancellation&) = delete;
+  MeshingCancellation& operator=(const MeshingCancellation&) = delete;
+
+  /// Throws MeshingCancelled when the innermost scope on this thread says so (no scope: never).
+  static void check();
+
+ private:
+  std::function<bool()> cancelled_;
+  MeshingCancellation* outer_;
+};
+inline constexpr int kMesherCancelCheckPoints = 256;
 
 /// The triangulation of one panel in layout coordinates.
 struct PanelMesh {

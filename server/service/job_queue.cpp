@@ -13,6 +13,7 @@
 
 #include "experiment/experiment.h"
 #include "garments/generator.h"
+#include "garments/mesher.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
@@ -278,8 +279,21 @@ void JobQueue::run_job(const std::string& id) {
   };
   std::string summary;
   std::vector<std::string> files;
+  auto end_cancelled = [&](bool by_client) {  // CancelJob (CANCELLED) or the drain (INTERRUPTED)
+    std::lock_guard<std::mutex> lock(mu_);
+    final_rec = live_[id].record;
+    final_rec.status = by_client ? JobState::kCancelled : JobState::kInterrupted;
+    final_rec.message = by_client ? kCancelledMessage : kInterruptedMessage;
+    final_rec.finished_at = now_iso8601();
+    files = list_files(cfg->out_dir);
+  };
   auto last = std::chrono::steady_clock::now();
   try {
+    const garments::MeshingCancellation meshing([&] {  // CancelJob or the drain while the garment is meshed
+      if (cancel_.load()) return true;
+      std::lock_guard<std::mutex> lock(mu_);
+      return cancelled_.count(id) > 0;
+    });
     const experiment::ExperimentResult res =
         experiment::run_experiment(*cfg, [&](double t, double end, const sim::StepStats&) {
           if (cancel_.load()) throw JobCancelled{false};
@@ -311,12 +325,9 @@ void JobQueue::run_job(const std::string& id) {
     final_rec.sim_time = res.summary.value("sim_seconds", final_rec.sim_time);
     if (final_rec.end_time < final_rec.sim_time) final_rec.end_time = final_rec.sim_time;
   } catch (const JobCancelled& c) {
-    std::lock_guard<std::mutex> lock(mu_);
-    final_rec = live_[id].record;
-    final_rec.status = c.by_client ? JobState::kCancelled : JobState::kInterrupted;
-    final_rec.message = c.by_client ? kCancelledMessage : kInterruptedMessage;
-    final_rec.finished_at = now_iso8601();
-    files = list_files(cfg->out_dir);
+    end_cancelled(c.by_client);
+  } catch (const garments::MeshingCancelled&) {
+    end_cancelled(!cancel_.load());
   } catch (const InputError& e) {
     finish(JobState::kFailed, e.what());
   } catch (const std::exception& e) {

@@ -13,6 +13,7 @@
 
 #include "experiment/experiment.h"
 #include "garments/generator.h"
+#include "garments/mesher.h"
 #include "service/auth.h"
 #include "sim/demand.h"
 #include "sim/log.h"
@@ -341,6 +342,7 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     cfg.garment = spec.mesh_path.empty() ? spec.garment : spec.mesh_path;
     cfg.vertices = vertices;
     cfg.garment_params = spec.garment_params;
+    const garments::MeshingCancellation meshing(spec.cancelled);  // a caller gone mid-meshing stops it
     const garments::Garment garment = experiment::make_experiment_garment(cfg);
     if (static_cast<int>(garment.mesh.x.size()) > options_.max_vertices)
       return Status::ResourceExhausted(fmt::format("the garment has {} vertices, over this server's limit of {} per "
@@ -407,6 +409,9 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     }
     out->info = t->info;
     return Status::Ok();
+  } catch (const garments::MeshingCancelled&) {
+    return Status(Code::kCancelled, "the call was cancelled or passed its deadline while its garment was meshed; "
+                                    "no scene was created");
   } catch (const InputError& e) {
     return Status::InvalidArgument(e.what());
   } catch (const std::exception& e) {

@@ -86,6 +86,8 @@ struct SceneSpec {
   double offset_m = 0;           ///< randomisation: x/y offsets uniform in [-offset_m, offset_m]
   std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
   std::string owner;             ///< the caller's principal (see ScenePool: ownership)
+  /// Asked while the garment is meshed: true stops it (CANCELLED, nothing created). May be empty.
+  std::function<bool()> cancelled;
 };
 
 /// One arm's command for the end of a step.

@@ -90,6 +90,7 @@ grpc::Status GarmentDynamicsService::CreateScenes(Ctx* ctx, const pb::CreateScen
     SceneSpec spec;
     GD_RETURN_IF_ERROR(to_scene_spec(*req, &spec));
     spec.owner = call.owner;
+    spec.cancelled = [ctx] { return ctx->IsCancelled(); };  // deadline passed or client gone
     if (req->source_case() == pb::CreateScenesRequest::kMeshId) {
       MeshRecord m;
       GD_RETURN_IF_ERROR(meshes_.get(req->mesh_id(), &m));

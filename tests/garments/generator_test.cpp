@@ -285,6 +285,28 @@ TEST(GarmentGenerator, AbsurdSizesAreRefusedBeforeMeshing) {
   EXPECT_LT(10 * static_cast<long>(mesh_panel(square, {}, 0.02).points.size()), mesher_point_budget(square, 0.02));
 }
 
+TEST(MeshingCancellation, TheInnermostScopeStopsTheMesherAndLeavingItLetsMeshingGoOn) {
+  const std::vector<Vec2> square = {{0, 0}, {0.5, 0}, {0.5, 0.5}, {0, 0.5}};
+  const size_t points = mesh_panel(square, {}, 0.01).points.size();  // ~3000 points: several checks
+  ASSERT_GT(points, size_t(4 * kMesherCancelCheckPoints));
+  int asked = 0;
+  {
+    const MeshingCancellation never([&] { return ++asked, false; });
+    EXPECT_EQ(mesh_panel(square, {}, 0.01).points.size(), points);  // asked, not stopped: same mesh
+    EXPECT_GT(asked, 2);
+    const MeshingCancellation now([] { return true; });  // nested: the innermost is asked
+    EXPECT_THROW(mesh_panel(square, {}, 0.01), MeshingCancelled);
+    EXPECT_THROW(make_garment("tshirt", 3000), MeshingCancelled);  // through the generators too
+  }
+  int later = 0;  // after its first answers, the flag turns: the mesher stops at the next check
+  {
+    const MeshingCancellation after_two([&] { return ++later > 2; });
+    EXPECT_THROW(mesh_panel(square, {}, 0.01), MeshingCancelled);
+    EXPECT_EQ(later, 3);
+  }
+  EXPECT_EQ(mesh_panel(square, {}, 0.01).points.size(), points);  // no scope left: meshes in full
+}
+
 TEST(GarmentParamsByName, EveryNameSetsItsSizeAndTheGarmentFollows) {
   GarmentParams p;
   set_garment_param(p, "length", 0.9);

@@ -232,6 +232,25 @@ TEST(ScenePool, ASlowBatchHoldsAWorkerOneSliceAtATimeSoAnotherCallerIsServedMean
   std::printf("slow batch %.3f s; one step of another caller meanwhile %.4f s\n", a_seconds, b_seconds);
 }
 
+TEST(ScenePool, ACreateWhoseCallerIsGoneStopsMeshingAndKeepsNoScene) {
+  ScenePool pool(small_pool());
+  SceneSpec spec = towel(2);
+  spec.vertices = 800;  // ~700 points the mesher inserts: two checks
+  int asked = 0;
+  spec.cancelled = [&] { return ++asked > 1; };  // gone after the mesher's first check
+  CreatedScenes c;
+  const Status st = pool.create(spec, &c);
+  EXPECT_EQ(st.code(), Code::kCancelled) << st.message();
+  EXPECT_NE(st.message().find("no scene was created"), std::string::npos) << st.message();
+  EXPECT_EQ(asked, 2);
+  EXPECT_EQ(pool.size(), 0);
+  EXPECT_TRUE(c.ids.empty());
+  spec.cancelled = [] { return false; };  // a caller still there gets its scenes
+  const Status again = pool.create(spec, &c);
+  ASSERT_TRUE(again.ok()) << again.message();
+  EXPECT_EQ(pool.size(), 2);
+}
+
 TEST(ScenePool, SubscribersGetEveryKthStep) {
   ScenePool pool(small_pool());
   CreatedScenes c;
