@@ -17,6 +17,7 @@
 #include "service/auth.h"
 #include "service/job_queue.h"
 #include "service/mesh_library.h"
+#include "service/reflection_v1.h"
 #include "service/report_store.h"
 #include "service/scene_pool.h"
 #include "service/service.h"
@@ -72,6 +73,7 @@ struct Server::Impl {
   std::unique_ptr<ScenePool> scenes;
   std::unique_ptr<JobQueue> jobs;
   std::unique_ptr<GarmentDynamicsService> service;
+  std::unique_ptr<ReflectionV1> reflection_v1;
   std::unique_ptr<grpc::Server> server;
   int port = 0;
   std::once_flag drained;
@@ -158,6 +160,10 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
   b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   b.AddListeningPort(addr, credentials, &im.port);
   b.RegisterService(im.service.get());
+  im.reflection_v1 = std::make_unique<ReflectionV1>(std::vector<std::string>{
+      kServiceName, "grpc.health.v1.Health", "grpc.reflection.v1.ServerReflection",
+      "grpc.reflection.v1alpha.ServerReflection"});
+  b.RegisterService(im.reflection_v1.get());
   b.SetMaxReceiveMessageSize(static_cast<int>(max_bytes));
   b.SetMaxSendMessageSize(static_cast<int>(max_bytes));
   b.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 60 * 1000);

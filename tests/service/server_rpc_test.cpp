@@ -12,6 +12,9 @@
 #include <set>
 #include <sstream>
 
+#include <google/protobuf/descriptor.pb.h>
+
+#include "grpc/reflection/v1/reflection.grpc.pb.h"
 #include "service/server_process.h"
 
 namespace gd::service::testing {
@@ -19,14 +22,15 @@ namespace {
 
 using google::protobuf::UnknownFieldSet;
 
-/// The services listed by grpc.reflection.v1alpha (messages encoded by hand: no reflection.proto
-/// is installed).
-std::vector<std::string> reflected_services(const std::shared_ptr<grpc::Channel>& ch) {
+/// The services listed by grpc.reflection.v1alpha (or v1: the same messages), encoded by hand:
+/// no reflection.proto is installed.
+std::vector<std::string> reflected_services(const std::shared_ptr<grpc::Channel>& ch,
+                                            const std::string& version = "v1alpha") {
   grpc::GenericStub generic(ch);
   grpc::CompletionQueue cq;
   grpc::ClientContext c;
   c.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
-  auto call = generic.PrepareCall(&c, "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo", &cq);
+  auto call = generic.PrepareCall(&c, "/grpc.reflection." + version + ".ServerReflection/ServerReflectionInfo", &cq);
   void* tag;
   bool ok = false;
   auto next = [&] { return cq.Next(&tag, &ok) && ok; };
@@ -80,6 +84,51 @@ std::string grid_obj() {
       o << "f " << a << " " << b << " " << d << "\nf " << a << " " << d << " " << c << "\n";
     }
   return o.str();
+}
+
+TEST(ServerRpc, ReflectionV1ListsTheServicesAndServesTheProtoFilesWithoutAToken) {
+  TempDir dir;
+  const std::string tokens = dir.str() + "/tokens";
+  std::ofstream(tokens) << "reflection-test-token-0123456789\n";
+  ServerProcess server(dir.str() + "/data", {"--auth-token-file", tokens});
+  const std::vector<std::string> names = reflected_services(server.channel(), "v1");
+  for (const char* s : {"garmentdynamics.v1.GarmentDynamics", "grpc.health.v1.Health",
+                        "grpc.reflection.v1.ServerReflection", "grpc.reflection.v1alpha.ServerReflection"})
+    EXPECT_NE(std::find(names.begin(), names.end(), s), names.end()) << s;
+  namespace rv1 = ::grpc::reflection::v1;
+  auto stub = rv1::ServerReflection::NewStub(server.channel());
+  auto c = ctx();
+  auto stream = stub->ServerReflectionInfo(c.get());
+  auto ask = [&](const rv1::ServerReflectionRequest& req) {
+    rv1::ServerReflectionResponse resp;
+    EXPECT_TRUE(stream->Write(req));
+    EXPECT_TRUE(stream->Read(&resp));
+    return resp;
+  };
+  rv1::ServerReflectionRequest req;
+  req.set_file_containing_symbol("garmentdynamics.v1.GarmentDynamics.StepScenes");
+  rv1::ServerReflectionResponse resp = ask(req);
+  ASSERT_TRUE(resp.has_file_descriptor_response()) << resp.DebugString();
+  google::protobuf::FileDescriptorProto file;
+  ASSERT_TRUE(file.ParseFromString(resp.file_descriptor_response().file_descriptor_proto(0)));
+  EXPECT_EQ(file.name(), "garmentdynamics/v1/garmentdynamics.proto");
+  EXPECT_EQ(file.package(), "garmentdynamics.v1");
+  ASSERT_EQ(file.service_size(), 1);
+  EXPECT_EQ(file.service(0).name(), "GarmentDynamics");
+  req.set_file_by_filename("garmentdynamics/v1/garmentdynamics.proto");  // the same file by name
+  resp = ask(req);
+  ASSERT_TRUE(resp.has_file_descriptor_response());
+  EXPECT_EQ(resp.file_descriptor_response().file_descriptor_proto(0),
+            ask([] { rv1::ServerReflectionRequest r; r.set_file_containing_symbol("garmentdynamics.v1.Array"); return r; }())
+                .file_descriptor_response().file_descriptor_proto(0));
+  req.set_file_containing_symbol("garmentdynamics.v1.NoSuchThing");  // an error answer; the stream goes on
+  resp = ask(req);
+  ASSERT_TRUE(resp.has_error_response());
+  EXPECT_EQ(resp.error_response().error_code(), static_cast<int>(grpc::StatusCode::NOT_FOUND));
+  req.set_list_services("");
+  EXPECT_TRUE(ask(req).has_list_services_response());
+  stream->WritesDone();
+  EXPECT_TRUE(stream->Finish().ok());
 }
 
 TEST(ServerRpc, ReflectionListsTheServiceAndHealth) {
