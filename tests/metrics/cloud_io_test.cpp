@@ -128,6 +128,81 @@ TEST(CloudIo, BrokenFilesAreInputErrorsNamingTheFile) {
   expect_input_error([&] { load_cloud(d + "/text.obj"); }, "text.obj");
 }
 
+// Inputs tests/fuzz/fuzz_cloud_io found crashing or exhausting the process inside PCL; each is now
+// an InputError (or, for the PLY layouts PCL's reader aborted on, a cloud).
+TEST(CloudIo, PcdHeadersPclMisreadsAreInputErrors) {
+  const std::string d = temp_dir("fuzz");
+  const std::string body = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n"
+                           "POINTS 1\nDATA ascii\n0 0 0\n";
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(d + "/" + name, std::ios::binary) << text;
+    return d + "/" + name;
+  };
+  // PCL ends the header at a line it does not know, then formats fields[0] of no fields (SEGV).
+  const std::string unknown_first = write("unknown_first.pcd", "this is 7 - Point Cloud Data\n" + body);
+  expect_input_error([&] { load_cloud(unknown_first); }, "no FIELDS line");
+  // PCL allocates POINTS x point size from the header before reading (4 GiB here).
+  const std::string huge_size = write("huge_size.pcd", "FIELDS x y z\nSIZE 4294967295 1 1\nTYPE U U U\n"
+                                                       "POINTS 2\nDATA ascii\n1 2 3\n4 5 6\n");
+  expect_input_error([&] { load_cloud(huge_size); }, "SIZE");
+  const std::string huge_points = write("huge_points.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+                                                           "POINTS 2000000000\nDATA ascii\n1 2 3\n");
+  expect_input_error([&] { load_cloud(huge_points); }, "cannot hold the 2000000000 points");
+  // PCL reads on after DATA while lines look like header lines: binary data starting "POINTS ...".
+  std::string sneaky = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA binary\nPOINTS 900000000\n";
+  const std::string after_data = write("after_data.pcd", sneaky);
+  expect_input_error([&] { load_cloud(after_data); }, "POINTS appears twice");
+  // A compressed block whose stated size is not the points' size.
+  std::string comp = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA binary_compressed\n";
+  const uint32_t sizes[2] = {4, 0xfffffff0u};
+  comp.append(reinterpret_cast<const char*>(sizes), 8).append("abcd");
+  const std::string compressed = write("compressed.pcd", comp);
+  expect_input_error([&] { load_cloud(compressed); }, "compressed block holds");
+  // A SIZE that does not fit its TYPE (PCL would write 8-byte doubles into 1-byte slots).
+  const std::string mismatch = write("mismatch.pcd", "FIELDS x y z\nSIZE 1 1 1\nTYPE F F F\nPOINTS 1\n"
+                                                     "DATA ascii\n1 2 3\n");
+  expect_input_error([&] { load_cloud(mismatch); }, "does not fit SIZE");
+}
+
+TEST(CloudIo, PlyReaderTakesVerticesFromAnyLayout) {
+  const std::string d = temp_dir("ply");
+  // Colour properties without `red` (PCL's PLYReader failed an assert and aborted the process).
+  std::ofstream(d + "/green_blue.ply")
+      << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+         "property uchar green\nproperty uchar blue\nend_header\n0 0 0 1 2\n1 0 0.5 3 4\n0 1 0.25 5 6\n";
+  expect_same(load_cloud(d + "/green_blue.ply"), Cloud{{0, 0, 0}, {1, 0, 0.5f}, {0, 1, 0.25f}}, 0);
+  // An element before the vertices, a list and a double among the vertex properties, big endian.
+  std::string be = "ply\r\nformat binary_big_endian 1.0\r\ncomment c\r\nelement camera 1\r\nproperty uchar a\r\n"
+                   "property list uchar int b\r\nelement vertex 2\r\nproperty list uchar ushort n\r\n"
+                   "property double x\r\nproperty float y\r\nproperty float z\r\nelement face 0\r\n"
+                   "property list uchar int vertex_indices\r\nend_header\n";
+  auto put_be = [&](const void* p, size_t n) {
+    const auto* b = static_cast<const char*>(p);
+    for (size_t i = n; i-- > 0;) be.push_back(b[i]);
+  };
+  be += std::string("\x07\x02", 2);
+  const int32_t ib[2] = {-1, 5};
+  put_be(&ib[0], 4), put_be(&ib[1], 4);
+  for (int v = 0; v < 2; ++v) {
+    be += std::string("\x01", 1);
+    const uint16_t n = 9;
+    put_be(&n, 2);
+    const double x = 0.5 + v;
+    const float y = -1.25f, z = 2.0f * v;
+    put_be(&x, 8), put_be(&y, 4), put_be(&z, 4);
+  }
+  std::ofstream(d + "/be.ply", std::ios::binary) << be;
+  expect_same(load_cloud(d + "/be.ply"), Cloud{{0.5f, -1.25f, 0}, {1.5f, -1.25f, 2}}, 0);
+  // Counts the data cannot hold are refused before anything of their size is allocated.
+  std::ofstream(d + "/huge.ply") << "ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\n"
+                                    "property float x\nproperty float y\nproperty float z\nend_header\n"
+                                 << std::string(24, '\0');
+  expect_input_error([&] { load_cloud(d + "/huge.ply"); }, "truncated");
+  std::ofstream(d + "/int_x.ply") << "ply\nformat ascii 1.0\nelement vertex 1\nproperty int x\nproperty int y\n"
+                                     "property int z\nend_header\n1 2 3\n";
+  expect_input_error([&] { load_cloud(d + "/int_x.ply"); }, "not float32 or float64");
+}
+
 TEST(CloudIo, TransformCloudAppliesRigidTransform) {
   Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
   T.topLeftCorner<3, 3>() = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()).toRotationMatrix();
