@@ -91,7 +91,7 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
     live[c] = 0;
     if (V.fixed[vs[0]] && V.fixed[vs[1]] && V.fixed[vs[2]] && V.fixed[vs[3]]) {  // as select_active: no free vertex
       if (want_h)
-        for (int k = 0; k < 144; ++k) HA[144 * c + k] = 0.0;
+        for (int k = 0; k < kPairBlockValues; ++k) HA[kPairBlockValues * c + k] = 0.0;
       return 0.0;
     }
     Vec12 ge;
@@ -99,14 +99,14 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
     const double ec = detail::pair_barrier(P, L, c, x, &ge, want_h ? &He : nullptr);
     if (ec == 0.0 && !want_h) return 0.0;  // beyond dhat: no gradient
     live[c] = 1;
-    store_pair(V, L.v + 4 * c, ge, want_h ? &He : nullptr, HA + 144 * c, GA + 48 * c);
+    store_pair(V, L.v + 4 * c, ge, want_h ? &He : nullptr, HA + kPairBlockValues * c, GA + 48 * c);
     return ec;
   }, Exec::kParallelMinHeavy);
   e += Exec::sum_effects(V.n_fr, [=] GD_HD_LAMBDA(int k) {
     Vec12 ge;
     Mat12 He;
     const double ek = detail::pair_friction(V, P, k, x, &ge, want_h ? &He : nullptr);
-    store_pair(V, V.fr_v + 4 * k, ge, want_h ? &He : nullptr, HF + 144 * k, GF + 48 * k);
+    store_pair(V, V.fr_v + 4 * k, ge, want_h ? &He : nullptr, HF + kPairBlockValues * k, GF + 48 * k);
     return ek;
   }, Exec::kParallelMinHeavy);
   Exec::for_each(L.n, [=] GD_HD_LAMBDA(int c) {
@@ -116,9 +116,9 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
   return e;
 }
 
-/// Splits a pair's gradient and Hessian (Dirichlet rows/columns dropped): off-diagonal blocks
-/// into Hpair (row-major 12x12, diagonal blocks zero), gradient and diagonal blocks into gd
-/// (12 + 4 x 9 values) for add_pair.
+/// Splits a pair's gradient and Hessian (Dirichlet rows/columns dropped): the six blocks above
+/// the diagonal into Hpair (kPairBlockValues, pair_blocks.h; the blocks below are their
+/// transposes), gradient and diagonal blocks into gd (12 + 4 x 9 values) for add_pair.
 template <class Exec>
 GD_HD void Solver<Exec>::store_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12* Hp,
                                     double* Hpair, double* gd) {
@@ -127,14 +127,13 @@ GD_HD void Solver<Exec>::store_pair(const detail::View& V, const int* vs, const 
     for (int c = 0; c < 3; ++c) gd[3 * a + c] = fa ? 0.0 : ge(3 * a + c);
     if (!Hp) continue;
     const Mat12& He = *Hp;
-    for (int b = 0; b < 4; ++b) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) gd[12 + 9 * a + 3 * r + c] = fa ? 0.0 : He(3 * a + r, 3 * a + c);
+    for (int b = a + 1; b < 4; ++b) {
       const bool keep = !fa && !V.fixed[vs[b]];
+      double* blk = Hpair + pair_block_offset(a, b);
       for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) {
-          const double h = keep ? He(3 * a + r, 3 * b + c) : 0.0;
-          Hpair[36 * a + 12 * r + 3 * b + c] = a == b ? 0.0 : h;
-          if (a == b) gd[12 + 9 * a + 3 * r + c] = h;
-        }
+        for (int c = 0; c < 3; ++c) blk[3 * r + c] = keep ? He(3 * a + r, 3 * b + c) : 0.0;
     }
   }
 }

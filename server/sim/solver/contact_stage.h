@@ -17,7 +17,7 @@ void Solver<Exec>::select_contacts() {
   stiffen_pressed_pairs();  // before the pairs go to the backend
   const ContactPairs& a = self_->active();
   act_.upload(a);
-  Exec::resize_for_overwrite(act_H_, 144 * static_cast<size_t>(act_.n));
+  Exec::resize_for_overwrite(act_H_, kPairBlockValues * static_cast<size_t>(act_.n));
   Exec::resize_for_overwrite(act_gd_, 48 * static_cast<size_t>(act_.n));
   upload_candidates();  // select_active drops pairs already at zero distance
 }
@@ -48,7 +48,7 @@ void Solver<Exec>::upload_friction() {
   Exec::upload(fr_w_, f.w);
   Exec::upload(fr_T_, f.T);
   Exec::upload(fr_lambda_, f.lambda);
-  Exec::resize_for_overwrite(fr_H_, 144 * static_cast<size_t>(n_fr_));
+  Exec::resize_for_overwrite(fr_H_, kPairBlockValues * static_cast<size_t>(n_fr_));
   Exec::resize_for_overwrite(fr_gd_, 48 * static_cast<size_t>(n_fr_));
 }
 

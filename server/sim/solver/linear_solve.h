@@ -191,11 +191,13 @@ int Solver<Exec>::solve_direct() {
       auto add_pairs = [&](const std::vector<int>& vs, const Vec<double>& Hs) {
         for (size_t c = 0; c < vs.size() / 4; ++c)
           for (int a = 0; a < 4; ++a)
-            for (int b = 0; b < 4; ++b)
+            for (int b = a + 1; b < 4; ++b)
               for (int r = 0; r < 3; ++r)
-                for (int k = 0; k < 3; ++k) {
-                  const double h = Hs[144 * c + 36 * a + 12 * r + 3 * b + k];
-                  if (h != 0.0) trip.emplace_back(3 * vs[4 * c + a] + r, 3 * vs[4 * c + b] + k, h);
+                for (int k = 0; k < 3; ++k) {  // block (a, b) and its transpose (b, a)
+                  const double h = Hs[kPairBlockValues * c + pair_block_offset(a, b) + 3 * r + k];
+                  if (h == 0.0) continue;
+                  trip.emplace_back(3 * vs[4 * c + a] + r, 3 * vs[4 * c + b] + k, h);
+                  trip.emplace_back(3 * vs[4 * c + b] + k, 3 * vs[4 * c + a] + r, h);
                 }
       };
       add_pairs(self_->active().v, act_H_);

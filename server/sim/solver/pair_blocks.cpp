@@ -7,8 +7,9 @@
 namespace gd::sim {
 namespace {
 
-/// Calls f(row, col, block) for every off-diagonal block between free vertices of the pairs
-/// [begin, end) of the concatenated lists, in order.
+/// Calls f(row, col, block, transposed) for every off-diagonal block between free vertices of the
+/// pairs [begin, end) of the concatenated lists, in order; block (row, col) is the stored 3x3 at
+/// `block`, or its transpose when `transposed`.
 template <class F>
 void each_block(const std::vector<PairHessians>& lists, const int* fixed, long begin, long end, F&& f) {
   long base = 0;
@@ -20,7 +21,9 @@ void each_block(const std::vector<PairHessians>& lists, const int* fixed, long b
       for (int a = 0; a < 4; ++a) {
         if (fixed[vs[a]]) continue;
         for (int b = 0; b < 4; ++b)
-          if (b != a && !fixed[vs[b]]) f(vs[a], vs[b], l.H + 144 * p + 36 * a + 3 * b);
+          if (b != a && !fixed[vs[b]])
+            f(vs[a], vs[b], l.H + kPairBlockValues * p + (a < b ? pair_block_offset(a, b) : pair_block_offset(b, a)),
+              a > b);
       }
     }
     base += l.count;
@@ -31,8 +34,9 @@ void each_block(const std::vector<PairHessians>& lists, const int* fixed, long b
 
 void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>& lists, CouplingMatrix* out) {
   struct Ref {
+    const double* block;  // a stored 3x3, row-major
     int col;
-    const double* block;  // 3x3 at stride 12 in a pair's 12x12
+    int transposed;       // the block of (row, col) is block's transpose
   };
   long pairs = 0;
   for (const PairHessians& l : lists) pairs += l.count;
@@ -50,7 +54,7 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
     long b, e;
     range(t, &b, &e);
     int* c = counts.data() + static_cast<size_t>(t) * (n + 1);
-    each_block(lists, fixed, b, e, [&](int row, int, const double*) { ++c[row]; });
+    each_block(lists, fixed, b, e, [&](int row, int, const double*, bool) { ++c[row]; });
   }
   std::vector<int> start(n + 1, 0);  // refs of row i: [start[i], start[i+1])
   for (int i = 0; i < n; ++i) {
@@ -70,7 +74,9 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
     long b, e;
     range(t, &b, &e);
     int* cursor = counts.data() + static_cast<size_t>(t) * (n + 1);
-    each_block(lists, fixed, b, e, [&](int row, int col, const double* blk) { refs[cursor[row]++] = {col, blk}; });
+    each_block(lists, fixed, b, e, [&](int row, int col, const double* blk, bool tr) {
+      refs[cursor[row]++] = {blk, col, tr ? 1 : 0};
+    });
   }
   // 2. Per row, one block per distinct column in order of first appearance: count them, lay the
   //    rows out, then sum the blocks (mark/pos: per-thread column stamps of the current row).
@@ -109,8 +115,12 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
           cols[k++] = ref.col;
         }
         double* dst = vals + 9 * static_cast<size_t>(pos[ref.col]);
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) dst[3 * r + c] += ref.block[12 * r + c];
+        if (ref.transposed) {
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) dst[3 * r + c] += ref.block[3 * c + r];
+        } else {
+          for (int k = 0; k < 9; ++k) dst[k] += ref.block[k];
+        }
       }
     }
   }

@@ -9,8 +9,16 @@
 
 namespace gd::sim {
 
-/// One list of pairs: `count` pairs of 4 vertex ids (v, 4 per pair) with their 12x12 Hessians (H,
-/// 144 per pair, row-major; block (a, b) starts at 36 a + 3 b with row stride 12).
+/// Values stored per pair: the six 3x3 blocks (a, b), a < b, of its symmetric 12x12 Hessian above
+/// the diagonal, each row-major, in the order (0,1), (0,2), (0,3), (1,2), (1,3), (2,3); block (b, a)
+/// is the transpose of (a, b). (The diagonal blocks go straight into the matrix's diagonal.)
+constexpr int kPairBlockValues = 54;
+
+/// Offset of block (a, b), a < b, within a pair's kPairBlockValues.
+constexpr int pair_block_offset(int a, int b) { return 9 * (a == 0 ? b - 1 : a == 1 ? b + 1 : 5); }
+
+/// One list of pairs: `count` pairs of 4 vertex ids (v, 4 per pair) with their off-diagonal
+/// Hessian blocks (H, kPairBlockValues per pair).
 struct PairHessians {
   int count = 0;
   const int* v = nullptr;

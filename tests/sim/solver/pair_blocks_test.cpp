@@ -36,7 +36,7 @@ RandomPairs random_pairs(int count, int span, unsigned seed) {
       }
       p.v.push_back(vs[a]);
     }
-    for (int k = 0; k < 144; ++k) p.H.push_back(value(rng));
+    for (int k = 0; k < kPairBlockValues; ++k) p.H.push_back(value(rng));
   }
   return p;
 }
@@ -54,7 +54,9 @@ std::map<std::pair<int, int>, std::vector<double>> reference(const std::vector<P
           auto& blk = m[{r, col}];
           blk.resize(9, 0.0);
           for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j) blk[3 * i + j] += l.H[144 * c + 12 * (3 * a + i) + 3 * b + j];
+            for (int j = 0; j < 3; ++j)  // block (a, b) is stored for a < b, (b, a) as its transpose
+              blk[3 * i + j] += a < b ? l.H[kPairBlockValues * c + pair_block_offset(a, b) + 3 * i + j]
+                                      : l.H[kPairBlockValues * c + pair_block_offset(b, a) + 3 * j + i];
         }
   return m;
 }
@@ -83,7 +85,7 @@ TEST(PairBlocks, SumsEveryOffDiagonalBlockOfFreeVertices) {
 TEST(PairBlocks, ColumnsComeInTheOrderTheyFirstAppear) {
   // Pair 0 couples 0-1, 0-2, 0-3; pair 1 couples 0 with 5, 4, 1 (1 already there).
   const std::vector<int> v{0, 1, 2, 3, 0, 5, 4, 1};
-  std::vector<double> H(2 * 144, 1.0);
+  std::vector<double> H(2 * kPairBlockValues, 1.0);
   const std::vector<int> fixed(6, 0);
   CouplingMatrix out;
   merge_pair_blocks(6, fixed.data(), {PairHessians{2, v.data(), H.data()}}, &out);
