@@ -11,11 +11,15 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <mutex>
 #include <string>
 #include <utility>
 
+#include "sim/backend/cpu/exec_cpu.h"
+#include "sim/contact/lbvh_broad_phase.h"
+#include "sim/solver/solver.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 
@@ -465,6 +469,19 @@ class EmbreeBroadPhase final : public BroadPhase {
 };
 
 }  // namespace
+
+std::unique_ptr<BroadPhase> make_lbvh_broad_phase(const std::vector<int>& tris,
+                                                  const std::vector<Eigen::Vector2i>& edges, int vertex_count) {
+  make_topo(tris, edges, vertex_count);  // validates
+  return std::make_unique<LbvhBroadPhase<CpuExec>>(tris, edges, vertex_count);
+}
+
+std::unique_ptr<BroadPhase> make_cuda_lbvh_broad_phase(const std::vector<int>& tris,
+                                                       const std::vector<Eigen::Vector2i>& edges, int vertex_count) {
+  make_topo(tris, edges, vertex_count);  // validates
+  if (!cuda_available()) throw InputError("the CUDA broad phase needs a CUDA device; none is available");
+  return make_cuda_lbvh_broad_phase_unchecked(tris, edges, vertex_count);
+}
 
 std::unique_ptr<BroadPhase> make_embree_broad_phase(const std::vector<int>& tris,
                                                     const std::vector<Eigen::Vector2i>& edges, int vertex_count) {

@@ -30,7 +30,7 @@ struct ContactCandidates {
   std::vector<Eigen::Vector2i> ee;  ///< (edge a, edge b) pairs, indices into the edge list given at construction, a < b, edges share no vertex
 };
 
-/// Broad-phase interface (the CPU implementation uses Embree; a GPU LBVH can sit behind the same
+/// Broad-phase interface (Embree on the CPU by default; the LBVH of contact/lbvh.h behind the same
 /// interface). An instance keeps its acceleration structures between calls; calls on one instance
 /// must not run concurrently.
 class BroadPhase {
@@ -58,6 +58,23 @@ class BroadPhase {
 /// vertex).
 std::unique_ptr<BroadPhase> make_embree_broad_phase(const std::vector<int>& tris,
                                                     const std::vector<Eigen::Vector2i>& edges, int vertex_count);
+
+/// Linear BVH (contact/lbvh.h, Karras 2012) on the CPU policy: the hierarchy the GPU builds, with
+/// the same boxes, overlap test and sorted output as the Embree implementation (the same sets).
+/// Same arguments and errors as make_embree_broad_phase.
+std::unique_ptr<BroadPhase> make_lbvh_broad_phase(const std::vector<int>& tris,
+                                                  const std::vector<Eigen::Vector2i>& edges, int vertex_count);
+
+/// The same LBVH broad phase on the CUDA device (CudaExec): boxes, hierarchy and queries run as
+/// kernels, the pairs come back sorted. Throws InputError as make_embree_broad_phase, and when
+/// this build has no CUDA backend or no device is present.
+std::unique_ptr<BroadPhase> make_cuda_lbvh_broad_phase(const std::vector<int>& tris,
+                                                       const std::vector<Eigen::Vector2i>& edges, int vertex_count);
+/// make_cuda_lbvh_broad_phase without the checks (the CUDA object's entry point; topology already
+/// validated, a device present).
+std::unique_ptr<BroadPhase> make_cuda_lbvh_broad_phase_unchecked(const std::vector<int>& tris,
+                                                                 const std::vector<Eigen::Vector2i>& edges,
+                                                                 int vertex_count);
 
 /// O(n^2) reference with the same boxes and the same overlap test, for tests only.
 std::unique_ptr<BroadPhase> make_brute_force_broad_phase(const std::vector<int>& tris,

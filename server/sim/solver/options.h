@@ -28,6 +28,13 @@ enum class BendingHessianKind {
                    ///< convergence at large rotations (static solves, validation)
 };
 
+/// Which broad phase finds self-contact candidates (contact/broad_phase.h); both report the same
+/// pairs.
+enum class BroadPhaseKind {
+  kEmbree,  ///< Embree's BVH collide on the CPU: the default, fastest measured here
+  kLbvh     ///< the policy-generic LBVH (contact/lbvh.h, Karras 2012), the GPU's algorithm, on the CPU
+};
+
 /// How the self-contact barrier Hessians are made positive semi-definite for Newton.
 enum class ContactHessianKind {
   kGaussNewton,  ///< curvature along the distance gradient only: PSD by construction, cheaper per pair
@@ -101,6 +108,7 @@ struct SceneOptions {
   bool check_intersections = true; ///< exact intersecting-pair count after every step
   bool untangle = true;            ///< run the untangling fail-safe when intersections are found
   ContactHessianKind contact_hessian = ContactHessianKind::kProjected;
+  BroadPhaseKind broad_phase = BroadPhaseKind::kEmbree;
   /// With self-contact, grasped (kinematic) vertices stay in the solve, pulled to their targets by
   /// a spring of stiffness grip_stiffness * (m / dt^2 + k_membrane) per vertex (m its mass,
   /// k_membrane the fabric's largest stretch stiffness, N/m): stiff enough that a held vertex

@@ -36,7 +36,8 @@ void ContactPairs::push(const int* vs, int t, double k, double e) {
   eps_x.push_back(e);
 }
 
-SelfContact::SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass)
+SelfContact::SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass, BroadPhaseKind broad_phase,
+                         bool on_device)
     : d_(data), dhat_(dhat), kappa_per_mass_(kappa_per_mass), slack_(kBroadPhaseSlack * dhat) {
   // Unique undirected edges of the triangles.
   for (int t = 0; t < d_.triangles(); ++t)
@@ -49,7 +50,11 @@ SelfContact::SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass)
   });
   edges_.erase(std::unique(edges_.begin(), edges_.end()), edges_.end());
   for (const auto& e : edges_) edge_len2_.push_back((at(d_.x, e[0]) - at(d_.x, e[1])).squaredNorm());
-  bp_ = make_embree_broad_phase(d_.tris, edges_, d_.n);
+  if (broad_phase == BroadPhaseKind::kLbvh) {
+    bp_ = on_device ? make_cuda_lbvh_broad_phase(d_.tris, edges_, d_.n) : make_lbvh_broad_phase(d_.tris, edges_, d_.n);
+  } else {
+    bp_ = make_embree_broad_phase(d_.tris, edges_, d_.n);
+  }
 }
 
 namespace {

@@ -93,7 +93,7 @@ class Solver final : public SolverBase {
       P_.dhat_self = P_.dhat;
       P_.ccd_floor = kCcdFloorFraction * P_.dhat_self;
       P_.mu_self = opt.self_friction >= 0 ? opt.self_friction : d.friction;
-      self_ = std::make_unique<SelfContact>(d, P_.dhat_self, P_.kappa_per_mass);
+      self_ = std::make_unique<SelfContact>(d, P_.dhat_self, P_.kappa_per_mass, opt.broad_phase, !Exec::kHostMemory);
     }
   }
 

@@ -6,10 +6,17 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <random>
 
+#include <omp.h>
+
+#include "sim/backend/cpu/exec_cpu.h"
 #include "sim/contact/distance.h"
+#include "sim/contact/lbvh.h"
+#include "sim/contact/lbvh_broad_phase.h"
+#include "sim/solver/solver.h"
 #include "sim/demand.h"
 #include "sim/mesh.h"
 
@@ -468,7 +475,174 @@ TEST(BroadPhase, TimingCrumpledSheets) {
                 "(%zu)\n",
                 f.n, f.tris.size() / 3, f.edges.size(), margin * 1e3, t_static, t_first, vf_s, ee_s, t_swept,
                 c.vf.size(), c.ee.size(), t_tri, tp.size());
+    auto lbvh = make_lbvh_broad_phase(f.tris, f.edges, f.n);
+    const double l_static = ms([&] { lbvh->find(f.x, f.x, margin, &c); });
+    const double l_swept = ms([&] { lbvh->find(f.x, x1, margin, &c); });
+    const double l_tri = ms([&] { lbvh->triangle_pairs(f.x, f.x, margin, &tp); });
+    std::printf("[ timing   ] lbvh broad phase, same sheet: find static %.1f ms, find swept %.1f ms, "
+                "triangle_pairs %.1f ms\n", l_static, l_swept, l_tri);
   }
+}
+
+// ------------------------------------------------------------------------------------------------
+// The LBVH (contact/lbvh.h): the same sets as brute force and Embree, on both CPU policies
+// ------------------------------------------------------------------------------------------------
+
+TEST(BroadPhase, LbvhMatchesBruteForceAndEmbree) {
+  const Real spacing = 0.014;
+  std::size_t pairs = 0;
+  for (unsigned seed : {1u, 2u, 3u}) {
+    const Flat f = crumpled_sheet(0.2, spacing, seed, 0.1, 0.03);
+    auto lbvh = make_lbvh_broad_phase(f.tris, f.edges, f.n);  // reused across queries
+    auto brute = make_brute_force_broad_phase(f.tris, f.edges, f.n);
+    auto embree = make_embree_broad_phase(f.tris, f.edges, f.n);
+    const std::vector<double> x1 = displaced(f, 100 + seed, 0.12, 1.5 * spacing);
+    for (Real margin : {0.0, 0.002, 0.006}) {
+      for (bool swept : {false, true}) {
+        SCOPED_TRACE("seed " + std::to_string(seed) + " margin " + std::to_string(margin) +
+                     (swept ? " swept" : " static"));
+        const std::vector<double>& xe = swept ? x1 : f.x;
+        ContactCandidates c, ce;
+        std::vector<Eigen::Vector2i> tp, te;
+        expect_same(*lbvh, *brute, f.x, xe, margin, &c, &tp);
+        expect_well_formed(f, c, tp);
+        embree->find(f.x, xe, margin, &ce);
+        embree->triangle_pairs(f.x, xe, margin, &te);
+        EXPECT_EQ(c.vf, ce.vf);
+        EXPECT_EQ(c.ee, ce.ee);
+        EXPECT_EQ(tp, te);
+        pairs += c.vf.size() + c.ee.size() + tp.size();
+      }
+    }
+  }
+  EXPECT_GT(pairs, 10000u);  // the sheets do bring their parts together
+}
+
+TEST(BroadPhase, LbvhOnAFoldedSheetAndWithAHugeMargin) {
+  const Flat folded = folded_sheet(0.2, 0.08, 0.01, 0.004);
+  auto lbvh = make_lbvh_broad_phase(folded.tris, folded.edges, folded.n);
+  auto brute = make_brute_force_broad_phase(folded.tris, folded.edges, folded.n);
+  ContactCandidates c;
+  std::vector<Eigen::Vector2i> tp;
+  expect_same(*lbvh, *brute, folded.x, folded.x, 0.006, &c, &tp);
+  EXPECT_GT(c.vf.size(), 50u);
+  // Every pair sharing no vertex (all boxes overlap), and the flat sheet (many equal coordinates,
+  // so many equal Morton codes).
+  const Flat small = crumpled_sheet(0.06, 0.015, 7, 0.05, 0.01);
+  auto lbvh_small = make_lbvh_broad_phase(small.tris, small.edges, small.n);
+  auto brute_small = make_brute_force_broad_phase(small.tris, small.edges, small.n);
+  expect_same(*lbvh_small, *brute_small, small.x, small.x, 10.0, &c, &tp);
+  const Flat flat = flatten(make_rect(0.1, 0.1, 0.01));
+  auto lbvh_flat = make_lbvh_broad_phase(flat.tris, flat.edges, flat.n);
+  auto brute_flat = make_brute_force_broad_phase(flat.tris, flat.edges, flat.n);
+  expect_same(*lbvh_flat, *brute_flat, flat.x, flat.x, 1e-3, &c, &tp);
+  expect_same(*lbvh_flat, *brute_flat, flat.x, flat.x, 0.0, &c, &tp);
+}
+
+TEST(BroadPhase, LbvhEmptyAndDegenerateInputs) {
+  auto none = make_lbvh_broad_phase({}, {}, 0);
+  ContactCandidates c;
+  c.vf.emplace_back(1, 2);
+  std::vector<Eigen::Vector2i> tp = {{1, 2}};
+  none->find({}, {}, 0.01, &c);
+  none->triangle_pairs({}, {}, 0.01, &tp);
+  EXPECT_TRUE(c.vf.empty() && c.ee.empty() && tp.empty());
+  // One triangle and a loose vertex: one leaf per tree.
+  const std::vector<int> tris = {0, 1, 2};
+  const std::vector<Eigen::Vector2i> edges = {{0, 1}, {1, 2}, {0, 2}};
+  const std::vector<double> x = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0.3, 0.3, 1e-3};
+  auto one = make_lbvh_broad_phase(tris, edges, 4);
+  one->find(x, x, 2e-3, &c);
+  ASSERT_EQ(c.vf.size(), 1u);
+  EXPECT_EQ(c.vf[0], Eigen::Vector2i(3, 0));
+  EXPECT_TRUE(c.ee.empty());
+  one->find(x, x, 0.5e-3, &c);
+  EXPECT_TRUE(c.vf.empty());
+  const Flat f = flatten(make_rect(0.05, 0.05, 0.01));
+  auto bp = make_lbvh_broad_phase(f.tris, f.edges, f.n);
+  std::vector<double> bad = f.x;
+  bad[7] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(bp->find(f.x, bad, 0.01, &c), InputError);
+  EXPECT_THROW(bp->find(f.x, f.x, -1.0, &c), InputError);
+  EXPECT_THROW(make_lbvh_broad_phase({0, 1, 1}, {}, 3), InputError);
+}
+
+/// Random boxes, many of them equal (equal Morton codes) or nested: every query reports exactly
+/// the boxes it overlaps, on the CPU policy and on the GPU's paths policy (parallel loops, the
+/// refit's atomic counters), at 1 and 2 threads.
+template <class Exec>
+std::vector<uint64_t> lbvh_pairs(const std::vector<float>& boxes, const std::vector<float>& queries) {
+  Lbvh<Exec> tree;
+  tree.build(static_cast<int>(boxes.size() / 6), boxes);
+  std::vector<uint64_t> out;
+  tree.query(static_cast<int>(queries.size() / 6), queries, [](int, int) { return true; }, &out);
+  return out;
+}
+
+TEST(BroadPhase, LbvhGpuPathsQueriesReportExactlyTheOverlappingBoxes) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int count : {1, 2, 3, 17, 1000, 5000}) {
+    std::vector<float> boxes, queries;
+    for (int i = 0; i < count; ++i) {
+      float c[3], h = 0.02f * u(rng);
+      for (float& v : c) v = i % 5 == 4 ? 0.5f : u(rng);  // every fifth box at one point
+      for (int d = 0; d < 3; ++d) boxes.push_back(c[d] - h);
+      for (int d = 0; d < 3; ++d) boxes.push_back(c[d] + h);
+    }
+    for (int q = 0; q < 300; ++q) {
+      float c[3], h = 0.05f * u(rng);
+      for (float& v : c) v = u(rng);
+      for (int d = 0; d < 3; ++d) queries.push_back(c[d] - h);
+      for (int d = 0; d < 3; ++d) queries.push_back(c[d] + h);
+    }
+    std::vector<uint64_t> expected;
+    for (int q = 0; q < 300; ++q)
+      for (int i = 0; i < count; ++i)
+        if (lbvh::overlap(&queries[6 * q], &boxes[6 * i]))
+          expected.push_back((uint64_t(q) << 32) | uint64_t(i));
+    for (int threads : {1, 2}) {
+      omp_set_num_threads(threads);
+      for (bool gpu_paths : {false, true}) {
+        std::vector<uint64_t> got = gpu_paths ? lbvh_pairs<CpuGpuPathsExec>(boxes, queries)
+                                              : lbvh_pairs<CpuExec>(boxes, queries);
+        // Grouped by query in order; within a query in traversal order.
+        EXPECT_TRUE(std::is_sorted(got.begin(), got.end(), [](uint64_t a, uint64_t b) { return (a >> 32) < (b >> 32); }));
+        std::sort(got.begin(), got.end());
+        EXPECT_EQ(got, expected) << count << " boxes, " << threads << " threads, gpu paths " << gpu_paths;
+      }
+    }
+    omp_set_num_threads(2);
+    if (count >= 1000) EXPECT_GT(expected.size(), 100u);
+  }
+}
+
+/// The whole LBVH broad phase on the GPU's paths policy (uncoloured parallel loops, atomics) and,
+/// where a CUDA device exists, on the device: the brute force's sets.
+void expect_lbvh_matches_brute_force(const std::function<std::unique_ptr<BroadPhase>(const Flat&)>& make) {
+  for (unsigned seed : {1u, 2u}) {
+    const Flat f = crumpled_sheet(0.2, 0.014, seed, 0.1, 0.03);
+    auto bp = make(f);
+    auto brute = make_brute_force_broad_phase(f.tris, f.edges, f.n);
+    const std::vector<double> x1 = displaced(f, 100 + seed, 0.12, 0.021);
+    for (Real margin : {0.002, 0.006}) {
+      SCOPED_TRACE("seed " + std::to_string(seed) + " margin " + std::to_string(margin));
+      ContactCandidates c;
+      std::vector<Eigen::Vector2i> tp;
+      expect_same(*bp, *brute, f.x, x1, margin, &c, &tp);
+      EXPECT_GT(c.vf.size() + c.ee.size(), 100u);
+    }
+  }
+}
+
+TEST(BroadPhase, LbvhGpuPathsPolicyMatchesBruteForce) {
+  expect_lbvh_matches_brute_force(
+      [](const Flat& f) { return std::make_unique<LbvhBroadPhase<CpuGpuPathsExec>>(f.tris, f.edges, f.n); });
+}
+
+TEST(BroadPhase, LbvhGpuPathsCudaDeviceMatchesBruteForce) {
+  if (!cuda_available()) GTEST_SKIP() << "no CUDA device (scripts/gpu-check runs this where there is one)";
+  expect_lbvh_matches_brute_force([](const Flat& f) { return make_cuda_lbvh_broad_phase(f.tris, f.edges, f.n); });
 }
 
 }  // namespace

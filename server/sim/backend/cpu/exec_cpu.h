@@ -124,6 +124,11 @@ struct CpuExec {
   /// Add into memory owned by the current element's colour (exclusive by construction).
   static inline void add(double* p, double v) { *p += v; }
 
+  /// Adds 1 to *p, which other iterations of the same loop may increment at the same time, and
+  /// returns the value before (acquire-release: what the incrementing iterations wrote before is
+  /// visible after it).
+  static inline int atomic_increment(int* p) { return std::atomic_ref<int>(*p).fetch_add(1, std::memory_order_acq_rel); }
+
   /// Sorts 64-bit keys ascending.
   static void sort(Vector<uint64_t>& v) { std::sort(v.begin(), v.end()); }
   /// In-place exclusive prefix sum of v[0, count).

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "sim/backend/cuda/exec_cuda.cuh"
+#include "sim/contact/lbvh_broad_phase.h"
 #include "sim/demand.h"
 #include "sim/solver/solver_impl.h"
 
@@ -56,6 +57,18 @@ class GuardedCudaSolver final : public SolverBase {
 bool cuda_available() {
   int count = 0;
   return cudaGetDeviceCount(&count) == cudaSuccess && count > 0;
+}
+
+/// The LBVH broad phase on the device (contact/lbvh_broad_phase.h), thrust's errors turned into
+/// BackendError.
+std::unique_ptr<BroadPhase> make_cuda_lbvh_broad_phase_unchecked(const std::vector<int>& tris,
+                                                                 const std::vector<Eigen::Vector2i>& edges,
+                                                                 int vertex_count) {
+  try {
+    return std::make_unique<LbvhBroadPhase<CudaExec>>(tris, edges, vertex_count);
+  } catch (const thrust::system_error& e) {
+    throw BackendError(std::string("CUDA broad phase: ") + e.what());
+  }
 }
 
 std::unique_ptr<SolverBase> make_cuda_solver(std::shared_ptr<const SceneData> data, const SceneOptions& opt) {

@@ -178,6 +178,19 @@ struct CudaExec {
 #endif
   }
 
+  /// Adds 1 to *p (other threads may too) and returns the value before; fenced on both sides, so
+  /// what the incrementing threads wrote before is visible after it (read through volatile).
+  __host__ __device__ static inline int atomic_increment(int* p) {
+#if defined(__CUDA_ARCH__)
+    __threadfence();
+    const int old = atomicAdd(p, 1);
+    __threadfence();
+    return old;
+#else
+    return (*p)++;
+#endif
+  }
+
   static void sort(Vector<uint64_t>& v) { thrust::sort(thrust::device, v.begin(), v.end()); }
   template <class T>
   static void exclusive_scan(Vector<T>& v, int count) {

@@ -1,0 +1,158 @@
+#pragma once
+/// \file
+/// The self-contact broad phase on the LBVH (lbvh.h), written once over an execution policy:
+/// primitive boxes computed per primitive (the same boxes as broad_phase.cpp's Embree and brute
+/// force implementations: swept over x0 -> x1, inflated by margin / 2, rounded outwards to
+/// float), one hierarchy per primitive kind, one query per primitive, then the pairs read back
+/// and sorted on the host. make_lbvh_broad_phase (broad_phase.h) instantiates it on the CPU
+/// policy; the CUDA backend's object on CudaExec (backend/cuda/cuda_broad_phase.cu).
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sim/contact/broad_phase.h"
+#include "sim/contact/lbvh.h"
+#include "sim/demand.h"
+#include "sim/hd.h"
+
+namespace gd::sim {
+namespace lbvh {
+
+/// Outward rounding of a box bound to float, as broad_phase.cpp's float_below / float_above: a
+/// relative widening of 1e-6 (more than float's and double's rounding) and an absolute 1e-30.
+GD_HD float bound_below(double l, double pad) { return static_cast<float>(l - pad - 1e-6 * (fabs(l) + pad) - 1e-30); }
+GD_HD float bound_above(double h, double pad) { return static_cast<float>(h + pad + 1e-6 * (fabs(h) + pad) + 1e-30); }
+
+/// Box (6 floats: lo xyz, hi xyz) of primitive p with K corners (idx: K vertex ids per primitive;
+/// K = 1: p is the vertex) swept over x0 -> x1 and inflated by pad.
+template <int K>
+GD_HD void swept_box(const int* idx, int p, const double* x0, const double* x1, double pad, float* out) {
+  for (int d = 0; d < 3; ++d) {
+    double l = HUGE_VAL, h = -HUGE_VAL;
+    for (int k = 0; k < K; ++k) {
+      const int v = K == 1 ? p : idx[K * p + k];
+      const double a = x0[3 * v + d], b = x1[3 * v + d];
+      const double lo = a < b ? a : b, hi = a < b ? b : a;
+      l = lo < l ? lo : l;
+      h = hi > h ? hi : h;
+    }
+    out[d] = bound_below(l, pad);
+    out[3 + d] = bound_above(h, pad);
+  }
+}
+
+}  // namespace lbvh
+
+/// BroadPhase on Lbvh<Exec>. Topology (tris: 3 ids per triangle, edges: 2 per edge) is trusted:
+/// the factories validate it first.
+template <class Exec>
+class LbvhBroadPhase final : public BroadPhase {
+  template <class T>
+  using Vec = typename Exec::template Vector<T>;
+
+ public:
+  LbvhBroadPhase(const std::vector<int>& tris, const std::vector<Eigen::Vector2i>& edges, int vertex_count)
+      : n_(vertex_count), nt_(static_cast<int>(tris.size() / 3)), ne_(static_cast<int>(edges.size())) {
+    std::vector<int> flat(2 * edges.size());
+    for (size_t e = 0; e < edges.size(); ++e) flat[2 * e] = edges[e][0], flat[2 * e + 1] = edges[e][1];
+    Exec::upload(tris_, tris);
+    Exec::upload(edges_, flat);
+  }
+
+  void find(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
+            ContactCandidates* out) override {
+    GD_DEMAND(out != nullptr, "null output");
+    load(x0, x1, margin);
+    const double pad = 0.5 * margin;
+    boxes<1>(nullptr, n_, pad, &vertex_boxes_);
+    boxes<2>(Exec::ptr(edges_), ne_, pad, &edge_boxes_);
+    boxes<3>(Exec::ptr(tris_), nt_, pad, &tri_boxes_);
+    const int* tris = Exec::ptr(tris_);
+    const int* edges = Exec::ptr(edges_);
+    tree_.build(nt_, tri_boxes_);
+    tree_.query(n_, vertex_boxes_, [=] GD_HD_LAMBDA(int v, int t) {
+      return tris[3 * t] != v && tris[3 * t + 1] != v && tris[3 * t + 2] != v;
+    }, &keys_);
+    finish(&out->vf);
+    tree_.build(ne_, edge_boxes_);
+    tree_.query(ne_, edge_boxes_, [=] GD_HD_LAMBDA(int a, int b) {
+      const int a0 = edges[2 * a], a1 = edges[2 * a + 1], b0 = edges[2 * b], b1 = edges[2 * b + 1];
+      return b > a && a0 != b0 && a0 != b1 && a1 != b0 && a1 != b1;
+    }, &keys_);
+    finish(&out->ee);
+  }
+
+  void triangle_pairs(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
+                      std::vector<Eigen::Vector2i>* out) override {
+    GD_DEMAND(out != nullptr, "null output");
+    load(x0, x1, margin);
+    boxes<3>(Exec::ptr(tris_), nt_, 0.5 * margin, &tri_boxes_);
+    const int* tris = Exec::ptr(tris_);
+    tree_.build(nt_, tri_boxes_);
+    tree_.query(nt_, tri_boxes_, [=] GD_HD_LAMBDA(int a, int b) {
+      if (b <= a) return false;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          if (tris[3 * a + i] == tris[3 * b + j]) return false;
+      return true;
+    }, &keys_);
+    finish(out);
+  }
+
+  // Stages, public only because nvcc requires the functions that enclose extended __host__
+  // __device__ lambdas to be public.
+
+  /// Checks the inputs as the other implementations do and hands the positions to the backend.
+  void load(const std::vector<double>& x0, const std::vector<double>& x1, double margin) {
+    const size_t m = 3 * static_cast<size_t>(n_);
+    if (x0.size() != m || x1.size() != m)
+      throw InputError("broad phase: expected " + std::to_string(m) + " coordinates (3 per vertex), got x0 " +
+                       std::to_string(x0.size()) + ", x1 " + std::to_string(x1.size()));
+    if (!std::isfinite(margin) || margin < 0)
+      throw InputError("broad phase: margin must be finite and >= 0, got " + std::to_string(margin));
+    for (size_t i = 0; i < m; ++i)
+      if (!std::isfinite(x0[i]) || !std::isfinite(x1[i]))
+        throw InputError("broad phase: non-finite position at vertex " + std::to_string(i / 3));
+    Exec::upload(x0_, x0);
+    Exec::upload(x1_, x1);
+  }
+
+  template <int K>
+  void boxes(const int* idx, int count, double pad, Vec<float>* out) {
+    Exec::resize_for_overwrite(*out, 6 * static_cast<size_t>(count));
+    const double* a = Exec::ptr(x0_);
+    const double* b = Exec::ptr(x1_);
+    float* o = Exec::ptr(*out);
+    Exec::for_each(count, [=] GD_HD_LAMBDA(int p) { lbvh::swept_box<K>(idx, p, a, b, pad, o + 6 * p); });
+  }
+
+  /// The query's keys (first << 32 | second) as pairs sorted lexicographically (each query's pairs
+  /// come grouped in query order; within a query they are sorted here).
+  void finish(std::vector<Eigen::Vector2i>* out) {
+    Exec::download(host_keys_, keys_);
+    size_t b = 0;
+    while (b < host_keys_.size()) {
+      size_t e = b + 1;
+      while (e < host_keys_.size() && (host_keys_[e] >> 32) == (host_keys_[b] >> 32)) ++e;
+      std::sort(host_keys_.begin() + static_cast<long>(b), host_keys_.begin() + static_cast<long>(e));
+      b = e;
+    }
+    out->resize(host_keys_.size());
+    for (size_t k = 0; k < host_keys_.size(); ++k)
+      (*out)[k] = Eigen::Vector2i(static_cast<int>(host_keys_[k] >> 32), static_cast<int>(host_keys_[k] & 0xffffffffu));
+  }
+
+ private:
+  int n_, nt_, ne_;
+  Vec<int> tris_, edges_;
+  Vec<double> x0_, x1_;
+  Vec<float> vertex_boxes_, edge_boxes_, tri_boxes_;
+  Vec<uint64_t> keys_;
+  std::vector<uint64_t> host_keys_;
+  Lbvh<Exec> tree_;
+};
+
+}  // namespace gd::sim
