@@ -52,14 +52,15 @@ class GpuPaths : public ::testing::TestWithParam<BackendKind> {
   }
 };
 
-/// Steps one scene on the CPU backend and on `other` and returns the largest distance between
-/// their vertices over the steps, m; `moved` gets the largest displacement of a vertex from its
-/// start.
+/// Steps one scene on the CPU backend and on `other` (with `other_broad_phase`) and returns the
+/// largest distance between their vertices over the steps, m; `moved` gets the largest
+/// displacement of a vertex from its start.
 double largest_difference(BackendKind other, const Mesh& m, const SceneOptions& base, const Setup& setup, int steps,
-                          double* moved) {
+                          double* moved, BroadPhaseKind other_broad_phase = BroadPhaseKind::kEmbree) {
   SceneOptions a = base, b = base;
   a.backend = BackendKind::kCpu;
   b.backend = other;
+  b.broad_phase = other_broad_phase;
   auto cpu = Scene::create(m, cotton(), a);
   auto gpu = Scene::create(m, cotton(), b);
   EXPECT_EQ(cpu->backend(), "cpu");
@@ -89,24 +90,55 @@ double largest_difference(BackendKind other, const Mesh& m, const SceneOptions& 
 /// Two 8 cm sheets, the top one 0.6 mm above the bottom one (in contact), on the table.
 Mesh stacked_sheets() { return test::stacked_sheets(0.08, 0.01, 0.0005, Vec3(0.003, 0.002, 0.0006)); }
 
-// Self-contact barriers and cloth-cloth friction: a grip drags the top sheet's edge across the
-// bottom sheet (kinematic vertices are grip springs in self-contact mode), a pinned corner holds
-// the bottom one.
-TEST_P(GpuPaths, SelfContactFrictionAndGripsMatchTheCpuPaths) {
-  const Mesh m = stacked_sheets();
+/// The grip dragging the top sheet's far edge 2 cm along x and pressing it 1 mm down, a pinned
+/// corner holding the bottom sheet.
+Setup drag_top_sheet(const Mesh& m) {
   const int nb = static_cast<int>(m.x.size()) / 2;
-  double moved = 0;
-  const double worst = largest_difference(GetParam(), m, tight(true), [&](Scene& s) {
+  return [&m, nb](Scene& s) {
     s.pin({0});
-    std::vector<int> edge;  // the top sheet's far edge, dragged 2 cm along x and pressed 1 mm down
+    std::vector<int> edge;
     for (int i = nb; i < 2 * nb; ++i)
       if (m.x[i].x() > 0.083 - 1e-9) edge.push_back(i);
     s.attach(edge, [](double t) {
       return Eigen::Isometry3d(Eigen::Translation3d(0.2 * t, 0.0, -0.001 * std::min(t, 0.02) / 0.02));
     });
-  }, 12, &moved);
+  };
+}
+
+// Self-contact barriers and cloth-cloth friction: a grip drags the top sheet's edge across the
+// bottom sheet (kinematic vertices are grip springs in self-contact mode). The GPU paths find
+// their candidates with the LBVH (on the CPU policy here, on the device with CUDA), the CPU
+// backend with Embree.
+TEST_P(GpuPaths, SelfContactFrictionAndGripsMatchTheCpuPaths) {
+  const Mesh m = stacked_sheets();
+  double moved = 0;
+  const double worst = largest_difference(GetParam(), m, tight(true), drag_top_sheet(m), 12, &moved,
+                                          BroadPhaseKind::kLbvh);
   EXPECT_GT(moved, 0.005);
   EXPECT_LT(worst, 1e-7 * std::max(1.0, moved / 0.01)) << "moved " << moved;
+}
+
+// The LBVH and Embree report the same candidates, so the CPU backend takes bit-identical steps
+// with either (default solver settings: any different candidate would show).
+TEST(BroadPhases, LbvhAndEmbreeTakeBitIdenticalSteps) {
+  const Mesh m = stacked_sheets();
+  SceneOptions a, b;
+  a.self_contact = b.self_contact = true;
+  a.threads = b.threads = 2;
+  b.broad_phase = BroadPhaseKind::kLbvh;
+  auto embree = Scene::create(m, cotton(), a);
+  auto lbvh = Scene::create(m, cotton(), b);
+  const auto setup = drag_top_sheet(m);
+  setup(*embree);
+  setup(*lbvh);
+  for (int k = 0; k < 12; ++k) {
+    ASSERT_TRUE(embree->step()) << embree->failure();
+    ASSERT_TRUE(lbvh->step()) << lbvh->failure();
+    ASSERT_EQ(embree->last_stats().candidates, lbvh->last_stats().candidates) << "step " << k;
+    const auto xa = embree->positions(), xb = lbvh->positions();
+    for (size_t i = 0; i < xa.size(); ++i) ASSERT_EQ(xa[i], xb[i]) << "step " << k << " vertex " << i;
+  }
+  EXPECT_GT(embree->last_stats().contacts, 0);
 }
 
 // Kinematic colliders with friction: a capsule sweeps into a sheet hanging from its top edge and
