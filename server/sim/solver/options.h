@@ -100,7 +100,7 @@ struct SceneOptions {
   Real friction_eps_v = 1e-3;     ///< m/s: below this slip speed friction is smoothed (static regime)
 
   // --- cloth self-contact ---------------------------------------------------------------
-  /// Vertex-face and edge-edge barriers between cloth triangles, Embree broad phase, CCD,
+  /// Vertex-face and edge-edge barriers between cloth triangles, broad phase (broad_phase), CCD,
   /// lagged cloth-cloth friction, intersection count and untangling. Off by default while the
   /// contact work is in progress (docs/physics.md).
   bool self_contact = false;
