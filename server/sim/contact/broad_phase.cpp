@@ -92,20 +92,13 @@ inline float float_above(double h, double pad) {
 /// Swept boxes (double) of the vertices: min/max of x0 and x1 per coordinate. Validates inputs.
 void vertex_sweeps(const Topo& topo, const std::vector<double>& x0, const std::vector<double>& x1, double margin,
                    std::vector<double>* lo, std::vector<double>* hi) {
+  check_broad_phase_query(topo.n, x0, x1, margin);
   const std::size_t m = 3 * std::size_t(topo.n);
-  if (x0.size() != m || x1.size() != m)
-    throw InputError("broad phase: expected " + std::to_string(m) + " coordinates (3 per vertex), got x0 " +
-                     std::to_string(x0.size()) + ", x1 " + std::to_string(x1.size()));
-  if (!std::isfinite(margin) || margin < 0)
-    throw InputError("broad phase: margin must be finite and >= 0, got " + std::to_string(margin));
   lo->resize(m);
   hi->resize(m);
   for (std::size_t i = 0; i < m; ++i) {
-    const double a = x0[i], b = x1[i];
-    if (!std::isfinite(a) || !std::isfinite(b))
-      throw InputError("broad phase: non-finite position at vertex " + std::to_string(i / 3));
-    (*lo)[i] = std::min(a, b);
-    (*hi)[i] = std::max(a, b);
+    (*lo)[i] = std::min(x0[i], x1[i]);
+    (*hi)[i] = std::max(x0[i], x1[i]);
   }
 }
 
@@ -469,6 +462,19 @@ class EmbreeBroadPhase final : public BroadPhase {
 };
 
 }  // namespace
+
+void check_broad_phase_query(int vertex_count, const std::vector<double>& x0, const std::vector<double>& x1,
+                             double margin) {
+  const std::size_t m = 3 * std::size_t(vertex_count);
+  if (x0.size() != m || x1.size() != m)
+    throw InputError("broad phase: expected " + std::to_string(m) + " coordinates (3 per vertex), got x0 " +
+                     std::to_string(x0.size()) + ", x1 " + std::to_string(x1.size()));
+  if (!std::isfinite(margin) || margin < 0)
+    throw InputError("broad phase: margin must be finite and >= 0, got " + std::to_string(margin));
+  for (std::size_t i = 0; i < m; ++i)
+    if (!std::isfinite(x0[i]) || !std::isfinite(x1[i]))
+      throw InputError("broad phase: non-finite position at vertex " + std::to_string(i / 3));
+}
 
 std::unique_ptr<BroadPhase> make_lbvh_broad_phase(const std::vector<int>& tris,
                                                   const std::vector<Eigen::Vector2i>& edges, int vertex_count) {

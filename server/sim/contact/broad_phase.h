@@ -49,6 +49,11 @@ class BroadPhase {
                               std::vector<Eigen::Vector2i>* out) = 0;
 };
 
+/// The checks every implementation makes of a query (BroadPhase::find's errors): 3 coordinates per
+/// vertex in x0 and x1, all finite, and a finite margin >= 0. Throws InputError naming the fault.
+void check_broad_phase_query(int vertex_count, const std::vector<double>& x0, const std::vector<double>& x1,
+                             double margin);
+
 /// Embree 3 implementation (rtcCollide on user geometries with per-primitive boxes: vertices
 /// against triangles for VF, edges against edges for EE, triangles against triangles for
 /// triangle_pairs). `tris`: 3 vertex indices per triangle; `edges`: any list of vertex pairs

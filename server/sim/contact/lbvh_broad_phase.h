@@ -107,15 +107,7 @@ class LbvhBroadPhase final : public BroadPhase {
 
   /// Checks the inputs as the other implementations do and hands the positions to the backend.
   void load(const std::vector<double>& x0, const std::vector<double>& x1, double margin) {
-    const size_t m = 3 * static_cast<size_t>(n_);
-    if (x0.size() != m || x1.size() != m)
-      throw InputError("broad phase: expected " + std::to_string(m) + " coordinates (3 per vertex), got x0 " +
-                       std::to_string(x0.size()) + ", x1 " + std::to_string(x1.size()));
-    if (!std::isfinite(margin) || margin < 0)
-      throw InputError("broad phase: margin must be finite and >= 0, got " + std::to_string(margin));
-    for (size_t i = 0; i < m; ++i)
-      if (!std::isfinite(x0[i]) || !std::isfinite(x1[i]))
-        throw InputError("broad phase: non-finite position at vertex " + std::to_string(i / 3));
+    check_broad_phase_query(n_, x0, x1, margin);
     Exec::upload(x0_, x0);
     Exec::upload(x1_, x1);
   }
