@@ -11,7 +11,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <limits>
 #include <mutex>
 #include <string>
@@ -75,20 +74,6 @@ inline bool overlap(const Box& a, const Box& b) {
          a.lo[2] <= b.hi[2] && b.lo[2] <= a.hi[2];
 }
 
-/// Relative widening of every box before rounding to float: it exceeds the float rounding error
-/// (2^-24 relative) and the double rounding of l - pad, so the float box contains the exact one.
-/// 1e-6 of the coordinate is 1 micrometre at 1 m from the origin.
-/// The absolute term covers values so close to 0 that float rounds them to subnormals.
-constexpr double kRelativeWiden = 1e-6;
-constexpr double kAbsoluteWiden = 1e-30;
-
-inline float float_below(double l, double pad) {
-  return static_cast<float>(l - pad - kRelativeWiden * (std::abs(l) + pad) - kAbsoluteWiden);
-}
-inline float float_above(double h, double pad) {
-  return static_cast<float>(h + pad + kRelativeWiden * (std::abs(h) + pad) + kAbsoluteWiden);
-}
-
 /// Swept boxes (double) of the vertices: min/max of x0 and x1 per coordinate. Validates inputs.
 void vertex_sweeps(const Topo& topo, const std::vector<double>& x0, const std::vector<double>& x1, double margin,
                    std::vector<double>* lo, std::vector<double>* hi) {
@@ -117,8 +102,8 @@ void primitive_boxes(const int* idx, int count, const std::vector<double>& lo, c
         l = std::min(l, lo[3 * v + std::size_t(d)]);
         h = std::max(h, hi[3 * v + std::size_t(d)]);
       }
-      b.lo[d] = float_below(l, pad);
-      b.hi[d] = float_above(h, pad);
+      b.lo[d] = lbvh::bound_below(l, pad);  // the LBVH's boxes round the same way
+      b.hi[d] = lbvh::bound_above(h, pad);
     }
   }
 }

@@ -21,8 +21,12 @@
 namespace gd::sim {
 namespace lbvh {
 
-/// Outward rounding of a box bound to float, as broad_phase.cpp's float_below / float_above: a
-/// relative widening of 1e-6 (more than float's and double's rounding) and an absolute 1e-30.
+/// Outward rounding of a box bound to float, shared by every broad phase (broad_phase.cpp rounds
+/// its Embree and brute-force boxes with these too, so all report the same sets): a relative
+/// widening of 1e-6 exceeds float's rounding error (2^-24 relative) and the double rounding of
+/// l - pad, so the float box contains the exact one (1e-6 of the coordinate is 1 micrometre at 1 m
+/// from the origin); the absolute 1e-30 covers values so close to 0 that float rounds them to
+/// subnormals.
 GD_HD float bound_below(double l, double pad) { return static_cast<float>(l - pad - 1e-6 * (fabs(l) + pad) - 1e-30); }
 GD_HD float bound_above(double h, double pad) { return static_cast<float>(h + pad + 1e-6 * (fabs(h) + pad) + 1e-30); }
 
