@@ -120,7 +120,6 @@ class Solver final : public SolverBase {
       if (k == 0 && residual_rule() && predictor_converged(&st)) break;  // nothing left to solve
       timed(T.precond, [&] { prepare_linear_solve(); });            // contact couplings, preconditioner
       timed(T.pcg, [&] { st.pcg_iters += solve_linear(scale); });   // dx = -H^-1 g (inexact)
-      timed(T.ccd, [&] { cut_at_table(); });                        // vertices falling onto the table stop short
       timed(T.contacts, [&] { find_contacts_along_step(); });       // broad phase on the motion x -> x + dx
       double alpha_max = 1, alpha = 0;
       timed(T.ccd, [&] { alpha_max = max_step(); });                // CCD: largest safe fraction of dx
@@ -252,7 +251,6 @@ class Solver final : public SolverBase {
   double table_ccd_bound();
   double self_ccd_bound();
   double line_search(double alpha_max, double e0, int* evals);
-  int cut_at_table();
 
   // Vector operations over 3n values (vector_ops.h)
   double dot(const Vec<double>& a, const Vec<double>& b);
@@ -354,8 +352,6 @@ class Solver final : public SolverBase {
   // self-contact (host bookkeeping, device pair lists)
   std::unique_ptr<SelfContact> self_;
   double kappa_scale_ = 1;
-  /// A step may close at most this fraction of a vertex's height above the table (CCD).
-  static constexpr double kTableCcdFraction = 0.9;
   static constexpr double kKappaScaleMax = 1e4;  // adaptive barrier stiffness: at most this x
   /// adapt_barrier_stiffness halves the stiffness when every active pair is this far apart (x dhat).
   static constexpr double kRelaxGapFraction = 0.5;

@@ -37,42 +37,6 @@ double Solver<Exec>::collider_step_bound() {
   return inv > 1.0 ? 1.0 / inv : 1.0;
 }
 
-/// The table is a half-space, so its CCD bound separates per vertex: a free vertex whose step
-/// would close more than 90% of its height above the table has the normal part of its step cut
-/// to that, the rest of dx kept (a projected Newton direction, as for bound constraints). Without
-/// it the few vertices falling onto the table shortened every vertex's step (alpha 0.1-0.3 over
-/// several Newton iterations of a landing step). Applied only when the cut direction still
-/// descends (g . dx < 0); else dx stays Newton's and table_ccd_bound shortens it as a whole.
-/// Returns the number of vertices cut.
-template <class Exec>
-int Solver<Exec>::cut_at_table() {
-  if (!P_.table) return 0;
-  const detail::View V = view();
-  const detail::Params P = P_;
-  const double* x = Exec::ptr(x_);
-  const double* g = Exec::ptr(g_);
-  double* dx = Exec::ptr(dx_);
-  // Normal motion to remove from vertex i (>= 0; 0 where the step keeps 10% of the height).
-  const auto cut = [=] GD_HD_LAMBDA(int i) -> double {
-    if (V.fixed[i]) return 0.0;
-    const Real d = P.table_n.dot(detail::load3(x, i)) - P.table_offset;
-    const Real dn = P.table_n.dot(detail::load3(dx, i));
-    return d > 0 && dn < -kTableCcdFraction * d ? -kTableCcdFraction * d - dn : 0.0;
-  };
-  const double cut_slope = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
-    const double c = cut(i);
-    return c > 0 ? c * P.table_n.dot(detail::load3(g, i)) : 0.0;
-  });
-  const double cut_count = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return cut(i) > 0 ? 1.0 : 0.0; });
-  if (cut_count == 0 || dot(g_, dx_) + cut_slope >= 0) return 0;
-  Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
-    const double c = cut(i);
-    if (c > 0)
-      for (int a = 0; a < 3; ++a) dx[3 * i + a] += c * P.table_n[a];
-  });
-  return static_cast<int>(cut_count);
-}
-
 /// Largest step fraction keeping every free vertex at least 10% of its distance above the
 /// table (continuous collision detection against a plane is exact and cheap).
 template <class Exec>
@@ -88,7 +52,7 @@ double Solver<Exec>::table_ccd_bound() {
     const Real d = P.table_n.dot(detail::load3(x, i)) - P.table_offset;
     const Real dn = P.table_n.dot(detail::load3(dx, i));
     if (dn >= 0) return 0.0;
-    return -dn / (kTableCcdFraction * d);
+    return -dn / (0.9 * d);
   });
   return inv > 1.0 ? 1.0 / inv : 1.0;
 }
