@@ -110,6 +110,10 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
   std::unordered_map<uint64_t, Real> elastic;  // edge -> rest-length ratio
   for (const ElasticEdge& e : mesh.elastic_edges) elastic[edge_key(e.a, e.b)] = e.ratio;
   const int nt = static_cast<int>(mesh.tris.size());
+  // The gathered band: vertices of gathering elastic edges (kGatheredCompressionRatio).
+  std::vector<char> gathers(d.n, 0);
+  for (const ElasticEdge& e : mesh.elastic_edges)
+    if (e.ratio < 1) gathers[e.a] = gathers[e.b] = 1;
   d.mass.assign(d.n, 0.0);
   d.tris.resize(3 * nt);
   d.tri_rest.resize(nt);
@@ -134,7 +138,8 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
     r.k_warp = mat.stretch_warp;
     r.k_weft = mat.stretch_weft;
     r.k_shear = mat.shear;
-    r.compression_ratio = opt.compression_ratio;
+    const bool gathered = gathers[tri[0]] || gathers[tri[1]] || gathers[tri[2]];
+    r.compression_ratio = gathered ? std::min(opt.compression_ratio, kGatheredCompressionRatio) : opt.compression_ratio;
     for (int k = 0; k < 3; ++k) {
       d.tris[3 * t + k] = tri[k];
       d.mass[tri[k]] += mat.density * area / 3.0;

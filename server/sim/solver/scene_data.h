@@ -31,6 +31,16 @@ struct Coloring {
   int last(int k) const { return k * chunk + chunk < elements ? k * chunk + chunk : elements; }
 };
 
+/// Compression ratio of the fabric gathered by an elastic edge (ratio < 1: waistbands, cuffs,
+/// tier seams): every triangle with a vertex on such an edge resists in-plane compression at most
+/// this fraction of its stretch stiffness (the smaller of this and SceneOptions::compression_ratio).
+/// Real gathered fabric ruffles into folds far smaller than a triangle and carries almost no
+/// compression; at full compressive stiffness the band next to a gather is pre-stressed, and a
+/// garment sewn from gathered tiers becomes a shell that snaps between shapes (the cake skirt's
+/// folded half stood as a 13-15 cm vault or lay flat depending on rounding; docs/physics.md,
+/// "Gathered fabric").
+inline constexpr Real kGatheredCompressionRatio = 0.1;
+
 struct SceneData {
   int n = 0;                             ///< vertices
   std::vector<double> x, v;              ///< 3n initial positions and velocities

@@ -101,6 +101,34 @@ TEST(SceneDataRest, ElasticEdgeShortensRestLengthAlongItOnly) {
   EXPECT_GE(touched, 1);
 }
 
+// The band a gather ruffles: triangles with a vertex on a gathering edge (ratio < 1) resist
+// compression at kGatheredCompressionRatio (or the scene's ratio where that is smaller); a
+// stretching edge (ratio > 1) and the rest of the mesh keep the scene's ratio.
+TEST(SceneDataRest, GatheringEdgeSoftensCompressionInTheTrianglesAtItsVertices) {
+  Mesh m = make_rect(0.2, 0.1, 0.02);
+  const Topology topo = build_topology(m);
+  const Eigen::Vector2i gather = topo.edges[7], stretch = topo.edges[topo.edges.size() - 3];
+  m.elastic_edges.push_back({gather[0], gather[1], 0.8});
+  m.elastic_edges.push_back({stretch[0], stretch[1], 1.2});
+  validate_mesh(m);
+  ASSERT_TRUE(gather[0] != stretch[0] && gather[0] != stretch[1] && gather[1] != stretch[0] && gather[1] != stretch[1]);
+  for (const Real scene_ratio : {1.0, 0.5, 0.05}) {
+    SceneOptions opt;
+    opt.compression_ratio = scene_ratio;
+    const SceneData d = build_scene_data(m, cotton(), opt);
+    int softened = 0;
+    for (size_t t = 0; t < m.tris.size(); ++t) {
+      const auto& f = m.tris[t];
+      bool at_gather = false;
+      for (int k = 0; k < 3; ++k) at_gather = at_gather || f[k] == gather[0] || f[k] == gather[1];
+      const Real want = at_gather ? std::min(scene_ratio, kGatheredCompressionRatio) : scene_ratio;
+      EXPECT_DOUBLE_EQ(d.tri_rest[t].compression_ratio, want) << "triangle " << t << ", scene ratio " << scene_ratio;
+      softened += at_gather;
+    }
+    EXPECT_GE(softened, 3);  // the edge's two triangles and their neighbours at its vertices
+  }
+}
+
 TEST(SceneDataRest, FeatureEdgesAndUvIndicesAreValidated) {
   const Mesh good = make_rect(0.2, 0.1, 0.02);
   Mesh m = good;
