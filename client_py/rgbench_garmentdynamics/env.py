@@ -8,13 +8,18 @@ get_sim_vertices() (N, 3) world frame, get_current_sim_time().
 
 What it reads from cfg (an omegaconf DictConfig or a plain dict), as RGBench's fixed-point envs do:
 
-    sim_model.type            "fixed_point" (RGBench's pseudo mode) | "robot" (our pseudo grasp)
+    sim_model.type            "fixed_point" (RGBench's pseudo mode); "robot" is refused until robot
+                              mode (the Piper arms from their joint angles) exists
     action.type               grasp | fold | fling
     action.fling_prepare_time, action.fling_wait_time   (defaults 2.0 and 3.0, as RGBench's code)
     evaluate.start_calculate_time   grasp/fold grab time (else env.grasp.grasp_time)
     env.grab_points           {mode: auto | manual, indices: [l, r]} (default auto)
     cloth.model_path          the garment OBJ (uploaded to the server); cloth.init_pose
-                              [x, y, z, qw, qx, qy, qz] (default [0.1, 0, 0.01, 1, 0, 0, 0])
+                              [x, y, z, qw, qx, qy, qz] (default [0.1, 0, 0.01, 1, 0, 0, 0]);
+                              cloth.init_pose_path, a JSON {"pos": [x, y, z], "quat": [w, x, y, z]},
+                              replaces init_pose when the file exists (as RGBench's MuJoCo env)
+    env.timestep, env.sim_timestep  the step when env.garment_dynamics.dt is unset (RGBench's MuJoCo
+                              and PyBullet keys); default RGBench's 0.002 s
     cloth_params.shoulder_index     fling pins [left, right]
     data.robot_joints.{left,right}_arm_csv_path, data.sim_start_time
 
@@ -32,7 +37,7 @@ and its own optional block env.garment_dynamics:
     server_bin, data_dir, threads   for the spawned server
     garment, vertices               a generated garment when cloth.model_path is absent (default tshirt, 2000)
     material      fabric name (default cotton)
-    dt            s per step (default env.timestep, else the server's 0.01)
+    dt            s per step (default env.timestep, else env.sim_timestep, else 0.002)
     self_contact  default: the server's (on)
 
 Semantics (rgbench-format.md section 3):
@@ -42,15 +47,15 @@ Semantics (rgbench-format.md section 3):
 - fixed_point grasp/fold with manual pins, and fling: the pinned vertices are driven as kinematic
   targets (fling: linear approach from their initial position to the first trajectory position
   during fling_prepare_time, hold for fling_wait_time, then follow the trajectory).
-- robot: our pseudo grasp; the arms follow the CSV poses and their gripper column (closing below
-  0.01 m grasps the vertices within the jaw radius).
 Times: sim time 0 is master_start_time (the earliest first sample of the two arms); trajectory
 time = sim time (minus prepare + wait for fling). step_to_time steps while sim time < target, so
 it overshoots by less than one dt, like RGBench's environments.
 """
 
+import json
 import logging
 import math
+import weakref
 from pathlib import Path
 from typing import Any, Optional
 
@@ -68,6 +73,7 @@ except Exception:  # noqa: BLE001 - RGBench (and its omegaconf) is optional
 log = logging.getLogger("rgbench_garmentdynamics")
 
 DEFAULT_INIT_POSE = (0.1, 0.0, 0.01, 1.0, 0.0, 0.0, 0.0)
+RGBENCH_TIMESTEP = 0.002  # s: the step of RGBench's MuJoCo and PyBullet environments
 _MISSING = object()
 
 
@@ -84,6 +90,43 @@ def cfg_get(cfg: Any, dotted: str, default: Any = None) -> Any:
         if node is _MISSING:
             return default
     return default if node is None else node
+
+
+def first_set(cfg: Any, *dotted: str) -> Any:
+    """The first of the dotted keys that is present and not null (None when none is)."""
+    for key in dotted:
+        value = cfg_get(cfg, key)
+        if value is not None:
+            return value
+    return None
+
+
+def load_init_pose(path: Path) -> list:
+    """RGBench's initial object pose file ({"pos": [x, y, z], "quat": [w, x, y, z]}, as its MuJoCo
+    fixed-point env reads it) as [x, y, z, qw, qx, qy, qz]."""
+    try:
+        data = json.loads(Path(path).read_text())
+        pose = [float(v) for v in data["pos"]] + [float(v) for v in data["quat"]]
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise ValueError(f"cloth.init_pose_path {path}: expected JSON {{\"pos\": [x, y, z], \"quat\": "
+                         f"[w, x, y, z]}} ({e})") from e
+    if len(pose) != 7 or not all(math.isfinite(v) for v in pose):
+        raise ValueError(f"cloth.init_pose_path {path}: pos needs 3 and quat 4 finite numbers, got {data}")
+    return pose
+
+
+def _release(client: Client, scene_id: Optional[str], own_client: bool) -> None:
+    """Destroys the env's scene and, when the env made the client, closes it (stops a spawned
+    server). Run once, by close() or when the env is garbage-collected without it (RGBench's
+    run_benchmark.py never calls close())."""
+    try:
+        if scene_id is not None:
+            client.destroy([scene_id])
+    except Exception:  # noqa: BLE001 - the server may be gone
+        pass
+    finally:
+        if own_client:
+            client.close()
 
 
 def _quat_matrix(w, x, y, z) -> np.ndarray:
@@ -131,13 +174,15 @@ class GarmentDynamicsEnv(_Base):
         self.cfg = cfg
         gd = cfg_get(cfg, "env.garment_dynamics", {}) or {}
         self.sim_type = str(cfg_get(cfg, "sim_model.type", "fixed_point"))
-        if self.sim_type not in ("fixed_point", "robot"):
-            raise ValueError(f"sim_model.type must be fixed_point or robot, got {self.sim_type!r}")
+        if self.sim_type == "robot":
+            raise ValueError("sim_model.type robot (the Piper arms driven by their joint angles, the cloth held by "
+                             "finger contact) is not supported by GarmentDynamics yet; use sim_model.type "
+                             "fixed_point (RGBench's pseudo mode)")
+        if self.sim_type != "fixed_point":
+            raise ValueError(f"sim_model.type must be fixed_point (robot mode is not supported yet), got {self.sim_type!r}")
         self.action_type = str(cfg_get(cfg, "action.type", "grasp"))
         if self.action_type not in ("grasp", "fold", "fling"):
             raise ValueError(f"action.type must be grasp, fold or fling, got {self.action_type!r}")
-        if self.action_type == "fling" and self.sim_type != "fixed_point":
-            raise ValueError("fling is only supported with sim_model.type fixed_point (as in RGBench)")
 
         # --- arm trajectories (world frame) --------------------------------------------------
         start_offset = float(cfg_get(cfg, "data.sim_start_time", 0.0))
@@ -176,11 +221,14 @@ class GarmentDynamicsEnv(_Base):
                                       server_bin=gd.get("server_bin"), **(client_kwargs or {}))
         self.client = client
         self.scene_id = None
+        self._finalizer = None
         try:
             self._create_scene(gd)
         except BaseException:
             self.close()
             raise
+        # The scene (and a spawned server) go when the env does, closed or not.
+        self._finalizer = weakref.finalize(self, _release, client, self.scene_id, self._own_client)
         self._vertices: Optional[np.ndarray] = None
         self._failed = False
 
@@ -204,9 +252,7 @@ class GarmentDynamicsEnv(_Base):
     def _create_scene(self, gd) -> None:
         self.pin_mode = "server"  # the server's fixed-point pins (grasp/fold, auto)
         self.pins = []
-        if self.sim_type == "robot":
-            self.pin_mode = "none"
-        elif self.action_type == "fling":
+        if self.action_type == "fling":
             self.pin_mode = "targets"
             self.pins = [int(i) for i in (cfg_get(self.cfg, "cloth_params.shoulder_index") or [])]
             if len(self.pins) != 2:
@@ -221,13 +267,25 @@ class GarmentDynamicsEnv(_Base):
         grab_time = self.grab_time if self.pin_mode == "server" and math.isfinite(self.grab_time) else None
         if self.pin_mode == "server" and grab_time is None:
             grab_time = 1e9  # never
-        dt = gd.get("dt", cfg_get(self.cfg, "env.timestep"))
-        common = dict(material=str(gd.get("material", "cotton")), mode=mode,
-                      dt=float(dt) if dt is not None else None,
+        # The step: env.garment_dynamics.dt, else RGBench's own keys (env.timestep in its MuJoCo
+        # config, env.sim_timestep in its PyBullet one), else RGBench's 0.002 s; a null key is unset.
+        dt = first_set(self.cfg, "env.garment_dynamics.dt", "env.timestep", "env.sim_timestep")
+        if dt is None:
+            dt = RGBENCH_TIMESTEP
+            log.info("no time step in the config (env.garment_dynamics.dt, env.timestep, env.sim_timestep): "
+                     "using RGBench's %g s", dt)
+        common = dict(material=str(gd.get("material", "cotton")), mode=mode, dt=float(dt),
                       self_contact=gd.get("self_contact"), grab_time=grab_time)
         model_path = cfg_get(self.cfg, "cloth.model_path")
         if model_path:
             init_pose = cfg_get(self.cfg, "cloth.init_pose", DEFAULT_INIT_POSE)
+            pose_path = cfg_get(self.cfg, "cloth.init_pose_path")
+            if pose_path:  # as RGBench's MuJoCo env: the file when it exists, else init_pose
+                if Path(str(pose_path)).is_file():
+                    init_pose = load_init_pose(Path(str(pose_path)))
+                else:
+                    log.warning("cloth.init_pose_path %s does not exist: using cloth.init_pose %s", pose_path,
+                                list(init_pose))
             obj = _posed_obj(Path(str(model_path)), list(init_pose))
             mesh_id = self.client.upload_mesh(obj, name=Path(str(model_path)).stem)
             ids = self.client.create_scenes(mesh_id=mesh_id, **common)
@@ -282,17 +340,13 @@ class GarmentDynamicsEnv(_Base):
             self.step()
 
     def close(self) -> None:
+        """Destroys the scene (and stops a server the env spawned); safe to call twice."""
         client, self.client = getattr(self, "client", None), None
-        if client is None:
-            return
-        try:
-            if self.scene_id is not None:
-                client.destroy([self.scene_id])
-        except Exception:  # noqa: BLE001 - the server may be gone
-            pass
-        finally:
-            if self._own_client:
-                client.close()
+        finalizer = getattr(self, "_finalizer", None)
+        if finalizer is not None:
+            finalizer()  # runs _release once; later calls do nothing
+        elif client is not None:
+            _release(client, getattr(self, "scene_id", None), getattr(self, "_own_client", False))
 
     # ------------------------------------------------------------------------------------------
     # per-step commands
@@ -303,11 +357,10 @@ class GarmentDynamicsEnv(_Base):
 
     def _action(self, t_end: float) -> dict:
         action = {}
-        if self.pin_mode in ("server", "none"):
+        if self.pin_mode == "server":
             for arm, track in self.tracks.items():
-                pos, quat, grip = track.at(self._traj_time(t_end))
-                action[arm] = {"position": pos, "orientation": quat,
-                               "gripper": grip if self.pin_mode == "none" else 0.035}
+                pos, quat, _ = track.at(self._traj_time(t_end))
+                action[arm] = {"position": pos, "orientation": quat, "gripper": 0.035}
             return action
         # kinematic pins: [left, right] vertices
         idx, pos = [], []

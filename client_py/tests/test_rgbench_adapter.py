@@ -3,7 +3,10 @@ scripts/run_benchmark.py drives a simulator: constructed from the run config, th
 get_master_start_time, step_to_time, get_sim_vertices, get_current_sim_time."""
 
 import csv
+import gc
+import json
 
+import grpc
 import numpy as np
 import pytest
 
@@ -117,8 +120,81 @@ def test_bad_config_is_refused_with_a_message(tmp_path):
     paths = write_csvs(tmp_path)
     with pytest.raises(ValueError, match="sim_model.type"):
         GarmentDynamicsEnv(cfg=make_cfg(paths, sim_type="magic"))
-    with pytest.raises(ValueError, match="fling"):
-        GarmentDynamicsEnv(cfg=make_cfg(paths, action="fling", sim_type="robot"))
+    # robot mode (the Piper joints) does not exist yet: refused, not replaced by something else
+    for action in ("grasp", "fling"):
+        with pytest.raises(ValueError, match="robot.*not supported.*fixed_point"):
+            GarmentDynamicsEnv(cfg=make_cfg(paths, action=action, sim_type="robot"))
+
+
+def test_time_step_comes_from_rgbench_keys_when_ours_is_unset(client, tmp_path):
+    paths = write_csvs(tmp_path)
+
+    def dt_of(env_block):
+        cfg = make_cfg(paths)
+        cfg["env"]["garment_dynamics"].pop("dt")
+        cfg["env"].update(env_block)
+        env = GarmentDynamicsEnv(cfg=cfg, client=client)
+        try:
+            return env.dt
+        finally:
+            env.close()
+
+    assert dt_of({"garment_dynamics": {**make_cfg(paths)["env"]["garment_dynamics"], "dt": 0.02}}) == pytest.approx(0.02)
+    # a null dt (Hydra's `dt: null`) is unset: RGBench's MuJoCo key, then its PyBullet key
+    assert dt_of({"garment_dynamics": {"garment": "towel", "vertices": 200, "dt": None}, "timestep": 0.004}) \
+        == pytest.approx(0.004)
+    assert dt_of({"sim_timestep": 0.005}) == pytest.approx(0.005)
+    assert dt_of({}) == pytest.approx(0.002)  # RGBench's reference step
+
+
+def test_init_pose_path_replaces_init_pose_when_the_file_exists(client, tmp_path, towel):
+    info = client.scene_info(towel)
+    obj_v = info["rest_positions"].astype(np.float64) - [0.1, 0.0, 0.01]
+    obj = tmp_path / "towel.obj"
+    obj.write_text("\n".join([f"v {p[0]:.6f} {p[1]:.6f} {p[2]:.6f}" for p in obj_v]
+                             + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in info["triangles"]]) + "\n")
+    paths = write_csvs(tmp_path)
+    pose_file = tmp_path / "initial_object_pose.json"
+    pose_file.write_text(json.dumps({"pos": [0.15, 0.0, 0.01], "quat": [0.0, 0.0, 0.0, 1.0]}))  # half turn about z
+    cloth = {"model_path": str(obj), "init_pose": [0.1, 0.0, 0.01, 1.0, 0.0, 0.0, 0.0], "init_pose_path": str(pose_file)}
+    env = GarmentDynamicsEnv(cfg=make_cfg(paths, cloth=cloth), client=client)
+    try:
+        np.testing.assert_allclose(env.get_sim_vertices(), obj_v * [-1, -1, 1] + [0.15, 0.0, 0.01], atol=1e-5)
+    finally:
+        env.close()
+    # a path that does not exist falls back to init_pose (RGBench v1 ships no pose file)
+    cloth["init_pose_path"] = str(tmp_path / "missing.json")
+    env = GarmentDynamicsEnv(cfg=make_cfg(paths, cloth=cloth), client=client)
+    try:
+        np.testing.assert_allclose(env.get_sim_vertices(), obj_v + [0.1, 0.0, 0.01], atol=1e-5)
+    finally:
+        env.close()
+    # a malformed file is an error that names the file and the format
+    pose_file.write_text(json.dumps({"pos": [0.15, 0.0], "quat": [1, 0, 0, 0]}))
+    cloth["init_pose_path"] = str(pose_file)
+    with pytest.raises(ValueError, match="init_pose_path.*pos"):
+        GarmentDynamicsEnv(cfg=make_cfg(paths, cloth=cloth), client=client)
+
+
+def test_scene_is_destroyed_when_the_env_is_dropped_without_close(client, tmp_path):
+    # RGBench's run_benchmark.py never calls env.close(): the env's scene must not outlive it
+    paths = write_csvs(tmp_path)
+    env = GarmentDynamicsEnv(cfg=make_cfg(paths), client=client)
+    scene = env.scene_id
+    env.step_to_time(0.1)
+    client.get_state([scene])  # alive on the server while the env is
+    del env
+    gc.collect()
+    with pytest.raises(grpc.RpcError) as err:
+        client.get_state([scene])
+    assert err.value.code() == grpc.StatusCode.NOT_FOUND
+    # and close() then garbage collection destroys it once (no error from the second release)
+    env = GarmentDynamicsEnv(cfg=make_cfg(paths), client=client)
+    env.close()
+    env.close()
+    del env
+    gc.collect()
+    assert client.health()
 
 
 def test_cloth_obj_is_uploaded_and_placed_at_init_pose(client, tmp_path, towel):
