@@ -3,9 +3,9 @@
     from garmentdynamics import Client
 
     with Client.spawn() as c:                     # or Client("host:50051") for a running server
-        ids = c.create_scenes(garment="towel", material="cotton", vertices=150, count=16, seed=1)
+        ids = c.create_scenes(garment="towel", material="cotton", vertices=200, count=16, seed=1)
         x = c.step(ids, substeps=10)              # (16, N, 3) float32, world frame, metres
-        job = c.submit_job(garment="towel", task="grasp", vertices=150)
+        job = c.submit_job(garment="towel", task="grasp", vertices=200)
         report = c.wait_report(job)               # dict: job, summary (parsed summary.json), files
 
 Every call has a deadline (`timeout`, seconds; streams use `stream_timeout`). Errors of the server

@@ -38,6 +38,69 @@ def test_single_scene_env_passes_check_env(client):
     assert err.value.code() == grpc.StatusCode.NOT_FOUND
 
 
+def test_defaults_make_a_scene_the_server_accepts(client):
+    # the quick start's GarmentEnv() and GarmentVectorEnv(n) with default sizes (the server's
+    # generator takes at least 200 vertices)
+    env = GarmentEnv(client)
+    vec = GarmentVectorEnv(2, client=client)
+    try:
+        assert env.observation_space.shape[0] > 150  # the generator lands near its 200-vertex target
+        env.reset(seed=1)
+        vec.reset(seed=1)
+    finally:
+        vec.close()
+        env.close()
+
+
+def test_rgb_array_render_draws_the_garment_where_it_is(client):
+    env = GarmentEnv(client, vertices=VERTICES, task="lift", max_episode_steps=20, yaw_deg=0, offset_m=0,
+                     render_mode="rgb_array")
+    try:
+        check_env(env)  # with the render check
+        env.reset(seed=0)
+        flat = env.render()
+        assert flat.shape == (240, 320, 3) and flat.dtype == np.uint8
+        cloth = (flat[:, :, 2] > flat[:, :, 0] + 40)  # the blue garment over the wood table
+        assert 0.05 < cloth.mean() < 0.8
+        rest = env.scene_info["rest_positions"]
+        env.step(corner_action(rest, False, 0.0))
+        for k in range(12):
+            env.step(corner_action(rest, True, 0.03 * k))
+        lifted = env.render()
+        # lifting the near edge shows the cloth's other side and moves it in the image
+        assert (np.abs(lifted.astype(int) - flat.astype(int)).sum(axis=2) > 30).mean() > 0.01
+    finally:
+        env.close()
+    quiet = GarmentEnv(client, vertices=VERTICES)
+    try:
+        quiet.reset(seed=0)
+        assert quiet.render() is None  # render_mode None: Gymnasium's contract
+    finally:
+        quiet.close()
+    with pytest.raises(ValueError, match="render_mode"):
+        GarmentEnv(client, vertices=VERTICES, render_mode="human")
+
+
+def test_gymnasium_make_step_limit_is_the_env_limit(client):
+    env = gymnasium.make("garmentdynamics/Garment-v0", client=client, vertices=VERTICES, max_episode_steps=3)
+    try:
+        env.reset(seed=0)
+        rest = env.unwrapped.scene_info["rest_positions"]
+        truncs = [env.step(corner_action(rest, False, 0.0))[3] for _ in range(3)]
+        assert truncs == [False, False, True]
+    finally:
+        env.close()
+    # a limit above the bare env's default of 100 is not cut short by a second limit inside
+    env = gymnasium.make("garmentdynamics/Garment-v0", client=client, vertices=VERTICES, max_episode_steps=102)
+    try:
+        env.reset(seed=0)
+        rest = env.unwrapped.scene_info["rest_positions"]
+        truncs = [env.step(corner_action(rest, False, 0.05))[3] for _ in range(102)]
+        assert not any(truncs[:101]) and truncs[101]
+    finally:
+        env.close()
+
+
 def test_single_scene_lift_episode(client):
     env = GarmentEnv(client, vertices=VERTICES, task="lift", max_episode_steps=12, yaw_deg=0, offset_m=0)
     try:

@@ -20,7 +20,9 @@ from .rewards import FAILURE_REWARD, TASKS, Reward
 from .vector_env import GarmentVectorEnv
 
 if "garmentdynamics/Garment-v0" not in registry:
-    register(id="garmentdynamics/Garment-v0", entry_point="garmentdynamics.envs:GarmentEnv",
-             vector_entry_point="garmentdynamics.envs:GarmentVectorEnv")
+    # One step limit: make() wraps the env (made without its own) in TimeLimit(max_episode_steps);
+    # make_vec() hands the limit to the vector env, which truncates and autoresets itself.
+    register(id="garmentdynamics/Garment-v0", entry_point="garmentdynamics.envs.garment_env:make_garment_env",
+             vector_entry_point="garmentdynamics.envs:GarmentVectorEnv", max_episode_steps=100)
 
 __all__ = ["GarmentEnv", "GarmentVectorEnv", "Reward", "TASKS", "FAILURE_REWARD"]

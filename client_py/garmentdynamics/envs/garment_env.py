@@ -6,6 +6,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..client import Client
+from .render import render_rgb
 from .scenes import SceneBatch
 from .spaces import action_space, observation_space
 
@@ -21,7 +22,11 @@ class GarmentEnv(gym.Env):
     poses are reached at its end.
     Reward: `task` ("lift" or "fold"), see garmentdynamics.envs.rewards.
     terminated: the scene failed (its state turned non-finite; reward -10).
-    truncated: after max_episode_steps steps.
+    truncated: after max_episode_steps steps (None: never). gymnasium.make("garmentdynamics/Garment-v0")
+    makes the env without a limit of its own and wraps it in TimeLimit(max_episode_steps, default
+    100): one limit.
+    render_mode "rgb_array": render() returns an (H, W, 3) uint8 image of the garment on the
+    table, seen from the robots' side (garmentdynamics.envs.render); None: render() returns None.
     reset(seed=s): the scene is restored, its pose on the table randomised by seed s (yaw within
     +-yaw_deg, x/y offset within +-offset_m; s = 0: the unrandomised pose); without a seed a
     fresh one is drawn from the env's np_random.
@@ -33,19 +38,25 @@ class GarmentEnv(gym.Env):
     and TLS (see garmentdynamics.Client).
     """
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
     def __init__(self, client: Optional[Client] = None, *, target: Optional[str] = None,
                  spawn_kwargs: Optional[dict] = None, garment: str = "towel", material: str = "cotton",
-                 vertices: int = 150, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
+                 vertices: int = 200, task: str = "lift", max_episode_steps: Optional[int] = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
-                 yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None):
+                 yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None,
+                 render_mode: Optional[str] = None):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        self.render_mode = render_mode
         self._scenes = SceneBatch(1, client=client, target=target, spawn_kwargs=spawn_kwargs, garment=garment,
                                   material=material, vertices=vertices, task=task,
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
                                   self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m,
                                   client_kwargs=client_kwargs)
         self.observation_space = observation_space(self._scenes.vertex_count)
+        self.metadata = {**self.metadata, "render_fps": max(1, round(1.0 / (float(self._scenes.info["dt"]) * substeps)))}
+        self._x: Optional[np.ndarray] = None
         self.action_space = action_space()
         self.task = task
 
@@ -66,12 +77,29 @@ class GarmentEnv(gym.Env):
         super().reset(seed=seed)
         scene_seed = seed if seed is not None else int(self.np_random.integers(1, 2**62))
         x = self._scenes.reset([0], [scene_seed])[0]
+        self._x = x
         return x, {"seed": scene_seed, "time": 0.0}
 
     def step(self, action):
         x, r, term, trunc, infos = self._scenes.step([0], np.asarray(action)[None])
+        self._x = x[0]
         return x[0], float(r[0]), bool(term[0]), bool(trunc[0]), infos[0]
+
+    def render(self) -> Optional[np.ndarray]:
+        """render_mode "rgb_array": an (240, 320, 3) uint8 image of the garment as last observed
+        (reset or step); render_mode None: None (Gymnasium's contract)."""
+        if self.render_mode is None:
+            return None
+        x = self._x if self._x is not None else self._scenes.info["rest_positions"]
+        return render_rgb(x, self._scenes.info["triangles"])
 
     def close(self):
         self._scenes.close()
         super().close()
+
+
+def make_garment_env(**kwargs) -> GarmentEnv:
+    """gymnasium.make's entry point: a GarmentEnv without a step limit of its own, since make wraps
+    it in TimeLimit with the spec's or the caller's max_episode_steps (the one limit)."""
+    kwargs.setdefault("max_episode_steps", None)
+    return GarmentEnv(**kwargs)

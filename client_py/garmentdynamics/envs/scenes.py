@@ -22,11 +22,11 @@ class SceneBatch:
 
     def __init__(self, count: int, client: Optional[Client] = None, target: Optional[str] = None,
                  spawn_kwargs: Optional[dict] = None, garment: str = "towel", material: str = "cotton",
-                 vertices: int = 150, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
+                 vertices: int = 200, task: str = "lift", max_episode_steps: Optional[int] = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
                  yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None):
-        if max_episode_steps < 1 or substeps < 1:
-            raise ValueError("max_episode_steps and substeps must be at least 1")
+        if (max_episode_steps is not None and max_episode_steps < 1) or substeps < 1:
+            raise ValueError("max_episode_steps (None: no limit) and substeps must be at least 1")
         self.client = None
         if client is not None and client_kwargs:
             raise ValueError("client_kwargs are for the Client the environment makes; an existing client= "
@@ -75,7 +75,8 @@ class SceneBatch:
         rewards = np.where(failed, FAILURE_REWARD, pot - self.potential[indices])
         self.potential[indices] = pot
         self.steps[indices] += 1
-        truncated = (self.steps[indices] >= self.max_episode_steps) & ~failed
+        limit = self.max_episode_steps
+        truncated = ((self.steps[indices] >= limit) if limit is not None else np.zeros(len(indices), bool)) & ~failed
         # wall_ms is left out: infos must be deterministic for a seed and actions (check_env)
         infos = [{"time": s.time, "steps": s.steps, "failed": s.failed, "failure": s.failure, "arms": s.arms,
                   "stats": {k: v for k, v in s.stats.items() if k != "wall_ms"}} for s in states]

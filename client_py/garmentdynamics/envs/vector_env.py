@@ -34,7 +34,7 @@ class GarmentVectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 8, client: Optional[Client] = None, *, target: Optional[str] = None,
                  spawn_kwargs: Optional[dict] = None, garment: str = "towel", material: str = "cotton",
-                 vertices: int = 150, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
+                 vertices: int = 200, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
                  yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None):
         if num_envs < 1:
