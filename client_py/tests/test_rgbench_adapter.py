@@ -25,7 +25,8 @@ def world_ee(arm, t):
     return np.array([0.11, y, z])
 
 
-def write_csvs(tmp_path, start_delay=0.0):
+def write_csvs(tmp_path, start_delay=0.0, ee_path=None):
+    ee_path = ee_path or world_ee
     paths = {}
     for arm in ("left", "right"):
         path = tmp_path / f"{arm}_arm_joint_states_and_end_pose.csv"
@@ -34,7 +35,7 @@ def write_csvs(tmp_path, start_delay=0.0):
             w.writerow(HEADER)
             for k in range(31):  # 3 s at 10 Hz
                 t = 0.1 * k
-                p = world_ee(arm, t) - BASE_OFFSETS[arm]  # the CSV is in the arm's base frame
+                p = ee_path(arm, t) - BASE_OFFSETS[arm]  # the CSV is in the arm's base frame
                 w.writerow([f"{T0 + start_delay + t:.6f}"] + [0.0] * 6 + [0.035] + list(p) + [0.0, 1.0, 0.0, 0.0])
         paths[arm] = str(path)
     return paths
@@ -86,6 +87,32 @@ def test_fixed_point_grasp_steps_to_time_and_returns_vertices(client, tmp_path):
             ee = world_ee(arm, t)
             assert np.linalg.norm(x - ee, axis=1).min() < 0.01
         assert x[:, 2].max() == pytest.approx(world_ee("left", t)[2], abs=0.01)
+    finally:
+        env.close()
+
+
+def test_fixed_point_pins_the_vertex_nearest_the_arm_at_grab_time_not_at_the_start(client, tmp_path):
+    # The arms start 12 cm inwards of the corners and reach them at grab_time (0.3 s), then lift:
+    # RGBench pins the initial vertex nearest each arm's position at grab_time.
+    def arriving(arm, t):
+        corner = world_ee(arm, t)
+        a = min(t / 0.3, 1.0)
+        return corner + (1 - a) * np.array([0.0, -0.12 if arm == "left" else 0.12, 0.0])
+
+    paths = write_csvs(tmp_path, ee_path=arriving)
+    env = GarmentDynamicsEnv(cfg=make_cfg(paths), client=client)
+    try:
+        rest = env.initial_vertices
+        env.step_to_time(1.0)
+        x = env.get_sim_vertices()
+        t = env.get_current_sim_time()
+        for arm in ("left", "right"):
+            want = int(np.argmin(np.linalg.norm(rest - arriving(arm, 0.3), axis=1)))
+            at_start = int(np.argmin(np.linalg.norm(rest - arriving(arm, 0.0), axis=1)))
+            assert want != at_start
+            held = int(np.argmin(np.linalg.norm(x - arriving(arm, t), axis=1)))
+            assert held == want, f"{arm}: the arm carries vertex {held}, RGBench's rule pins {want}"
+            assert np.linalg.norm(x[want] - arriving(arm, t)) < 1e-3
     finally:
         env.close()
 

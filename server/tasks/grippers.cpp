@@ -105,23 +105,9 @@ void GripperController::update(sim::Scene& scene, double t_end) {
                                          arm_name(static_cast<Arm>(a)), v, n));
           pinned_[a] = v;
         }
-      } else {
-        for (int a = 0; a < 2; ++a) {
-          const Vec3 p = ee(static_cast<Arm>(a), options_.grab_time).position;
-          int best = 0;
-          double best_d = std::numeric_limits<double>::infinity();
-          for (int i = 0; i < n; ++i) {
-            const double d = (initial_[i] - p).squaredNorm();
-            if (d < best_d) best_d = d, best = i;
-          }
-          pinned_[a] = best;
-          gd::log().debug("fixed point: {} arm pins vertex {} ({:.4f} m from its end-effector at t={})",
-                          arm_name(static_cast<Arm>(a)), best, std::sqrt(best_d), options_.grab_time);
-        }
-        if (pinned_[0] == pinned_[1])
-          gd::log().warn("fixed point: both arms pin vertex {} (their end-effectors are closest to it at t={})",
-                         pinned_[0], options_.grab_time);
       }
+      // Grasp and fold choose their pins at grab_time (choose_grab_pins): a streamed trajectory
+      // (the service's one command per step) knows the arms' pose at grab_time only then.
     }
   }
   if (options_.mode == GraspMode::kPseudoGrasp) {
@@ -179,7 +165,29 @@ void GripperController::update_pseudo(sim::Scene& scene, double t_end) {
   }
 }
 
+void GripperController::choose_grab_pins() {
+  const int n = static_cast<int>(initial_.size());
+  for (int a = 0; a < 2; ++a) {
+    const Vec3 p = ee(static_cast<Arm>(a), options_.grab_time).position;
+    int best = 0;
+    double best_d = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < n; ++i) {
+      const double d = (initial_[i] - p).squaredNorm();
+      if (d < best_d) best_d = d, best = i;
+    }
+    pinned_[a] = best;
+    gd::log().debug("fixed point: {} arm pins vertex {} ({:.4f} m from its end-effector at t={})",
+                    arm_name(static_cast<Arm>(a)), best, std::sqrt(best_d), options_.grab_time);
+  }
+  if (pinned_[0] == pinned_[1])
+    gd::log().warn("fixed point: both arms pin vertex {} (their end-effectors are closest to it at t={})", pinned_[0],
+                   options_.grab_time);
+}
+
 void GripperController::update_fixed(sim::Scene& scene, double t_end) {
+  // RGBench's rule: at grab_time, the initial vertex nearest each arm's end-effector position then.
+  if (options_.action != TaskKind::kFling && pinned_[0] < 0 && scene.time() >= options_.grab_time - 1e-9)
+    choose_grab_pins();
   const double t_now = scene.time();
   const bool fling = options_.action == TaskKind::kFling;
   for (int a = 0; a < 2; ++a) {

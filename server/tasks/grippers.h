@@ -128,6 +128,8 @@ class GripperController {
 
  private:
   void update_pseudo(sim::Scene& scene, double t_end);
+  /// Fixed-point grasp/fold: pins, per arm, the initial vertex nearest its end-effector at grab_time.
+  void choose_grab_pins();
   void update_fixed(sim::Scene& scene, double t_end);
   void set_group(sim::Scene& scene, int arm, int group);
 

@@ -199,6 +199,37 @@ TEST(FixedPoint, PinsTheNearestInitialVertexAtGrabTimeAndTracksPositionOnly) {
   EXPECT_NEAR(c.events()[0].t, 0.3, 1e-9);
 }
 
+// The service streams one command per step, so at the first step the controller knows only the
+// arms' starting pose; the pins must be chosen at grab_time from the pose then (RGBench's rule),
+// not from the start (issue: the RGBench adapter pinned the vertices nearest the starting pose).
+TEST(FixedPoint, StreamedCommandsPinTheVertexNearestTheArmAtGrabTimeNotAtTheStart) {
+  const sim::Mesh m = cloth();
+  auto scene = make_scene(m);
+  const Vec3 start(0.12, 0.04, 0.02), grab(0.3, -0.02, 0.012);
+  DualArmTrajectory traj;
+  traj.left = ArmTrajectory({S(0, start, kGripperOpen)});
+  traj.right = ArmTrajectory({S(0, Vec3(0.15, -0.09, 0.011), kGripperOpen)});
+  GripperOptions o;
+  o.mode = GraspMode::kFixedPoint;
+  o.action = TaskKind::kGrasp;
+  o.grab_time = 0.3;
+  GripperController c(traj, o);
+  const double dt = scene->options().dt;
+  const int steps = static_cast<int>(std::lround(0.5 / dt));
+  for (int k = 1; k <= steps; ++k) {  // the left arm moves from start to grab by 0.3 s, then lifts
+    const double t = k * dt, a = std::min(t / 0.3, 1.0);
+    const Vec3 p = (1 - a) * start + a * grab + Vec3(0, 0, t > 0.3 ? 0.2 * (t - 0.3) : 0.0);
+    c.append(Arm::kLeft, S(t, p, kGripperOpen));
+    c.append(Arm::kRight, S(t, Vec3(0.15, -0.09, 0.011), kGripperOpen));
+    ASSERT_TRUE(run_until(*scene, c, t));
+  }
+  const int near_grab = sim::nearest_vertex(m, grab), near_start = sim::nearest_vertex(m, start);
+  ASSERT_NE(near_grab, near_start);
+  EXPECT_EQ(c.state(Arm::kLeft).held, std::vector<int>{near_grab});
+  EXPECT_EQ(c.state(Arm::kRight).held, std::vector<int>{sim::nearest_vertex(m, Vec3(0.15, -0.09, 0.011))});
+  EXPECT_GT(scene->positions()[near_grab].z(), 0.03);  // lifted with the arm
+}
+
 TEST(FixedPoint, FlingApproachesHoldsThenReplaysShiftedByThePrepareTime) {
   const sim::Mesh m = cloth();
   auto scene = make_scene(m);
