@@ -22,6 +22,7 @@
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
+#include "sim/mesh.h"
 #include "sim/scene.h"
 #include "tasks/frames.h"
 #include "tasks/trajectory.h"
@@ -243,12 +244,7 @@ Settled settle_before_planning(const sim::Mesh& mesh, const sim::Material& mater
   Settled st{scene->positions(), scene->velocities()};
   const Eigen::Isometry3d inv = place.inverse();
   const auto move = [&](Vec3& p) {  // p in the garment frame
-    size_t best = 0;
-    double best_d = std::numeric_limits<double>::infinity();
-    for (size_t i = 0; i < g->mesh.x.size(); ++i) {
-      const double d = (g->mesh.x[i] - p).squaredNorm();
-      if (d < best_d) best_d = d, best = i;
-    }
+    const int best = sim::nearest_vertex(g->mesh, p);
     p += inv.linear() * (st.x[best] - mesh.x[best]);
   };
   garments::Landmarks& l = g->landmarks;
