@@ -2,8 +2,9 @@
 /// \file
 /// Multilevel additive Schwarz (MAS) preconditioner after Wu, Wang and Wang 2022 ("A GPU-based
 /// multilevel additive Schwarz preconditioner for cloth and deformable body simulation", ACM TOG
-/// 41(4)), written once over the execution policy (CPU: OpenMP loops, CUDA: one thread per
-/// domain) like the rest of the solver.
+/// 41(4)), written once over the execution policy like the rest of the solver (CPU: OpenMP
+/// loops, one thread per domain; CUDA: one warp per domain for the dense blocks' gather,
+/// factorisation and solves, as teams of sim/team.h).
 ///
 /// Hierarchy, rebuilt at every setup (once per Newton iteration) from the assembled matrix:
 /// - Level 0: the free vertices sorted by the Morton code of their current positions; domains
@@ -32,6 +33,7 @@
 
 #include "sim/demand.h"
 #include "sim/solver/preconditioner.h"
+#include "sim/team.h"
 
 namespace gd::sim {
 
@@ -58,42 +60,28 @@ GD_HD uint64_t morton_code(const double* p, const double* lo, double inv_size) {
   return spread_bits(c[0]) | (spread_bits(c[1]) << 1) | (spread_bits(c[2]) << 2);
 }
 
-/// Dot product of a[0, n) and b[0, n) with four partial sums (one running sum is bound by the
-/// latency of its adds, not by the multiplies); a in double or single precision.
-template <class A>
-GD_HD double dot4(const A* __restrict__ a, const double* __restrict__ b, int n) {
-  double t0 = 0, t1 = 0, t2 = 0, t3 = 0;
-  int k = 0;
-  for (; k + 4 <= n; k += 4) {
-    t0 += a[k] * b[k];
-    t1 += a[k + 1] * b[k + 1];
-    t2 += a[k + 2] * b[k + 2];
-    t3 += a[k + 3] * b[k + 3];
-  }
-  for (; k < n; ++k) t0 += a[k] * b[k];
-  return (t0 + t1) + (t2 + t3);
-}
-
 /// In-place Cholesky factorisation of the symmetric m x m row-major matrix A (lower triangle
-/// read and overwritten with L, A = L Lᵀ). A pivot that is not positive (rounding in a nearly
+/// read and overwritten with L, A = L Lᵀ) by a team (sim/team.h): column by column, the rows
+/// below the diagonal split over its lanes. A pivot that is not positive (rounding in a nearly
 /// singular aggregate) is replaced by its row's diagonal entry or 1, so the factor stays usable as
 /// a preconditioner. Returns the number of pivots so replaced.
-GD_HD int cholesky_in_place(double* A, int m) {
+template <class Team>
+GD_HD int cholesky_in_place(const Team& team, double* A, int m) {
   int fixed = 0;
   for (int j = 0; j < m; ++j) {
     double* rj = A + static_cast<size_t>(j) * m;
-    double s = rj[j] - dot4(rj, rj, j);
+    double s = rj[j] - team.dot(rj, rj, j);
     if (!(s > 1e-12 * fabs(rj[j]))) {
       s = fabs(rj[j]) > 0 ? fabs(rj[j]) : 1.0;
       ++fixed;
     }
     const double d = sqrt(s);
-    rj[j] = d;
     const double inv = 1.0 / d;
-    for (int i = j + 1; i < m; ++i) {
+    team.range(j + 1, m, [&](int i) {
       double* ri = A + static_cast<size_t>(i) * m;
       ri[j] = (ri[j] - dot4(ri, rj, j)) * inv;
-    }
+    });
+    team.single([&] { rj[j] = d; });  // after the range: its lanes read rj[j] above
   }
   return fixed;
 }
@@ -102,28 +90,31 @@ GD_HD int cholesky_in_place(double* A, int m) {
 /// at i (i + 1) / 2), with the reciprocals of the diagonal in place of the diagonal (the solves
 /// then multiply instead of dividing). L Lᵀ of the rounded factor is still symmetric positive
 /// definite, and the apply reads a quarter of the bytes of the double factor.
-GD_HD void pack_lower(const double* L, int m, float* P) {
-  for (int i = 0; i < m; ++i) {
+template <class Team>
+GD_HD void pack_lower(const Team& team, const double* L, int m, float* P) {
+  team.range(0, m, [&](int i) {
     float* row = P + i * (i + 1) / 2;
     for (int k = 0; k < i; ++k) row[k] = static_cast<float>(L[static_cast<size_t>(i) * m + k]);
     row[i] = static_cast<float>(1.0 / L[static_cast<size_t>(i) * m + i]);
-  }
+  });
 }
 
-/// Solves L Lᵀ y = b in place (b overwritten by y) with a factor packed by pack_lower. The
-/// forward pass keeps four partial sums (dot4); the
-/// backward pass scatters row i of L once y_i is known (independent updates). (Single precision
-/// here too was tried: PCG no faster at 20k vertices, and P⁻¹ no longer exactly symmetric.)
-GD_HD void cholesky_solve_packed(const float* __restrict__ P, int m, double* __restrict__ b) {
+/// Solves L Lᵀ y = b in place (b overwritten by y) with a factor packed by pack_lower, by a team:
+/// the forward pass takes one team dot product per row; the backward pass scatters row i of L
+/// once y_i is known (independent updates, split over the lanes). (Single precision here too was
+/// tried: PCG no faster at 20k vertices, and P⁻¹ no longer exactly symmetric.)
+template <class Team>
+GD_HD void cholesky_solve_packed(const Team& team, const float* __restrict__ P, int m, double* __restrict__ b) {
   for (int i = 0; i < m; ++i) {  // L u = b
     const float* __restrict__ ri = P + i * (i + 1) / 2;
-    b[i] = (b[i] - dot4(ri, b, i)) * ri[i];
+    const double t = team.dot(ri, b, i);
+    team.single([&] { b[i] = (b[i] - t) * ri[i]; });
   }
   for (int i = m - 1; i >= 0; --i) {  // Lᵀ y = u
     const float* __restrict__ ri = P + i * (i + 1) / 2;
     const double yi = b[i] * ri[i];
-    b[i] = yi;
-    for (int k = 0; k < i; ++k) b[k] -= ri[k] * yi;
+    team.range(0, i, [&](int k) { b[k] -= ri[k] * yi; });
+    team.single([&] { b[i] = yi; });  // after the range: its lanes read b[i] above
   }
 }
 
@@ -164,6 +155,7 @@ template <class Exec>
 class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
   template <class T>
   using Vec = typename Exec::template Vector<T>;
+  using Team = typename Exec::Team;
 
  public:
   static constexpr int kMaxLevels = mas_detail::kMaxLevels;
@@ -308,31 +300,38 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     const BlockMatrixView M = A;
     const int domains = L.domains;
     Exec::for_each(1, [=] GD_HD_LAMBDA(int) { comp_count[domains] = 0; });
-    // Per part: adjacency bitmasks of its domain's nodes from the part's vertices' rows.
+    // Per part, one team: adjacency bitmasks of its domain's nodes from the part's vertices'
+    // rows (node a's bits from its own vertices' rows; the pattern is symmetric, the mesh's and
+    // the couplings' alike, and the per-domain pass below makes the masks symmetric regardless).
     ensure(s.part_adj, static_cast<size_t>(s.parts) * B);
     uint64_t* part_adj = Exec::ptr(s.part_adj);
     const int* part_start = Exec::ptr(s.part_start);
     const int* part_domain = Exec::ptr(s.part_domain);
-    Exec::for_each(s.parts, [=] GD_HD_LAMBDA(int p) {
+    Exec::for_each_team(s.parts, [=] GD_HD_LAMBDA(const Team& team, int p) {
       const int d = part_domain[p], first = d * B;
       const int count = L.nodes - first < B ? L.nodes - first : B;
       uint64_t* adj = part_adj + static_cast<size_t>(p) * B;
-      for (int a = 0; a < count; ++a) adj[a] = 0;
+      team.range(0, count, [&](int a) { adj[a] = 0; });
       int lo, hi;
       mas_detail::part_range(L, B, d, p - part_start[d], part_start[d + 1] - part_start[d], &lo, &hi);
-      for (int e = lo; e < hi; ++e) {
-        const int v = L.members[e];
-        const int a = L.node_of[v] - first;
-        auto visit = [&](int j) {
-          const int nb = L.node_of[j];
-          if (nb >= first && nb < first + count && nb != first + a) {
-            adj[a] |= uint64_t(1) << (nb - first);
-            adj[nb - first] |= uint64_t(1) << a;
-          }
-        };
-        for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) visit(M.cols[k]);
-        if (M.cpl_row_ptr)
-          for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) visit(M.cpl_cols[k]);
+      if (lo >= hi) return;  // the same on every lane
+      const int a_lo = L.node_of[L.members[lo]] - first, a_hi = L.node_of[L.members[hi - 1]] - first + 1;
+      for (int a = a_lo; a < a_hi; ++a) {  // node a: its vertices inside [lo, hi), split over the lanes
+        const int e_lo = L.offsets[first + a] > lo ? L.offsets[first + a] : lo;
+        const int e_hi = L.offsets[first + a + 1] < hi ? L.offsets[first + a + 1] : hi;
+        const uint64_t mask = team.reduce_or(e_lo, e_hi, [&](int e) {
+          const int v = L.members[e];
+          uint64_t bits = 0;
+          auto visit = [&](int j) {
+            const int nb = L.node_of[j];
+            if (nb >= first && nb < first + count && nb != first + a) bits |= uint64_t(1) << (nb - first);
+          };
+          for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) visit(M.cols[k]);
+          if (M.cpl_row_ptr)
+            for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) visit(M.cpl_cols[k]);
+          return bits;
+        });
+        team.single([&] { adj[a] = mask; });
       }
     }, 1);
     // Per domain: its parts' bitmasks joined, then connected pieces, labelled in the order of
@@ -344,6 +343,8 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
       for (int a = 0; a < count; ++a) adj[a] = uint64_t(1) << a;
       for (int p = part_start[d]; p < part_start[d + 1]; ++p)
         for (int a = 0; a < count; ++a) adj[a] |= part_adj[static_cast<size_t>(p) * B + a];
+      for (int a = 0; a < count; ++a)  // symmetric: b joined to a joins a to b
+        for (int b = 0; b < count; ++b) adj[a] |= (adj[b] >> a & 1) << b;
       int comps = 0;
       uint64_t seen = 0;
       for (int a = 0; a < count; ++a) {
@@ -413,47 +414,78 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     const int* part_start = Exec::ptr(s.part_start);
     const int* part_domain = Exec::ptr(s.part_domain);
     const BlockMatrixView M = A;
-    // Per part: the blocks its vertices' rows add to the domain's block (a domain of one part,
-    // every domain of the fine levels, sums in the same order as a loop over the domain).
-    Exec::for_each(s.parts, [=] GD_HD_LAMBDA(int p) {
+    // Per part, one team: the blocks its vertices' rows add to the domain's block, in the order
+    // of a loop over the part (the same bits whatever the team). A team of one takes node after
+    // node and adds each row's blocks where they belong. A warp gives each lane block pairs
+    // (a, nb) to sum in registers over node a's vertices: a coarse node holds hundreds of
+    // vertices, and a lane per node left most lanes idle and the rest waiting on memory (H100,
+    // fold/5000: 2.1 ms per coarse gather as one thread per part, 0.56 ms with a lane per
+    // column, less in registers).
+    Exec::for_each_team(s.parts, [=] GD_HD_LAMBDA(const Team& team, int p) {
       const int d = part_domain[p], first = d * B;
       const int count = L.nodes - first < B ? L.nodes - first : B;
       double* D = dense + static_cast<size_t>(p) * m * m;
-      for (int k = 0; k < m * m; ++k) D[k] = 0.0;
+      team.range(0, m * m, [&](int k) { D[k] = 0.0; });
       int lo, hi;
       mas_detail::part_range(L, B, d, p - part_start[d], part_start[d + 1] - part_start[d], &lo, &hi);
-      for (int e = lo; e < hi; ++e) {
-        const int v = L.members[e];
-        const int a = L.node_of[v] - first;
-        auto add_block = [&](int j, const double* blk) {
-          const int nb = L.node_of[j];
-          if (nb < first || nb >= first + count) return;
-          double* dst = D + static_cast<size_t>(3 * a) * m + 3 * (nb - first);
+      if (lo >= hi) return;  // the same on every lane
+      const int a_lo = L.node_of[L.members[lo]] - first, a_hi = L.node_of[L.members[hi - 1]] - first + 1;
+      // Calls add(nb, block) for every block of node a's rows inside [lo, hi) whose column is
+      // in this domain, in order.
+      auto for_row_blocks = [&](int a, auto&& add) {
+        const int e_lo = L.offsets[first + a] > lo ? L.offsets[first + a] : lo;
+        const int e_hi = L.offsets[first + a + 1] < hi ? L.offsets[first + a + 1] : hi;
+        for (int e = e_lo; e < e_hi; ++e) {
+          const int v = L.members[e];
+          auto visit = [&](int j, const double* blk) {
+            const int nb = L.node_of[j] - first;
+            if (nb >= 0 && nb < count) add(nb, blk);
+          };
+          for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) visit(M.cols[k], M.vals + 9 * k);
+          if (M.cpl_row_ptr)
+            for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) visit(M.cpl_cols[k], M.cpl_vals + 9 * k);
+        }
+      };
+      if constexpr (Team::kLanes == 1) {
+        team.range(a_lo, a_hi, [&](int a) {
+          for_row_blocks(a, [&](int nb, const double* blk) {
+            double* dst = D + static_cast<size_t>(3 * a) * m + 3 * nb;
+            for (int r = 0; r < 3; ++r)
+              for (int c = 0; c < 3; ++c) dst[r * m + c] += blk[3 * r + c];
+          });
+        });
+      } else {
+        team.range(0, (a_hi - a_lo) * count, [&](int q) {
+          const int a = a_lo + q / count, want = q % count;
+          double acc[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+          for_row_blocks(a, [&](int nb, const double* blk) {
+            if (nb != want) return;
+            for (int k = 0; k < 9; ++k) acc[k] += blk[k];
+          });
+          double* dst = D + static_cast<size_t>(3 * a) * m + 3 * want;
           for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c) dst[r * m + c] += blk[3 * r + c];
-        };
-        for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) add_block(M.cols[k], M.vals + 9 * k);
-        if (M.cpl_row_ptr)
-          for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) add_block(M.cpl_cols[k], M.cpl_vals + 9 * k);
+            for (int c = 0; c < 3; ++c) dst[r * m + c] = acc[3 * r + c];
+        });
       }
     }, 1);
-    // Per domain: its parts added, in order, into its first part's block, then factored.
-    Exec::for_each(L.domains, [=] GD_HD_LAMBDA(int d) {
+    // Per domain, one team: its parts added, in order, into its first part's block, then factored.
+    Exec::for_each_team(L.domains, [=] GD_HD_LAMBDA(const Team& team, int d) {
       double* D = dense + static_cast<size_t>(part_start[d]) * m * m;
-      for (int p = part_start[d] + 1; p < part_start[d + 1]; ++p) {
-        const double* Dp = dense + static_cast<size_t>(p) * m * m;
-        for (int k = 0; k < m * m; ++k) D[k] += Dp[k];
-      }
+      const int p0 = part_start[d], p1 = part_start[d + 1];
+      if (p1 - p0 > 1)
+        team.range(0, m * m, [&](int k) {
+          for (int p = p0 + 1; p < p1; ++p) D[k] += dense[static_cast<size_t>(p) * m * m + k];
+        });
       const int first = d * B;
       const int count = L.nodes - first < B ? L.nodes - first : B;
-      for (int a = count; a < B; ++a)  // padding of the last domain: identity
-        for (int r = 0; r < 3; ++r) D[static_cast<size_t>(3 * a + r) * m + 3 * a + r] = 1.0;
-      mas_detail::cholesky_in_place(D, m);
-      mas_detail::pack_lower(D, m, packed + d * tri);
+      team.range(3 * count, m, [&](int q) { D[static_cast<size_t>(q) * m + q] = 1.0; });  // padding: identity
+      mas_detail::cholesky_in_place(team, D, m);
+      mas_detail::pack_lower(team, D, m, packed + d * tri);
     }, 1);
   }
 
-  /// Restricts r to level l (sums over each node's vertices) and solves each domain's block.
+  /// Restricts r to level l (sums over each node's vertices) and solves each domain's block, one
+  /// team per domain.
   void solve_level(int l, const double* r) {
     LevelStore& s = store_[l];
     const mas_detail::LevelView L = level(l);
@@ -461,11 +493,11 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     const size_t tri = static_cast<size_t>(m) * (m + 1) / 2;
     const float* packed = Exec::ptr(s.packed);
     double* rhs = Exec::ptr(s.rhs);
-    Exec::for_each(L.domains, [=] GD_HD_LAMBDA(int d) {
+    Exec::for_each_team(L.domains, [=] GD_HD_LAMBDA(const Team& team, int d) {
       double* b = rhs + static_cast<size_t>(d) * m;
       const int first = d * B;
       const int count = L.nodes - first < B ? L.nodes - first : B;
-      for (int a = 0; a < B; ++a) {
+      team.range(0, B, [&](int a) {
         double acc[3] = {0, 0, 0};
         if (a < count)
           for (int e = L.offsets[first + a]; e < L.offsets[first + a + 1]; ++e) {
@@ -473,8 +505,8 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
             acc[0] += rv[0], acc[1] += rv[1], acc[2] += rv[2];
           }
         b[3 * a] = acc[0], b[3 * a + 1] = acc[1], b[3 * a + 2] = acc[2];
-      }
-      mas_detail::cholesky_solve_packed(packed + d * tri, m, b);
+      });
+      mas_detail::cholesky_solve_packed(team, packed + d * tri, m, b);
     }, 1);
   }
 

@@ -212,6 +212,31 @@ TEST(MasPreconditioner, ApplyIsTheSumOfTheLevelsGalerkinBlockSolvesAtAnyThreadCo
   for (int k = 0; k < z1.size(); ++k) ASSERT_EQ(z1[k], z2[k]) << "entry " << k;
 }
 
+// On the GPU each domain's gather, factorisation and solves run as a warp of 32 lanes (WarpTeam);
+// CpuGpuPathsExec replays those lanes on the CPU (WarpOrderTeam: lanes in reverse order, dot
+// products in the warp's order of additions). The result must be the CPU's to rounding: a range
+// whose iterations depended on each other, or a lane reading what another has not yet written,
+// would show here, on fine domains of one part and coarse domains of several.
+TEST(MasPreconditioner, TheGpuWarpTeamsGiveTheCpuResultToRounding) {
+  System s = make_system(make_rect(0.3, 0.3, 0.01), 400, 13);
+  s.fixed[5] = 1;
+  for (const int B : {16, 32}) {
+    Mas cpu(s.n(), B);
+    MultilevelAdditiveSchwarz<CpuGpuPathsExec> warp(s.n(), B);
+    cpu.setup(s.view());
+    warp.setup(s.view());
+    ASSERT_EQ(warp.levels(), cpu.levels());
+    ASSERT_GE(cpu.levels(), 3);
+    for (unsigned k = 0; k < 3; ++k) {
+      const Eigen::VectorXd r = random_vector(3 * s.n(), 40 + k);
+      Eigen::VectorXd zw(r.size());
+      warp.apply(r.data(), zw.data());
+      const Eigen::VectorXd zc = apply(cpu, r);
+      EXPECT_LT((zw - zc).norm(), 1e-9 * zc.norm()) << "domain size " << B;
+    }
+  }
+}
+
 TEST(MasPreconditioner, DirichletRowsPassThroughAndDoNotLeak) {
   System s = make_system(make_rect(0.2, 0.2, 0.01), 500, 5);
   for (int i = 0; i < s.n(); i += 9) s.fixed[i] = 1;

@@ -16,6 +16,7 @@
 
 #include "sim/backend/round_trips.h"
 #include "sim/demand.h"
+#include "sim/team.h"
 
 namespace gd::sim {
 
@@ -62,6 +63,16 @@ struct CpuExec {
   static void for_each(int n, const F& f, int parallel_min = kParallelMin) {
 #pragma omp parallel for schedule(static) if (n >= parallel_min)
     for (int i = 0; i < n; ++i) f(i);
+  }
+
+  /// The team of for_each_team's work items (sim/team.h): the calling thread.
+  using Team = SerialTeam;
+
+  /// Runs f(team, t) for t in [0, n), one team per work item (sim/team.h); on the CPU a team is
+  /// the thread that runs the item.
+  template <class F>
+  static void for_each_team(int n, const F& f, int parallel_min = kParallelMin) {
+    for_each(n, [&](int t) { f(Team{}, t); }, parallel_min);
   }
 
   /// Sum of f(i) over [0, n). Loops of parallel_min or more are summed in blocks of a size set
@@ -169,6 +180,13 @@ struct CpuGpuPathsExec : CpuExec {
     }
     if (launches_before_failure > 0) --launches_before_failure;
     CpuExec::for_each(n, f, parallel_min);
+  }
+
+  /// The GPU's teams (a warp's lanes and order of additions) replayed on the CPU.
+  using Team = WarpOrderTeam;
+  template <class F>
+  static void for_each_team(int n, const F& f, int parallel_min = kParallelMin) {
+    for_each(n, [&](int t) { f(Team{}, t); }, parallel_min);
   }
 
   // What returns a value or a copy to the host counts as a round trip (host_round_trips()), as

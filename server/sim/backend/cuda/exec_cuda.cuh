@@ -25,6 +25,7 @@
 
 #include "sim/backend/round_trips.h"
 #include "sim/demand.h"
+#include "sim/team.h"
 
 namespace gd::sim {
 
@@ -32,6 +33,14 @@ template <class F>
 __global__ void gd_for_each_kernel(int n, F f) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i < n) f(i);
+}
+
+/// One warp per work item: warps leave together (t is the same on all 32 lanes), so every
+/// __syncwarp() of a team sees its whole warp.
+template <class F>
+__global__ void gd_for_each_team_kernel(int n, F f) {
+  const int t = static_cast<int>((blockIdx.x * blockDim.x + threadIdx.x) / kWarpLanes);
+  if (t < n) f(WarpTeam{}, t);
 }
 
 struct CudaExec {
@@ -81,6 +90,19 @@ struct CudaExec {
     if (n <= 0) return;
     constexpr int kBlock = 256;
     gd_for_each_kernel<<<(n + kBlock - 1) / kBlock, kBlock>>>(n, f);
+    check(cudaGetLastError(), "kernel launch");
+  }
+
+  /// The team of for_each_team's work items (sim/team.h): one warp.
+  using Team = WarpTeam;
+
+  /// Runs f(team, t) for t in [0, n), one warp per work item: for work items whose inner
+  /// loops (a domain's dense block) are too long for one thread.
+  template <class F>
+  static void for_each_team(int n, const F& f, int /*parallel_min*/ = 0) {
+    if (n <= 0) return;
+    constexpr int kTeamsPerBlock = 4;
+    gd_for_each_team_kernel<<<(n + kTeamsPerBlock - 1) / kTeamsPerBlock, kTeamsPerBlock * kWarpLanes>>>(n, f);
     check(cudaGetLastError(), "kernel launch");
   }
 
