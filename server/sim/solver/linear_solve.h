@@ -44,10 +44,14 @@ void Solver<Exec>::spmv(const Vec<double>& xs, Vec<double>& ys) {
 /// (cpl_*), once per linear solve, on the host. The layers of a garment lying flat make ~8
 /// contact pairs per vertex that share most of their vertex pairs, so each PCG iteration then
 /// touches every coupling once instead of once per pair that contains it, rows are gathered
-/// without atomics, and the preconditioner sees the couplings as a matrix. (On CUDA the pairs'
-/// Hessians travel to the host and the CSR back: a device-side merge is still to come.)
+/// without atomics, and the preconditioner sees the couplings as a matrix. Policies without
+/// kHostMerge (the GPU's) build it on the backend (coupling_merge.h) unless the scene outgrows its
+/// keys; then the pairs' Hessians travel to the host and the CSR back.
 template <class Exec>
 void Solver<Exec>::merge_pair_blocks() {
+  if constexpr (!Exec::kHostMerge) {
+    if (backend_merge_fits()) return merge_pair_blocks_on_backend();  // coupling_merge.h
+  }
   const ContactPairs& act = self_->active();
   const FrictionPairs& fr = self_->friction();
   const double* HA = nullptr;

@@ -2,7 +2,7 @@
 /// \file
 /// The implicit-Euler solver, written once over an execution policy `Exec` (CpuExec: OpenMP,
 /// CudaExec: kernels, CpuGpuPathsExec: the kernels' paths on OpenMP). Paths differ only by the
-/// policy's traits (kColoring, kHostMemory), never by its type. One step minimises
+/// policy's traits (kColoring, kHostMemory, kHostMerge), never by its type. One step minimises
 ///   L(x) = 1/(2h^2)|x - x_hat|_M^2 + E_membrane + E_bend + E_gravity + E_table + E_friction
 ///          + D_drag + D_damping
 /// with a few inexact Newton iterations: assemble the gradient and PSD-projected Hessian, solve
@@ -239,6 +239,9 @@ class Solver final : public SolverBase {
   // Linear solve: matrix-vector product, contact couplings, PCG, direct (linear_solve.h)
   void spmv(const Vec<double>& xs, Vec<double>& ys);
   void merge_pair_blocks();
+  // ... on the backend, the GPU's path (coupling_merge.h)
+  bool backend_merge_fits() const;
+  void merge_pair_blocks_on_backend();
   void prepare_linear_solve();
   BlockMatrixView matrix_view();
   int solve_linear(double first_step);
@@ -394,6 +397,10 @@ class Solver final : public SolverBase {
   double free_mass_ = 1.0;           ///< free_mass()
   Vec<int> cpl_row_ptr_, cpl_cols_;
   Vec<double> cpl_vals_;
+  /// merge_pair_blocks_on_backend's scratch: sorted block keys, run numbers, per block its first
+  /// key and its row.
+  Vec<uint64_t> mkeys_;
+  Vec<int> mrun_, mblock_start_, mblock_row_;
   /// PCG's scalars in the backend's memory (solve_pcg), at these indices.
   Vec<double> pcg_s_;
   static constexpr int kPcgRz = 0, kPcgPap = 1, kPcgRr = 2, kPcgRzNew = 3, kPcgAlpha = 4, kPcgBeta = 5,
@@ -415,6 +422,7 @@ class Solver final : public SolverBase {
 #include "sim/solver/stopping_rule.h"
 #include "sim/solver/assembly.h"
 #include "sim/solver/linear_solve.h"
+#include "sim/solver/coupling_merge.h"
 #include "sim/solver/step_bounds.h"
 #include "sim/solver/vector_ops.h"
 #include "sim/solver/diagnostics.h"

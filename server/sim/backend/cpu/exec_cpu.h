@@ -27,6 +27,9 @@ struct CpuExec {
   /// Vector<T> is host memory: host-side stages (the contact couplings' merge, the sparse direct
   /// solver) read it in place.
   static constexpr bool kHostMemory = true;
+  /// The contact couplings are merged by the host's OpenMP code, reading the pairs in place
+  /// (pair_blocks.cpp); policies without it merge on the backend (coupling_merge.h).
+  static constexpr bool kHostMerge = true;
 
   template <class T>
   using Vector = std::vector<T>;
@@ -164,6 +167,7 @@ struct CpuExec {
 struct CpuGpuPathsExec : CpuExec {
   static constexpr const char* kName = "cpu-gpu-paths";
   static constexpr bool kColoring = false;
+  static constexpr bool kHostMerge = false;  ///< as CudaExec
   static constexpr int kPcgCheckEvery = 8;  ///< as CudaExec
   /// Add into memory other threads may add into at the same time.
   static inline void add(double* p, double v) { std::atomic_ref<double>(*p).fetch_add(v, std::memory_order_relaxed); }

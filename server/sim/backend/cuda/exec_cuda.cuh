@@ -47,6 +47,7 @@ struct CudaExec {
   static constexpr const char* kName = "cuda";
   static constexpr bool kColoring = false;
   static constexpr bool kHostMemory = false;  ///< device vectors: host-side stages copy them
+  static constexpr bool kHostMerge = false;   ///< contact couplings merged on the device
 
   template <class T>
   using Vector = thrust::device_vector<T>;
