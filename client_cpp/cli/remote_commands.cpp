@@ -183,6 +183,9 @@ RemoteCommands::RemoteCommands(CLI::App& app) {
   create_->add_flag("--no-self-contact", no_self_contact_, "turn cloth self-contact off");
   create_->add_option("--garment-param", garment_params_,
                       "a size of a generated garment, NAME=VALUE (repeatable; names in docs/garments.md)");
+  create_->add_option("--material-param", material_params_,
+                      "a parameter of the material replaced, NAME=VALUE in catalogue units (repeatable; "
+                      "e.g. stretch_g_s2=230000; names in docs/materials.md)");
 
   step_ = app.add_subcommand("step", "step scenes in one batched call (needs --server)");
   step_->add_option("--ids", ids_, "scene ids, comma-separated")->delimiter(',')->required();
@@ -260,6 +263,8 @@ int RemoteCommands::do_create(Client& c) {
   if (create_->count("--dt") > 0) spec_.settings.dt = dt_;
   if (no_self_contact_) spec_.settings.self_contact = false;
   for (const std::string& kv : garment_params_) spec_.garment_params.insert(parse_name_value(kv, "--garment-param"));
+  for (const std::string& kv : material_params_)
+    spec_.material_params.insert(parse_name_value(kv, "--material-param"));
   const CreatedScenes s = c.create_scenes(spec_);
   std::fprintf(stderr, "created %zu scene(s): %d vertices, %zu triangles, dt %g s, backend %s\n", s.ids.size(),
                s.info.vertex_count, s.info.triangles.size() / 3, s.info.dt, s.info.backend.c_str());

@@ -72,6 +72,7 @@ class RemoteCommands {
 
   SceneSpec spec_;
   std::vector<std::string> garment_params_;  ///< --garment-param NAME=VALUE
+  std::vector<std::string> material_params_;  ///< --material-param NAME=VALUE
   bool no_self_contact_ = false;
   double dt_ = 0;
   std::vector<std::string> ids_;

@@ -83,6 +83,7 @@ void to_proto(const SceneSpec& in, pb::CreateScenesRequest* out) {
     out->mutable_randomization()->set_offset_m(in.offset_m);
   }
   out->mutable_garment_params()->insert(in.garment_params.begin(), in.garment_params.end());
+  out->mutable_material_params()->insert(in.material_params.begin(), in.material_params.end());
 }
 
 void to_proto(const SceneAction& in, pb::SceneAction* out, const char* rpc) {

@@ -259,7 +259,8 @@ class Client:
                       dt: Optional[float] = None, self_contact: Optional[bool] = None,
                       jaw_radius: Optional[float] = None, grab_time: Optional[float] = None,
                       yaw_deg: float = 0.0, offset_m: float = 0.0,
-                      garment_params: Optional[Dict[str, float]] = None) -> List[str]:
+                      garment_params: Optional[Dict[str, float]] = None,
+                      material_params: Optional[Dict[str, float]] = None) -> List[str]:
         """Creates `count` identical scenes and returns their ids.
 
         Args:
@@ -276,6 +277,9 @@ class Client:
                 offset uniform in [-offset_m, offset_m] along x and y (seeds other than 0).
             garment_params: sizes of a generated garment by name, e.g. {"length": 0.9,
                 "hood_length": 0.25} (docs/garments.md lists the names and defaults).
+            material_params: parameters of `material` replaced, by the material file's names in
+                catalogue units, e.g. {"stretch_g_s2": 230000, "bending_g_mm2_s2_rad": 1000,
+                "areal_density_g_m2": 220, "poisson": 0.35} (docs/materials.md).
 
         What the scenes share (triangles, rest positions, dt, ...) is available from
         scene_info(id) afterwards.
@@ -294,7 +298,8 @@ class Client:
         req = pb.CreateScenesRequest(material=material, vertices=int(vertices), mode=mode, seed=int(seed),
                                      count=int(count), settings=settings,
                                      randomization=pb.Randomization(yaw_deg=yaw_deg, offset_m=offset_m),
-                                     garment_params={str(k): float(v) for k, v in (garment_params or {}).items()})
+                                     garment_params={str(k): float(v) for k, v in (garment_params or {}).items()},
+                                     material_params={str(k): float(v) for k, v in (material_params or {}).items()})
         if garment is not None:
             req.garment = garment
         else:

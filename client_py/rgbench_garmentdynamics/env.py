@@ -21,6 +21,8 @@ What it reads from cfg (an omegaconf DictConfig or a plain dict), as RGBench's f
     env.timestep, env.sim_timestep  the step when env.garment_dynamics.dt is unset (RGBench's MuJoCo
                               and PyBullet keys); default RGBench's 0.002 s
     cloth_params.shoulder_index     fling pins [left, right]
+    cloth_params.{stretch, bending, density, friction, poisson}   RGBench's fitted fabric (see
+                              cloth_material_params), over the material's values
     data.robot_joints.{left,right}_arm_csv_path, data.sim_start_time
 
 and its own optional block env.garment_dynamics:
@@ -36,7 +38,8 @@ and its own optional block env.garment_dynamics:
                   the working directory
     server_bin, data_dir, threads   for the spawned server
     garment, vertices               a generated garment when cloth.model_path is absent (default tshirt, 2000)
-    material      fabric name (default cotton)
+    material      fabric name (default cotton): the base that cloth_params adjust
+    cloth_params  false: the library material alone, RGBench's cloth_params ignored (default true)
     dt            s per step (default env.timestep, else env.sim_timestep, else 0.002)
     self_contact  default: the server's (on)
 
@@ -99,6 +102,31 @@ def first_set(cfg: Any, *dotted: str) -> Any:
         if value is not None:
             return value
     return None
+
+
+# RGBench's cloth_params keys -> the server's material_params (docs/materials.md). The values are
+# in the units of the RGBench paper's fabric table, which were fitted to GarmentDynamics: stretch
+# g/s², bending g·mm²/s²/rad (the table heads it g·m², docs/materials.md shows why it is mm²),
+# density g/m² (areal).
+CLOTH_PARAMS_TO_MATERIAL = {"stretch": "stretch_g_s2", "bending": "bending_g_mm2_s2_rad",
+                            "density": "areal_density_g_m2", "friction": "friction", "poisson": "poisson"}
+
+
+def cloth_material_params(cfg: Any) -> dict:
+    """The material parameters RGBench's cloth_params give (CLOTH_PARAMS_TO_MATERIAL).
+
+    Not used: `mass` (0.255 kg with a "TODO: check" in every garment's file; the mass follows
+    density x area), `damping`, `kinetic_friction` and `ground_friction` (the model has static
+    Coulomb friction and its own damping), and `rgba`. Thickness is the base material's."""
+    out = {}
+    for key, param in CLOTH_PARAMS_TO_MATERIAL.items():
+        value = cfg_get(cfg, f"cloth_params.{key}")
+        if value is not None:
+            try:
+                out[param] = float(value)
+            except (TypeError, ValueError):
+                raise ValueError(f"cloth_params.{key} must be a number, got {value!r}") from None
+    return out
 
 
 def load_init_pose(path: Path) -> list:
@@ -274,7 +302,11 @@ class GarmentDynamicsEnv(_Base):
             dt = RGBENCH_TIMESTEP
             log.info("no time step in the config (env.garment_dynamics.dt, env.timestep, env.sim_timestep): "
                      "using RGBench's %g s", dt)
-        common = dict(material=str(gd.get("material", "cotton")), mode=mode, dt=float(dt),
+        material = str(gd.get("material", "cotton"))
+        self.material_params = cloth_material_params(self.cfg) if gd.get("cloth_params", True) else {}
+        if self.material_params:
+            log.info("material %s with RGBench's cloth_params: %s", material, self.material_params)
+        common = dict(material=material, material_params=self.material_params, mode=mode, dt=float(dt),
                       self_contact=gd.get("self_contact"), grab_time=grab_time)
         model_path = cfg_get(self.cfg, "cloth.model_path")
         if model_path:

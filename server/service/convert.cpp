@@ -107,6 +107,7 @@ Status to_scene_spec(const pb::CreateScenesRequest& r, SceneSpec* out) {
   out->yaw_deg = r.randomization().yaw_deg();
   out->offset_m = r.randomization().offset_m();
   out->garment_params.insert(r.garment_params().begin(), r.garment_params().end());
+  out->material_params.insert(r.material_params().begin(), r.material_params().end());
   return Status::Ok();
 }
 

@@ -351,7 +351,8 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     t->mesh = garment.mesh;
     const Eigen::Isometry3d place = tasks::default_garment_pose();
     for (Vec3& p : t->mesh.x) p = place * p;
-    t->material = materials().get(material);
+    t->material = spec.material_params.empty() ? materials().get(material)
+                                                : sim::with_catalogue_params(materials().get(material), spec.material_params);
     t->options = experiment::ExperimentConfig::default_scene_options();
     if (spec.dt) t->options.dt = *spec.dt;
     else t->options.dt = 0.01;

@@ -85,6 +85,7 @@ struct SceneSpec {
   double yaw_deg = 0;            ///< randomisation: yaw uniform in [-yaw_deg, yaw_deg]
   double offset_m = 0;           ///< randomisation: x/y offsets uniform in [-offset_m, offset_m]
   std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
+  std::map<std::string, double> material_params;  ///< material parameters replaced (sim::with_catalogue_params)
   std::string owner;             ///< the caller's principal (see ScenePool: ownership)
   /// Asked while the garment is meshed: true stops it (CANCELLED, nothing created). May be empty.
   std::function<bool()> cancelled;

@@ -126,6 +126,30 @@ std::vector<Material> read_file(const std::string& path) {
 
 }  // namespace
 
+Material with_catalogue_params(const Material& base, const std::map<std::string, double>& params) {
+  json j;  // base as a material file entry, then the parameters over it
+  j["name"] = fmt::format("{} with params", base.name);
+  j["stretch_g_s2"] = {{"warp", base.stretch_warp / kGramPerS2}, {"weft", base.stretch_weft / kGramPerS2}};
+  j["shear_g_s2"] = base.shear / kGramPerS2;
+  j["bending_g_mm2_s2_rad"] = {{"warp", base.bend_warp / kGramMm2PerS2}, {"weft", base.bend_weft / kGramMm2PerS2}};
+  j["areal_density_g_m2"] = base.density / kGramPerM2;
+  j["thickness_mm"] = base.thickness / kMillimetre;
+  j["friction"] = base.friction;
+  j["bend_kappa_n_per_m"] = base.bend_kappa_n;
+  for (const auto& [key, value] : params) {
+    if (!kKeys.contains(key) || key == "name" || key == "notes" || key == "source")
+      throw InputError(fmt::format("unknown material parameter '{}'; use stretch_g_s2, shear_g_s2, poisson, "
+                                   "bending_g_mm2_s2_rad, areal_density_g_m2, thickness_mm, friction or "
+                                   "bend_kappa_n_per_m (docs/materials.md)",
+                                   key));
+    j[key] = value;
+  }
+  if ((params.contains("stretch_g_s2") || params.contains("poisson")) && !params.contains("shear_g_s2"))
+    j.erase("shear_g_s2");
+  if (params.contains("thickness_mm") && !params.contains("bend_kappa_n_per_m")) j.erase("bend_kappa_n_per_m");
+  return parse_material(j, "material parameters", 0);
+}
+
 void Material::validate() const {
   const std::string who = fmt::format("material '{}'", name);
   if (name.empty()) throw InputError("material has no name");

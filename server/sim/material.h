@@ -58,6 +58,15 @@ class MaterialLibrary {
   std::map<std::string, Material> materials_;
 };
 
+/// `base` with some of its parameters replaced, given by the material file's field names and
+/// catalogue units (docs/materials.md): stretch_g_s2, shear_g_s2, poisson, bending_g_mm2_s2_rad,
+/// areal_density_g_m2, thickness_mm, friction, bend_kappa_n_per_m (one number sets warp and
+/// weft alike). A new stretch or poisson derives the shear again (from the poisson given, else
+/// 0.35) unless shear_g_s2 is given too;
+/// a new thickness resets κn to 1/thickness unless bend_kappa_n_per_m is given. The result is
+/// named "<base> with params". Throws InputError naming an unknown parameter or an invalid value.
+Material with_catalogue_params(const Material& base, const std::map<std::string, double>& params);
+
 /// The data directory: $GD_DATA_DIR when set and non-empty, else the build's source data/
 /// directory (the compile-time GD_DEFAULT_DATA_DIR).
 std::string data_dir();

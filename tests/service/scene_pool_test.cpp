@@ -8,6 +8,10 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
 #include <thread>
 
 namespace gd::service {
@@ -118,42 +122,96 @@ TEST(ScenePool, NanCommandIsRefusedAndChangesNothing) {
   EXPECT_EQ(pool.step(StepRequest{{"s-999"}, {}, 1, true, false}, &out).code(), Code::kNotFound);
 }
 
-TEST(ScenePool, ClosedGripperCarriesTheCorner) {
-  ScenePool pool(small_pool());
-  CreatedScenes c;
-  ASSERT_TRUE(pool.create(towel(), &c).ok());
-  // The towel corner nearest the left arm (largest y, smallest x).
+/// The towel corner nearest the left arm (largest y, smallest x).
+int left_corner(const CreatedScenes& c) {
   int corner = 0;
   for (int i = 0; i < c.info.vertex_count; ++i) {
     const Vec3& p = c.info.rest_positions[i];
     const Vec3& q = c.info.rest_positions[corner];
     if (p.y() - p.x() > q.y() - q.x()) corner = i;
   }
+  return corner;
+}
+
+/// Steps scene `id` `substeps` times with the left arm commanded to `pos` and `gripper`.
+SceneSnapshot step_left(ScenePool& pool, const std::string& id, const Vec3& pos, double gripper, int substeps) {
+  StepRequest req;
+  req.scene_ids = {id};
+  req.substeps = substeps;
+  SceneAction act;
+  act.scene_id = id;
+  ArmCommand cmd;
+  cmd.arm = tasks::Arm::kLeft;
+  cmd.position = pos;
+  cmd.orientation = tasks::top_down_orientation();
+  cmd.gripper = gripper;
+  act.arms.push_back(cmd);
+  req.actions.push_back(act);
+  std::vector<SceneSnapshot> out;
+  EXPECT_TRUE(pool.step(req, &out).ok());
+  return out.at(0);
+}
+
+TEST(ScenePool, ClosedGripperCarriesTheCorner) {
+  ScenePool pool(small_pool());
+  CreatedScenes c;
+  ASSERT_TRUE(pool.create(towel(), &c).ok());
+  const int corner = left_corner(c);
   const Vec3 at = c.info.rest_positions[corner];
-  auto step_left = [&](const Vec3& pos, double gripper, int substeps) {
-    StepRequest req;
-    req.scene_ids = c.ids;
-    req.substeps = substeps;
-    SceneAction act;
-    act.scene_id = c.ids[0];
-    ArmCommand cmd;
-    cmd.arm = tasks::Arm::kLeft;
-    cmd.position = pos;
-    cmd.orientation = tasks::top_down_orientation();
-    cmd.gripper = gripper;
-    act.arms.push_back(cmd);
-    req.actions.push_back(act);
-    std::vector<SceneSnapshot> out;
-    EXPECT_TRUE(pool.step(req, &out).ok());
-    return out.at(0);
-  };
-  step_left(at, 0.035, 5);                    // open, moved onto the corner
-  SceneSnapshot s = step_left(at, 0.0, 1);    // closes there
+  const std::string id = c.ids[0];
+  step_left(pool, id, at, 0.035, 5);                  // open, moved onto the corner
+  SceneSnapshot s = step_left(pool, id, at, 0.0, 1);  // closes there
   EXPECT_TRUE(s.arms[0].closed);
   EXPECT_GT(s.arms[0].held_vertices, 0);
-  EXPECT_EQ(s.arms[1].held_vertices, 0);      // the right arm holds at home
-  s = step_left(at + Vec3(0, 0, 0.1), 0.0, 10);  // lift 10 cm
+  EXPECT_EQ(s.arms[1].held_vertices, 0);              // the right arm holds at home
+  s = step_left(pool, id, at + Vec3(0, 0, 0.1), 0.0, 10);  // lift 10 cm
   EXPECT_NEAR(s.positions[corner].z(), at.z() + 0.1, 0.01);
+}
+
+// material_params reach the scene's fabric: a towel lifted by a corner stretches under its own
+// weight by about weight / (width x stretch stiffness): ~1e-3 for cotton (1000 N/m), ~0.5 with
+// stretch_g_s2 = 1000 (1 N/m). Bad parameters are refused with their name.
+TEST(ScenePool, MaterialParamsChangeTheFabric) {
+  ScenePool pool(small_pool());
+  auto mean_strain = [](const CreatedScenes& c, const std::vector<Vec3>& x) {
+    double sum = 0;
+    for (const Eigen::Vector3i& t : c.info.triangles)
+      for (int k = 0; k < 3; ++k) {
+        const int i = t[k], j = t[(k + 1) % 3];
+        sum += (x[i] - x[j]).norm() / (c.info.rest_positions[i] - c.info.rest_positions[j]).norm() - 1;
+      }
+    return sum / (3.0 * c.info.triangles.size());
+  };
+  double strain[2];
+  for (const bool soft : {false, true}) {
+    SceneSpec spec = towel();
+    if (soft) spec.material_params = {{"stretch_g_s2", 1000.0}, {"poisson", 0.3}};
+    CreatedScenes c;
+    ASSERT_TRUE(pool.create(spec, &c).ok());
+    const int corner = left_corner(c);
+    const Vec3 at = c.info.rest_positions[corner];
+    step_left(pool, c.ids[0], at, 0.035, 5);
+    step_left(pool, c.ids[0], at, 0.0, 1);
+    SceneSnapshot s;
+    for (int k = 1; k <= 4; ++k) s = step_left(pool, c.ids[0], at + Vec3(0, 0, 0.1 * k), 0.0, 10);  // up 40 cm
+    s = step_left(pool, c.ids[0], at + Vec3(0, 0, 0.4), 0.0, 30);  // hang 0.3 s
+    strain[soft] = mean_strain(c, s.positions);
+  }
+  EXPECT_LT(strain[0], 0.02) << "cotton";
+  EXPECT_GT(strain[1], 5 * std::max(strain[0], 0.005)) << "stretch_g_s2 = 1000";
+
+  for (const auto& [params, name] : std::vector<std::pair<std::map<std::string, double>, std::string>>{
+           {{{"strech_g_s2", 1000.0}}, "strech_g_s2"},
+           {{{"stretch_g_s2", -5.0}}, "stretch"},
+           {{{"areal_density_g_m2", std::nan("")}}, "density"},
+           {{{"poisson", 0.7}}, "poisson"}}) {
+    SceneSpec spec = towel();
+    spec.material_params = params;
+    CreatedScenes c;
+    const Status st = pool.create(spec, &c);
+    EXPECT_EQ(st.code(), Code::kInvalidArgument) << name;
+    EXPECT_NE(st.message().find(name), std::string::npos) << st.message();
+  }
 }
 
 TEST(ScenePool, FailedSceneIsMarkedWhileTheOthersCarryOn) {

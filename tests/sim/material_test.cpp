@@ -182,3 +182,40 @@ TEST(MaterialLibrary, DataDirHonoursEnvironment) {
 
 }  // namespace
 }  // namespace gd::sim
+
+namespace gd::sim {
+namespace {
+
+// Parameters over a library material, in the material file's names and units (what CreateScenes'
+// material_params and RGBench's cloth_params give): converted as the loader converts them.
+TEST(MaterialParams, ReplaceTheGivenFieldsInCatalogueUnits) {
+  const Material cotton = MaterialLibrary::load_default().get("cotton");
+  const Material m = with_catalogue_params(
+      cotton, {{"stretch_g_s2", 230000}, {"bending_g_mm2_s2_rad", 1000}, {"areal_density_g_m2", 220}, {"poisson", 0.35}});
+  EXPECT_EQ(m.name, "cotton with params");
+  EXPECT_NEAR(m.stretch_warp, 230.0, 1e-9);
+  EXPECT_NEAR(m.stretch_weft, 230.0, 1e-9);
+  EXPECT_NEAR(m.shear, 230.0 / 2.7, 1e-9);  // derived again from the new stretch
+  EXPECT_NEAR(m.bend_warp, 1e-6, 1e-18);
+  EXPECT_NEAR(m.density, 0.22, 1e-12);
+  EXPECT_NEAR(m.thickness, cotton.thickness, 1e-15);  // not given: the base's
+  EXPECT_NEAR(m.friction, cotton.friction, 1e-15);
+  EXPECT_NEAR(m.bend_kappa_n, cotton.bend_kappa_n, 1e-9);
+
+  const Material same = with_catalogue_params(cotton, {});
+  EXPECT_NEAR(same.stretch_warp, cotton.stretch_warp, 1e-9 * cotton.stretch_warp);
+  EXPECT_NEAR(same.shear, cotton.shear, 1e-9 * cotton.shear);  // kept when stretch is not given
+  EXPECT_NEAR(same.bend_weft, cotton.bend_weft, 1e-9 * cotton.bend_weft);
+
+  const Material thick = with_catalogue_params(cotton, {{"thickness_mm", 0.5}});
+  EXPECT_NEAR(thick.thickness, 5e-4, 1e-15);
+  EXPECT_NEAR(thick.bend_kappa_n, 2000.0, 1e-9);  // 1 / thickness again
+
+  expect_input_error([&] { with_catalogue_params(cotton, {{"stretch", 1e5}}); }, {"'stretch'", "stretch_g_s2"});
+  expect_input_error([&] { with_catalogue_params(cotton, {{"name", 1}}); }, {"'name'"});
+  expect_input_error([&] { with_catalogue_params(cotton, {{"friction", -1}}); }, {"friction"});
+  expect_input_error([&] { with_catalogue_params(cotton, {{"shear_g_s2", 1e4}, {"poisson", 0.3}}); }, {"not both"});
+}
+
+}  // namespace
+}  // namespace gd::sim

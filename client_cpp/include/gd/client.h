@@ -149,6 +149,9 @@ struct SceneSpec {
   double offset_m = 0;                 ///< randomisation: x, y offset uniform in [-offset_m, offset_m]
   /// Sizes of a generated garment by name (e.g. {"hood_length", 0.25}); docs/garments.md lists them.
   std::map<std::string, double> garment_params;
+  /// Parameters of `material` replaced, by the material file's names in catalogue units ("stretch_g_s2",
+  /// "bending_g_mm2_s2_rad", "areal_density_g_m2", "poisson", ...; docs/materials.md).
+  std::map<std::string, double> material_params;
 };
 
 /// What the scenes of one create_scenes call share.

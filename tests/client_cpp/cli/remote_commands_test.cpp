@@ -207,6 +207,18 @@ TEST_F(CliTest, GarmentParamSizesTheGarmentLocallyAndAsAJob) {
   EXPECT_NE(r.err.find("length"), std::string::npos) << r.err;
 }
 
+TEST_F(CliTest, MaterialParamReachesTheServersScenes) {
+  CliRun r = gd(server_flag() + " create --garment towel --vertices 200 --no-self-contact --material-param "
+                                "stretch_g_s2=230000 --material-param areal_density_g_m2=220");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  r = gd(server_flag() + " create --garment towel --vertices 200 --material-param strech_g_s2=230000");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("strech_g_s2"), std::string::npos) << r.err;
+  r = gd(server_flag() + " create --garment towel --vertices 200 --material-param poisson");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("NAME=VALUE"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, TaskParamChangesTheGeneratedTaskLocallyAndAsAJob) {
   const auto dir = fresh_dir("cli_task_params");
   const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.5 --settle 0.1 "
