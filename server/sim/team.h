@@ -127,11 +127,10 @@ struct WarpOrderTeam {
       t[lane] = 0;
       for (int k = lane; k < n; k += kWarpLanes) t[lane] += a[k] * b[k];
     }
-    for (int o = kWarpLanes / 2; o > 0; o /= 2) {
-      double u[kWarpLanes];
-      for (int lane = 0; lane < kWarpLanes; ++lane) u[lane] = t[lane] + t[lane ^ o];
-      for (int lane = 0; lane < kWarpLanes; ++lane) t[lane] = u[lane];
-    }
+    // Lane 0's sums of the butterfly (every lane ends with the same bits): at each stage it adds
+    // the value lane o held after the stage before, so the lanes below o are all it needs.
+    for (int o = kWarpLanes / 2; o > 0; o /= 2)
+      for (int lane = 0; lane < o; ++lane) t[lane] += t[lane + o];
     return t[0];
   }
   template <class F>
