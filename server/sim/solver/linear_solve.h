@@ -41,7 +41,7 @@ void Solver<Exec>::spmv(const Vec<double>& xs, Vec<double>& ys) {
 }
 
 /// The pairs' off-diagonal blocks summed per coupled (row, column) vertex pair into a block CSR
-/// (cpl_*), once per linear solve, on the host. The layers of a garment lying flat make ~8
+/// (cpl_*), once per linear solve, on the host for the CPU backend. The layers of a garment lying flat make ~8
 /// contact pairs per vertex that share most of their vertex pairs, so each PCG iteration then
 /// touches every coupling once instead of once per pair that contains it, rows are gathered
 /// without atomics, and the preconditioner sees the couplings as a matrix. Policies without

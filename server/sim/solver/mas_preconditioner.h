@@ -23,8 +23,9 @@
 /// dense blocks and the restriction are gathers, parallel over domains or nodes, with no atomics
 /// and a deterministic result. The gathers over a domain's vertices (its adjacency in coarsen,
 /// its dense block in factor_level) run over parts of at most kPartVertices vertices, so that the
-/// one or two domains of the coarsest levels, which hold every vertex, are gathered by every
-/// thread too; the parts are set by the level alone, and a domain's parts are added in order.
+/// one or two domains of the coarsest levels, which hold every vertex, are gathered by many
+/// teams (threads on the CPU, warps on the GPU); the parts are set by the level alone, and a
+/// domain's parts are added in order.
 
 #include <algorithm>
 #include <cmath>

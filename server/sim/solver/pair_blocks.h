@@ -1,9 +1,10 @@
 #pragma once
 /// \file
 /// Contact couplings as a block matrix: the off-diagonal 3x3 blocks of the contact pairs' 12x12
-/// Hessians summed per coupled (row, column) vertex pair into a block CSR. Host code (CPU and
-/// CUDA backends both build it on the host), run in parallel over the OpenMP threads with a
-/// result that does not depend on their number.
+/// Hessians summed per coupled (row, column) vertex pair into a block CSR. Host code, the CPU
+/// backend's path (the GPU's policies build the CSR on the backend: solver/coupling_merge.h, and
+/// come here only for scenes too large for its keys), run in parallel over the OpenMP threads with
+/// a result that does not depend on their number.
 
 #include <vector>
 
