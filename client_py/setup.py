@@ -8,17 +8,24 @@ garmentdynamics/v1/garmentdynamics_pb2.py and garmentdynamics_pb2_grpc.py. The p
 
 Regular installs get the stubs in the build directory; editable installs (`pip install -e`) get
 them in the source tree (ignored by git), since that is where an editable install imports from.
+Otherwise a build writes nothing into the source tree: the build directory and the egg-info go
+under the system's temporary directory (`--build-base` / `--egg-base` still choose), and the
+version probe of the stubs runs in a temporary directory of its own.
 The versions of grpcio and protobuf the stubs need are read from the generated files and become
 lower bounds of the dependencies, so an old runtime cannot meet newer generated code.
 """
 
+import hashlib
 import os
 import re
 import sys
+import tempfile
 from pathlib import Path
 
 from setuptools import setup
+from setuptools.command.build import build
 from setuptools.command.build_py import build_py
+from setuptools.command.egg_info import egg_info
 
 HERE = Path(__file__).resolve().parent
 PROTO_FILE = "garmentdynamics/v1/garmentdynamics.proto"
@@ -58,11 +65,11 @@ def generate(out_root: Path) -> None:
 
 def runtime_requirements() -> list:
     """grpcio/protobuf lower bounds that match the code grpc_tools generates."""
-    tmp = HERE / "build" / "_stub_probe"
-    generate(tmp)
-    v1 = tmp / "garmentdynamics" / "v1"
-    pb2 = (v1 / "garmentdynamics_pb2.py").read_text()
-    grpc_py = (v1 / "garmentdynamics_pb2_grpc.py").read_text()
+    with tempfile.TemporaryDirectory(prefix="garmentdynamics-stub-probe-") as tmp:
+        generate(Path(tmp))
+        v1 = Path(tmp) / "garmentdynamics" / "v1"
+        pb2 = (v1 / "garmentdynamics_pb2.py").read_text()
+        grpc_py = (v1 / "garmentdynamics_pb2_grpc.py").read_text()
     reqs = ["numpy>=1.21"]
     m = re.search(r"ValidateProtobufRuntimeVersion\(\s*_runtime_version\.Domain\.PUBLIC,\s*(\d+),\s*(\d+),\s*(\d+)",
                   pb2)
@@ -70,6 +77,30 @@ def runtime_requirements() -> list:
     m = re.search(r"GRPC_GENERATED_VERSION\s*=\s*'([0-9.]+)'", grpc_py)
     reqs.append(f"grpcio>={m.group(1)}" if m else "grpcio>=1.50")
     return reqs
+
+
+def out_of_tree(kind: str) -> str:
+    """A directory for this build's `kind` outputs outside the source tree, per user and checkout."""
+    tag = f"{os.getuid() if hasattr(os, 'getuid') else 0}-{hashlib.sha1(str(HERE).encode()).hexdigest()[:10]}"
+    d = Path(tempfile.gettempdir()) / f"garmentdynamics-{kind}-{tag}"
+    d.mkdir(parents=True, exist_ok=True)
+    return str(d)
+
+
+class BuildOutOfTree(build):
+    """build whose default build directory is not client_py/build."""
+
+    def initialize_options(self):
+        super().initialize_options()
+        self.build_base = out_of_tree("build")
+
+
+class EggInfoOutOfTree(egg_info):
+    """egg_info whose default directory is not the source tree."""
+
+    def initialize_options(self):
+        super().initialize_options()
+        self.egg_base = out_of_tree("egg-info")
 
 
 class BuildPyWithStubs(build_py):
@@ -91,4 +122,5 @@ class BuildPyWithStubs(build_py):
         return outs
 
 
-setup(install_requires=runtime_requirements(), cmdclass={"build_py": BuildPyWithStubs})
+setup(install_requires=runtime_requirements(), cmdclass={"build": BuildOutOfTree, "build_py": BuildPyWithStubs,
+                                                               "egg_info": EggInfoOutOfTree})
