@@ -100,6 +100,7 @@ void to_proto(const SceneAction& in, pb::SceneAction* out, const char* rpc) {
     p->mutable_orientation()->set_y(a.pose.orientation[2]);
     p->mutable_orientation()->set_z(a.pose.orientation[3]);
     c->set_gripper(a.gripper);
+    if (a.time) c->set_time(*a.time);
   }
   if (!in.target_indices.empty() || !in.target_positions.empty()) {
     if (in.target_positions.size() != 3 * in.target_indices.size())

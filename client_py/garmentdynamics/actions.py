@@ -5,15 +5,22 @@ An action is None (the scene carries on: arms hold their last command) or a dict
     {
       "left":  {"position": (x, y, z),            # m, world frame (z up, table at z = 0)
                 "orientation": (w, x, y, z),      # optional, unit quaternion, w first; default identity
-                "gripper": 0.035},                # optional opening in m, 0 = closed .. 0.035 = open;
+                "gripper": 0.035,                 # optional opening in m, 0 = closed .. 0.035 = open;
                                                   # default 0.035 (open); grasps below 0.01
+                "time": 0.5},                     # optional scene time of this sample, s; default:
+                                                  # the end of the call's steps
       "right": {...},                             # same as "left"
       "targets": (indices, positions),            # optional: int (K,) vertex indices and (K, 3) positions
                                                   # reached kinematically over the step, then held
       "release_targets": False,                   # optional: release every kinematic target set earlier
     }
 
-An arm may also be given as an (8,) array: position (3), quaternion wxyz (4), gripper (1).
+An arm may also be given as an (8,) array: position (3), quaternion wxyz (4), gripper (1), or as
+a list of such commands: samples of its trajectory in increasing "time" (an untimed one last),
+each after the arm's last sample. With samples, one call of many substeps follows a sampled
+motion (the arm is interpolated between samples: linear position and gripper, SLERP
+orientation); samples past the call's end are kept for later calls, so a whole trajectory may be
+sent with the first call.
 "targets" may also be a dict {"indices": ..., "positions": ...}. A ready-made
 `garmentdynamics.v1.garmentdynamics_pb2.SceneAction` is passed through (its scene_id is set).
 """
@@ -38,21 +45,26 @@ def _vec(v, n, what):
 def arm_command(arm: str, cmd) -> "pb.ArmCommand":
     """One arm's command from a dict or an (8,) array (see the module docstring)."""
     if isinstance(cmd, dict):
-        unknown = set(cmd) - {"position", "orientation", "gripper"}
+        unknown = set(cmd) - {"position", "orientation", "gripper", "time"}
         if unknown:
             raise ValueError(f"unknown keys {sorted(unknown)} in the {arm} arm's command; "
-                             "use position, orientation, gripper")
+                             "use position, orientation, gripper, time")
         if "position" not in cmd:
             raise ValueError(f"the {arm} arm's command needs a position")
         pos = _vec(cmd["position"], 3, f"{arm}.position")
         quat = _vec(cmd.get("orientation", (1.0, 0.0, 0.0, 0.0)), 4, f"{arm}.orientation")
         gripper = float(cmd.get("gripper", GRIPPER_OPEN))
+        time = cmd.get("time")
     else:
         v = _vec(cmd, 8, f"the {arm} arm's command (position 3, quaternion wxyz 4, gripper 1)")
         pos, quat, gripper = v[:3], v[3:7], float(v[7])
+        time = None
     pose = pb.Pose(position=pb.Vec3(x=pos[0], y=pos[1], z=pos[2]),
                    orientation=pb.Quat(w=quat[0], x=quat[1], y=quat[2], z=quat[3]))
-    return pb.ArmCommand(arm=_ARMS[arm], pose=pose, gripper=gripper)
+    out = pb.ArmCommand(arm=_ARMS[arm], pose=pose, gripper=gripper)
+    if time is not None:
+        out.time = float(time)
+    return out
 
 
 def scene_action(scene_id: str, action) -> "pb.SceneAction":
@@ -69,8 +81,13 @@ def scene_action(scene_id: str, action) -> "pb.SceneAction":
         raise ValueError(f"unknown action keys {sorted(unknown)}; use {sorted(_ALLOWED)}")
     out = pb.SceneAction(scene_id=scene_id, release_targets=bool(action.get("release_targets", False)))
     for arm in ("left", "right"):
-        if action.get(arm) is not None:
-            out.arms.append(arm_command(arm, action[arm]))
+        cmd = action.get(arm)
+        if cmd is None:
+            continue
+        if isinstance(cmd, (list, tuple)) and len(cmd) > 0 and not np.isscalar(cmd[0]):
+            out.arms.extend(arm_command(arm, c) for c in cmd)  # samples of the arm's trajectory
+        else:
+            out.arms.append(arm_command(arm, cmd))
     targets = action.get("targets")
     if targets is not None:
         if isinstance(targets, dict):

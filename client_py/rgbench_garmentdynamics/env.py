@@ -58,6 +58,7 @@ it overshoots by less than one dt, like RGBench's environments.
 import json
 import logging
 import math
+import time
 import weakref
 from pathlib import Path
 from typing import Any, Optional
@@ -65,6 +66,7 @@ from typing import Any, Optional
 import numpy as np
 
 from garmentdynamics import Client
+from garmentdynamics.actions import GRIPPER_OPEN
 
 from .trajectory import load_pose_csv
 
@@ -259,6 +261,8 @@ class GarmentDynamicsEnv(_Base):
         self._finalizer = weakref.finalize(self, _release, client, self.scene_id, self._own_client)
         self._vertices: Optional[np.ndarray] = None
         self._failed = False
+        self._sent_ahead = False  # server pin mode: the arms' whole trajectories went with the first call
+        self._seconds_per_step = 0.0  # measured, to keep one call within the client's deadline
 
     @staticmethod
     def _client_options(gd, client_kwargs: Optional[dict]) -> dict:
@@ -353,23 +357,51 @@ class GarmentDynamicsEnv(_Base):
 
     def step(self) -> dict:
         """One simulation step of dt. Returns {"sim_time", "failed", "failure"}."""
+        return self._advance(1)
+
+    def step_to_time(self, target_time: float) -> None:
+        """Steps while sim time < target_time (so it ends less than one dt past it). Stops early,
+        with a warning, if the scene failed. With the server's pins (fixed_point Grasp/Fold) the
+        steps up to target_time go in one call (substeps), the arms' trajectories having been sent
+        ahead; with kinematic vertex targets (Fling, manual grab points), which reach their
+        positions over one step, one call per step."""
+        while self.sim_time < target_time - 1e-9 and not self._failed:
+            if self.pin_mode != "server":
+                self._advance(1)
+                continue
+            k, t = 0, self.sim_time
+            while t < target_time - 1e-9:
+                t += self.dt
+                k += 1
+            self._advance(min(k, self._substeps_per_call()))
+
+    def _substeps_per_call(self) -> int:
+        """Most steps one call may take: a quarter of the client's deadline at the measured pace,
+        and the server's default limit of 1000."""
+        timeout = getattr(self.client, "timeout", None) or 60.0
+        if self._seconds_per_step <= 0:
+            return 8  # the first calls measure the pace
+        return int(max(1, min(1000, 0.25 * timeout / self._seconds_per_step)))
+
+    def _advance(self, substeps: int) -> dict:
+        """substeps steps of dt in one StepScenes call."""
         if self._failed:
             return {"sim_time": self.sim_time, "failed": True, "failure": self._failure}
-        t_end = self.sim_time + self.dt
-        state = self.client.step_states([self.scene_id], [self._action(t_end)], substeps=1,
-                                        omit_positions=True)[0]
+        if self.pin_mode == "server":
+            action = None if self._sent_ahead else self._trajectories_ahead()
+        else:
+            action = self._action(self.sim_time + self.dt * substeps)
+        t0 = time.monotonic()
+        state = self.client.step_states([self.scene_id], [action], substeps=substeps, omit_positions=True)[0]
+        pace = (time.monotonic() - t0) / substeps
+        self._seconds_per_step = pace if self._seconds_per_step <= 0 else max(pace, 0.5 * (self._seconds_per_step + pace))
+        self._sent_ahead = self._sent_ahead or self.pin_mode == "server"
         self.sim_time = state.time
         self._vertices = None
         if state.failed:
             self._failed, self._failure = True, state.failure
             log.warning("the simulation failed at t = %.3f s: %s", state.time, state.failure)
         return {"sim_time": self.sim_time, "failed": state.failed, "failure": state.failure}
-
-    def step_to_time(self, target_time: float) -> None:
-        """Steps while sim time < target_time (so it ends less than one dt past it). Stops early,
-        with a warning, if the scene failed."""
-        while self.sim_time < target_time - 1e-9 and not self._failed:
-            self.step()
 
     def close(self) -> None:
         """Destroys the scene (and stops a server the env spawned); safe to call twice."""
@@ -387,14 +419,32 @@ class GarmentDynamicsEnv(_Base):
         """Absolute CSV time at sim time t."""
         return self.master_start_time + t - self.prepare_time - self.wait_time
 
-    def _action(self, t_end: float) -> dict:
+    def _trajectories_ahead(self) -> dict:
+        """Server pin mode: each arm's whole trajectory as timed samples (scene time), sent with the
+        first call and kept by the server: the sample at the first step's end, then every CSV
+        sample after it (the server interpolates between samples as PoseTrack.at does, so every
+        step ends where a per-step command would have put it)."""
         action = {}
-        if self.pin_mode == "server":
-            for arm, track in self.tracks.items():
-                pos, quat, _ = track.at(self._traj_time(t_end))
-                action[arm] = {"position": pos, "orientation": quat, "gripper": 0.035}
-            return action
-        # kinematic pins: [left, right] vertices
+        t_first = self.dt
+        for arm, track in self.tracks.items():
+            pos, quat, _ = track.at(self._traj_time(t_first))
+            samples = [{"position": pos, "orientation": quat, "gripper": GRIPPER_OPEN, "time": t_first}]
+            sim_times = np.asarray(track.times, dtype=np.float64) - self._traj_time(0.0)
+            last = t_first
+            for k, t in enumerate(sim_times):
+                if k + 1 < len(sim_times) and sim_times[k + 1] <= t:
+                    continue  # a later sample at the same time wins (as in PoseTrack.at)
+                if t <= last + 1e-9:
+                    continue
+                samples.append({"position": track.positions[k], "orientation": track.quats[k],
+                                "gripper": GRIPPER_OPEN, "time": float(t)})
+                last = t
+            action[arm] = samples
+        return action
+
+    def _action(self, t_end: float) -> dict:
+        """Kinematic-target mode: the [left, right] pinned vertices' targets at t_end."""
+        action = {}
         idx, pos = [], []
         for k, arm in enumerate(("left", "right")):
             if arm not in self.tracks:

@@ -70,6 +70,54 @@ def test_step_applies_each_scenes_own_action(client):
         client.destroy(ids)
 
 
+def test_timed_arm_samples_drive_one_call_of_many_substeps(client):
+    # Scene a lifts the corners with one call per 2 steps; scene b gets the same arm path as
+    # timed samples in one call of 20 steps: both end with the same cloth.
+    ids = client.create_scenes(garment="towel", vertices=TOWEL_VERTICES, count=2)
+    try:
+        rest = client.scene_info(ids[0])["rest_positions"]
+        dt = client.scene_info(ids[0])["dt"]
+        corners = [rest[i] for i in corner_vertices(rest)]
+        for sid in ids:
+            client.step([sid], [lift_actions(corners, False, 0.0)])
+            client.step([sid], [lift_actions(corners, True, 0.0)])
+        t_now = client.get_state([ids[1]])[0].time
+        for k in range(1, 11):
+            xa = client.step([ids[0]], [lift_actions(corners, True, 0.02 * k)], substeps=2)[0]
+        samples = {arm: [dict(cmd, time=t_now + 2 * k * dt) for k, cmd in
+                         ((k, lift_actions(corners, True, 0.02 * k)[arm]) for k in range(1, 11))]
+                   for arm in ("left", "right")}
+        xb = client.step([ids[1]], [samples], substeps=20)[0]
+        assert client.get_state([ids[1]])[0].steps == 22
+        assert xb[:, 2].max() == pytest.approx(0.2, abs=0.02)
+        np.testing.assert_allclose(xb, xa, atol=1e-5)
+    finally:
+        client.destroy(ids)
+
+
+def test_timed_arm_samples_out_of_order_are_refused_and_change_nothing(client):
+    sid = client.create_scenes(garment="towel", vertices=TOWEL_VERTICES)[0]
+    try:
+        def at(t, z=0.1):
+            return {"position": (0.0, 0.2, z), "time": t}
+        client.step([sid], [{"left": [at(0.5), at(1.0)]}])  # samples ahead of the scene's time
+        before = client.get_state([sid])[0]
+        cases = [({"left": [at(0.7), at(0.6)]}, "increasing time"),          # out of order in one call
+                 ({"left": [at(0.9)]}, "not after its previous sample"),     # before the last one sent
+                 ({"left": [{"position": (0, 0.2, 0.1)}, at(2.0)]}, "after its untimed one"),
+                 ({"left": [at(float("nan"))]}, "not finite")]
+        for action, words in cases:
+            with pytest.raises(grpc.RpcError) as e:
+                client.step([sid], [action], substeps=3)
+            assert e.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+            assert words in e.value.details()
+        after = client.get_state([sid])[0]
+        assert after.steps == before.steps and after.time == before.time
+        client.step([sid], [{"left": [at(1.5)], "right": {"position": (0.0, -0.2, 0.1)}}], substeps=2)
+    finally:
+        client.destroy([sid])
+
+
 def test_kinematic_targets_move_vertices(client, towel):
     rest = client.scene_info(towel)["rest_positions"]
     i, j = corner_vertices(rest)

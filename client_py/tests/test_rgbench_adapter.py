@@ -117,6 +117,52 @@ def test_fixed_point_pins_the_vertex_nearest_the_arm_at_grab_time_not_at_the_sta
         env.close()
 
 
+class CountingClient:
+    """The client, counting StepScenes calls (everything else passes through)."""
+
+    def __init__(self, client):
+        self._client, self.step_calls = client, 0
+
+    def step_states(self, *args, **kwargs):
+        self.step_calls += 1
+        return self._client.step_states(*args, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self._client, name)
+
+
+def test_step_to_time_is_one_call_per_frame_and_ends_where_per_step_commands_do(client, tmp_path):
+    # RGBench's run_benchmark.py: one step_to_time per capture frame. With the server's pins the
+    # arms' trajectories go ahead with the first call and each frame is one batched call; the
+    # cloth ends where one call per step, each commanding the arms' pose at its end (the
+    # adapter's former protocol, replayed here by hand), puts it.
+    paths = write_csvs(tmp_path)
+    counting = CountingClient(client)
+    env = GarmentDynamicsEnv(cfg=make_cfg(paths), client=counting)
+    ref = GarmentDynamicsEnv(cfg=make_cfg(paths), client=client)
+    try:
+        frames = [0.1 * k for k in range(1, 11)]  # 10 Hz frames, 5 steps of 0.02 s each
+        for t in frames:
+            env.step_to_time(t)
+        assert counting.step_calls == len(frames)
+        steps = 0
+        while ref.sim_time < frames[-1] - 1e-9:
+            t_end = ref.sim_time + ref.dt
+            action = {}
+            for arm, track in ref.tracks.items():
+                pos, quat, _ = track.at(ref._traj_time(t_end))
+                action[arm] = {"position": pos, "orientation": quat, "gripper": 0.035}
+            ref.sim_time = client.step_states([ref.scene_id], [action], substeps=1)[0].time
+            steps += 1
+        assert env.get_current_sim_time() == pytest.approx(ref.sim_time, abs=1e-9) and steps == 50
+        x, x_ref = env.get_sim_vertices(), client.get_state([ref.scene_id])[0].positions
+        assert np.linalg.norm(x - world_ee("left", ref.sim_time), axis=1).min() < 0.01  # lifted
+        np.testing.assert_allclose(x, x_ref, atol=1e-5)
+    finally:
+        env.close()
+        ref.close()
+
+
 def test_fling_drives_the_shoulder_vertices(client, tmp_path):
     paths = write_csvs(tmp_path, start_delay=0.2)
     # the towel's near corners play the shoulders

@@ -135,6 +135,7 @@ Status to_step_request(const pb::StepScenesRequest& r, StepRequest* out) {
         cmd.orientation = Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z());
       }
       cmd.gripper = c.gripper();
+      if (c.has_time()) cmd.time = c.time();
       act.arms.push_back(cmd);
     }
     if (a.has_targets()) {

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <set>
 #include <thread>
@@ -451,15 +452,28 @@ namespace {
 
 /// Checks one action against its scene's vertex count; normalises nothing.
 Status check_action(const SceneAction& a, int vertex_count) {
-  bool named[2] = {false, false};
+  bool untimed[2] = {false, false};  // an untimed command (the call's end) was given: it must be the last
+  double last[2] = {-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   for (const ArmCommand& c : a.arms) {
     const int i = static_cast<int>(c.arm);
     if (i < 0 || i > 1)
       return Status::InvalidArgument(fmt::format("scene '{}': arm must be ARM_LEFT or ARM_RIGHT", a.scene_id));
-    if (named[i])
-      return Status::InvalidArgument(
-          fmt::format("scene '{}': the {} arm is commanded twice; one command per arm", a.scene_id, tasks::arm_name(c.arm)));
-    named[i] = true;
+    if (untimed[i])
+      return Status::InvalidArgument(fmt::format(
+          "scene '{}': the {} arm has a command after its untimed one; give every earlier sample a time, "
+          "or one command per arm", a.scene_id, tasks::arm_name(c.arm)));
+    if (!c.time) {
+      untimed[i] = true;
+    } else if (!std::isfinite(*c.time)) {
+      return Status::InvalidArgument(fmt::format("scene '{}': the {} arm's sample time is not finite", a.scene_id,
+                                                 tasks::arm_name(c.arm)));
+    } else if (!(*c.time > last[i])) {
+      return Status::InvalidArgument(fmt::format(
+          "scene '{}': the {} arm's samples must come in increasing time (t={} s after t={} s)", a.scene_id,
+          tasks::arm_name(c.arm), *c.time, last[i]));
+    } else {
+      last[i] = *c.time;
+    }
     if (!finite(c.position))
       return Status::InvalidArgument(fmt::format("scene '{}': the {} arm's position is not finite", a.scene_id,
                                                  tasks::arm_name(c.arm)));
@@ -558,6 +572,28 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
       return Status::FailedPrecondition(fmt::format("scene '{}' has failed ({}); reset it (ResetScenes) or destroy it",
                                                     e->id, e->scene->failure().empty() ? e->error : e->scene->failure()));
 
+  // Each arm's samples must follow its last one (checked before anything changes).
+  for (size_t i = 0; i < entries.size(); ++i) {
+    const SceneAction* a = actions[i];
+    if (!a) continue;
+    Entry& e = *entries[i];
+    const double t_end = e.scene->time() + substeps * e.scene->options().dt;
+    double after[2];
+    for (int k = 0; k < 2; ++k) {
+      const tasks::ArmTrajectory& traj = e.controller->trajectory().arm(static_cast<tasks::Arm>(k));
+      after[k] = traj.empty() ? -std::numeric_limits<double>::infinity() : traj.samples().back().t;
+    }
+    for (const ArmCommand& c : a->arms) {
+      double& prev = after[static_cast<int>(c.arm)];
+      const double t = c.time ? *c.time : t_end;
+      if (!(t > prev))
+        return Status::InvalidArgument(fmt::format(
+            "scene '{}': the {} arm's sample at t={} s is not after its previous sample (t={} s); send samples in "
+            "increasing time, each after the last one sent{}", e.id, tasks::arm_name(c.arm), t, prev,
+            c.time ? "" : " (an untimed command is at the end of this call's steps)"));
+      prev = t;
+    }
+  }
   // Kinematic targets first (the only action the scene itself may still refuse); undone on error.
   std::vector<std::pair<Entry*, int>> added;
   for (size_t i = 0; i < entries.size(); ++i) {
@@ -582,7 +618,8 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
       return Status::InvalidArgument(fmt::format("scene '{}': {}", e.id, ex.what()));
     }
   }
-  // Arm commands: a sample at the end time of this call's steps (validated above).
+  // Arm commands: samples at their times, an untimed one at the end time of this call's steps
+  // (validated above and before the targets).
   for (size_t i = 0; i < entries.size(); ++i) {
     const SceneAction* a = actions[i];
     if (!a) continue;
@@ -590,7 +627,7 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
     const double t_end = e.scene->time() + substeps * e.scene->options().dt;
     for (const ArmCommand& c : a->arms) {
       tasks::ArmSample s;
-      s.t = t_end;
+      s.t = c.time ? *c.time : t_end;
       s.position = c.position;
       s.orientation = c.orientation.normalized();
       s.gripper = c.gripper;

@@ -97,6 +97,9 @@ struct ArmCommand {
   Vec3 position = Vec3::Zero();
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< need not be normalised
   double gripper = 0.035;        ///< opening, m
+  /// Scene time of this sample, s; unset: the end of the call's steps. Several samples of one
+  /// arm come in increasing time, each after the arm's last sample (an untimed one last).
+  std::optional<double> time;
 };
 
 /// What to do to one scene in a step.

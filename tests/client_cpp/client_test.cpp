@@ -156,6 +156,47 @@ TEST_F(ClientTest, ArmActionGraspsAndLiftsTheCloth) {
   client_.destroy(created.ids);
 }
 
+TEST_F(ClientTest, TimedArmSamplesLiftTheClothInOneCallAndOutOfOrderOnesAreRefused) {
+  const CreatedScenes created = make_towels(1);
+  const auto& x0 = created.states[0].positions;
+  const int n = created.info.vertex_count;
+  const double dt = created.info.dt;
+  int v = 0;
+  for (int i = 1; i < n; ++i)
+    if (x0[3 * i + 1] > x0[3 * v + 1]) v = i;
+  auto sample = [&](double z, double gripper, std::optional<double> t) {
+    ArmCommand c;
+    c.arm = Arm::kLeft;
+    c.pose.position = {x0[3 * v], x0[3 * v + 1], x0[3 * v + 2] + z};
+    c.pose.orientation = {0, 1, 0, 0};
+    c.gripper = gripper;
+    c.time = t;
+    return c;
+  };
+  SceneAction a;
+  a.scene_id = created.ids[0];
+  // Reach and close in 12 steps, then lift 10 cm over the next 20: one call of 32 substeps.
+  a.arms = {sample(0, 0.035, 10 * dt), sample(0, 0.0, 12 * dt), sample(0.10, 0.0, 32 * dt)};
+  StepOptions opt;
+  opt.substeps = 32;
+  auto s = client_.step(created.ids, {a}, opt);
+  ASSERT_FALSE(s[0].failed) << s[0].failure;
+  EXPECT_EQ(s[0].steps, 32);
+  EXPECT_GT(s[0].positions[3 * v + 2], x0[3 * v + 2] + 0.08);
+  // A sample before the arm's last one (t = 32 dt) is refused; the scene is unchanged.
+  a.arms = {sample(0.2, 0.0, 20 * dt)};
+  opt.substeps = 5;
+  try {
+    client_.step(created.ids, {a}, opt);
+    FAIL() << "a sample before the arm's last one was accepted";
+  } catch (const ClientError& e) {
+    EXPECT_EQ(e.code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("not after its previous sample"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(client_.get_state(created.ids)[0].steps, 32);
+  client_.destroy(created.ids);
+}
+
 TEST_F(ClientTest, StreamsFramesUntilTheStreamsOwnStepsAreDone) {
   const CreatedScenes created = make_towels(2);
   StreamOptions opt;

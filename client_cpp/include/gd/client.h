@@ -110,10 +110,15 @@ struct Pose {
 
 /// One arm's command: the end-effector pose and gripper opening reached at the end of the step
 /// (interpolated over its substeps). The gripper grasps when its opening falls below 0.01 m.
+/// With `time`, a sample of the arm's trajectory at that scene time instead: an action may name
+/// an arm several times (increasing times, each after the arm's last sample, an untimed command
+/// last), so one call of many substeps follows a sampled motion; samples past the call's end are
+/// kept for later calls.
 struct ArmCommand {
   Arm arm = Arm::kLeft;
   Pose pose;
   double gripper = 0.035;  ///< opening, m: 0 closed, 0.035 fully open
+  std::optional<double> time;  ///< scene time of this sample, s (unset: the end of the call's steps)
 };
 
 /// What one scene does during a step. Arms not named hold their last command.
