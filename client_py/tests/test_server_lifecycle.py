@@ -110,3 +110,29 @@ def test_kill9_and_restart_keep_completed_reports(server_bin, tmp_path):
         report = again.get_report(done, include_files=True)
         assert report["summary"] == first["summary"]
         assert "summary.json" in report["files"]
+
+
+def test_leases_free_what_a_client_left_and_say_so(server_bin, tmp_path):
+    # A client that dies without DestroyScenes (RGBench's run_benchmark.py never closes its env):
+    # the server's leases free its scene and its uploaded mesh; whoever names them later learns why.
+    obj = "".join(f"v {0.03 * i} {0.03 * j} 0\n" for j in range(8) for i in range(12))
+    obj += "".join(f"f {j * 12 + i + 1} {j * 12 + i + 2} {j * 12 + i + 14}\nf {j * 12 + i + 1} {j * 12 + i + 14} "
+                   f"{j * 12 + i + 13}\n" for j in range(7) for i in range(11))
+    with Client.spawn(server_bin=server_bin, data_dir=str(tmp_path / "data"), threads=1,
+                      extra_args=["--scene-lease-s", "1", "--mesh-lease-s", "1"]) as c:
+        mesh = c.upload_mesh(obj.encode(), name="grid")
+        assert c.upload_mesh(obj.encode(), name="grid") == mesh  # the same upload again: the same mesh
+        sid = c.create_scenes(mesh_id=mesh)[0]
+        kept = c.create_scenes(garment="towel", vertices=200)[0]
+        end = time.monotonic() + 4.0  # 4 leases; naming the idle scene would count as a use
+        while time.monotonic() < end:
+            time.sleep(0.3)
+            c.step([kept])  # in use: stays
+        with pytest.raises(grpc.RpcError) as e:
+            c.get_state([sid])
+        assert e.value.code() == C.NOT_FOUND
+        assert "without a call" in e.value.details() and "--scene-lease-s" in e.value.details()
+        with pytest.raises(grpc.RpcError) as e:
+            c.create_scenes(mesh_id=mesh)
+        assert e.value.code() == C.NOT_FOUND and "--mesh-lease-s" in e.value.details()
+        assert c.step([kept]).shape[0] == 1

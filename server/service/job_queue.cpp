@@ -4,6 +4,7 @@
 #include <spdlog/fmt/fmt.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -84,6 +85,11 @@ JobQueue::~JobQueue() { drain(0); }
 int JobQueue::active() const {
   std::lock_guard<std::mutex> lock(mu_);
   return running_ + static_cast<int>(queue_.size());
+}
+
+bool JobQueue::uses_file(const std::string& path) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return std::any_of(configs_.begin(), configs_.end(), [&](const auto& kv) { return kv.second->garment == path; });
 }
 
 Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {

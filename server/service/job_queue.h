@@ -110,6 +110,8 @@ class JobQueue {
   Status list(int limit, int offset, std::vector<JobRecord>* out, int* total, const std::string& caller = {});
   /// Jobs queued or running now.
   int active() const;
+  /// Whether a queued job will read the file at `path` (an uploaded garment; the mesh lease).
+  bool uses_file(const std::string& path) const;
   /// Cancels a job: a queued one is dropped at once, a running one stops at its next step; both
   /// end CANCELLED (the running one keeps the files it wrote). FAILED_PRECONDITION for a finished
   /// job, NOT_FOUND for an unknown one. `out` receives the record as it stands after the call.

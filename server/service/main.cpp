@@ -80,6 +80,16 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   app.add_flag("--plots", o.plots, "draw the PNG plots of capture jobs (needs Python with matplotlib)");
+  app.add_option("--scene-lease-s", o.scene_lease_seconds,
+                 "scenes that no call names for this long are destroyed (a client that died or never called "
+                 "DestroyScenes); later calls get NOT_FOUND saying so; 0: never")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--mesh-lease-s", o.mesh_lease_seconds,
+                 "uploaded meshes that no call uses for this long (UploadMesh, CreateScenes, SubmitJob) are "
+                 "deleted; later calls naming one get NOT_FOUND saying so; 0: never")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   app.add_option("--grace-seconds", o.grace_seconds, "on SIGTERM: how long running jobs may still take")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--auth-token-file", o.auth_token_file,
                  "bearer tokens, one per line ('#' comments): every call but the health check must send one "

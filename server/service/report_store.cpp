@@ -173,6 +173,15 @@ ReportStore::ReportStore(const std::string& path) : path_(path) {
     must("ALTER TABLE jobs ADD COLUMN owner TEXT NOT NULL DEFAULT ''; PRAGMA user_version = 2;");
     must("COMMIT");
   }
+  if (version < 3) {  // meshes: content hash (identical uploads), last use and expiry (the mesh lease)
+    must("BEGIN IMMEDIATE");
+    must("ALTER TABLE meshes ADD COLUMN content_hash TEXT NOT NULL DEFAULT ''; "
+         "ALTER TABLE meshes ADD COLUMN last_used REAL NOT NULL DEFAULT 0; "
+         "ALTER TABLE meshes ADD COLUMN expired_at TEXT NOT NULL DEFAULT ''; "
+         "UPDATE meshes SET last_used = CAST(strftime('%s', 'now') AS REAL); "  // the lease starts now
+         "PRAGMA user_version = 3;");
+    must("COMMIT");
+  }
 }
 
 ReportStore::~ReportStore() {
@@ -314,14 +323,21 @@ Status ReportStore::list(int limit, int offset, std::vector<JobRecord>* out, int
 
 Status ReportStore::insert_mesh(const MeshRecord& m) {
   std::lock_guard<std::mutex> lock(mu_);
-  Stmt s(db_, "INSERT INTO meshes(mesh_id, name, path, vertices, triangles, created_at) VALUES(?,?,?,?,?,?)");
+  Stmt s(db_,
+         "INSERT INTO meshes(mesh_id, name, path, vertices, triangles, created_at, content_hash, last_used) "
+         "VALUES(?,?,?,?,?,?,?,?)");
   if (!s.ok()) return error("prepare insert mesh");
   s.bind(1, m.mesh_id).bind(2, m.name).bind(3, m.path).bind(4, m.vertices).bind(5, m.triangles).bind(6, m.created_at);
+  s.bind(7, m.content_hash).bind(8, m.last_used);
   if (s.step() != SQLITE_DONE) return error("insert mesh " + m.mesh_id);
   return Status::Ok();
 }
 
 namespace {
+
+constexpr const char* kMeshColumns =
+    "mesh_id, name, path, vertices, triangles, created_at, content_hash, last_used, expired_at";
+
 MeshRecord read_mesh(const Stmt& s) {
   MeshRecord m;
   m.mesh_id = s.text(0);
@@ -330,13 +346,17 @@ MeshRecord read_mesh(const Stmt& s) {
   m.vertices = static_cast<int>(s.integer(3));
   m.triangles = static_cast<int>(s.integer(4));
   m.created_at = s.text(5);
+  m.content_hash = s.text(6);
+  m.last_used = s.real(7);
+  m.expired_at = s.text(8);
   return m;
 }
+
 }  // namespace
 
 Status ReportStore::get_mesh(const std::string& mesh_id, MeshRecord* out) {
   std::lock_guard<std::mutex> lock(mu_);
-  Stmt s(db_, "SELECT mesh_id, name, path, vertices, triangles, created_at FROM meshes WHERE mesh_id = ?");
+  Stmt s(db_, fmt::format("SELECT {} FROM meshes WHERE mesh_id = ?", kMeshColumns).c_str());
   if (!s.ok()) return error("prepare get mesh");
   s.bind(1, mesh_id);
   const int rc = s.step();
@@ -349,12 +369,57 @@ Status ReportStore::get_mesh(const std::string& mesh_id, MeshRecord* out) {
 
 Status ReportStore::list_meshes(std::vector<MeshRecord>* out) {
   std::lock_guard<std::mutex> lock(mu_);
-  Stmt s(db_, "SELECT mesh_id, name, path, vertices, triangles, created_at FROM meshes ORDER BY created_at, mesh_id");
+  Stmt s(db_, fmt::format("SELECT {} FROM meshes WHERE expired_at = '' ORDER BY created_at, mesh_id", kMeshColumns)
+                  .c_str());
   if (!s.ok()) return error("prepare list meshes");
   out->clear();
   int rc;
   while ((rc = s.step()) == SQLITE_ROW) out->push_back(read_mesh(s));
   if (rc != SQLITE_DONE) return error("list meshes");
+  return Status::Ok();
+}
+
+Status ReportStore::find_mesh_by_hash(const std::string& hash, MeshRecord* out, bool* found) {
+  std::lock_guard<std::mutex> lock(mu_);
+  Stmt s(db_, fmt::format("SELECT {} FROM meshes WHERE content_hash = ? AND expired_at = '' ORDER BY created_at "
+                          "LIMIT 1", kMeshColumns).c_str());
+  if (!s.ok()) return error("prepare find mesh");
+  s.bind(1, hash);
+  const int rc = s.step();
+  *found = rc == SQLITE_ROW;
+  if (rc != SQLITE_ROW && rc != SQLITE_DONE) return error("find mesh");
+  if (*found) *out = read_mesh(s);
+  return Status::Ok();
+}
+
+Status ReportStore::touch_mesh(const std::string& mesh_id, double when) {
+  std::lock_guard<std::mutex> lock(mu_);
+  Stmt s(db_, "UPDATE meshes SET last_used = ? WHERE mesh_id = ?");
+  if (!s.ok()) return error("prepare touch mesh");
+  s.bind(1, when).bind(2, mesh_id);
+  if (s.step() != SQLITE_DONE) return error("touch mesh " + mesh_id);
+  return Status::Ok();
+}
+
+Status ReportStore::idle_meshes(double before, std::vector<MeshRecord>* out) {
+  std::lock_guard<std::mutex> lock(mu_);
+  Stmt s(db_, fmt::format("SELECT {} FROM meshes WHERE expired_at = '' AND last_used < ? ORDER BY last_used",
+                          kMeshColumns).c_str());
+  if (!s.ok()) return error("prepare idle meshes");
+  s.bind(1, before);
+  out->clear();
+  int rc;
+  while ((rc = s.step()) == SQLITE_ROW) out->push_back(read_mesh(s));
+  if (rc != SQLITE_DONE) return error("idle meshes");
+  return Status::Ok();
+}
+
+Status ReportStore::expire_mesh(const std::string& mesh_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  Stmt s(db_, "UPDATE meshes SET expired_at = ? WHERE mesh_id = ?");
+  if (!s.ok()) return error("prepare expire mesh");
+  s.bind(1, now_iso8601()).bind(2, mesh_id);
+  if (s.step() != SQLITE_DONE) return error("expire mesh " + mesh_id);
   return Status::Ok();
 }
 

@@ -68,6 +68,9 @@ struct MeshRecord {
   int vertices = 0;
   int triangles = 0;
   std::string created_at;
+  std::string content_hash;  ///< of its name and OBJ text (an identical upload returns this mesh)
+  double last_used = 0;      ///< Unix time of its upload or last use (the mesh lease)
+  std::string expired_at;    ///< set when the lease deleted its file ('' while it is live)
 };
 
 /// The current time, ISO 8601 UTC with seconds ("2026-01-31T12:00:00Z").
@@ -78,7 +81,7 @@ std::string new_id(const std::string& prefix);
 
 class ReportStore {
  public:
-  static constexpr int kSchemaVersion = 2;  ///< 2: jobs.owner
+  static constexpr int kSchemaVersion = 3;  ///< 2: jobs.owner; 3: meshes' hash, use and expiry
 
   /// Opens (creating if needed) the database at `path`. Throws sim::InputError when it cannot be
   /// opened or was written by a newer schema.
@@ -106,9 +109,18 @@ class ReportStore {
   Status list(int limit, int offset, std::vector<JobRecord>* out, int* total, const std::string& caller = {});
 
   Status insert_mesh(const MeshRecord& mesh);
-  /// NOT_FOUND for an unknown id.
+  /// NOT_FOUND for an unknown id; an expired mesh comes back with expired_at set.
   Status get_mesh(const std::string& mesh_id, MeshRecord* out);
+  /// The live meshes.
   Status list_meshes(std::vector<MeshRecord>* out);
+  /// A live mesh with this content hash, if any (*found false otherwise).
+  Status find_mesh_by_hash(const std::string& hash, MeshRecord* out, bool* found);
+  /// Sets a mesh's last use (Unix time).
+  Status touch_mesh(const std::string& mesh_id, double when);
+  /// The live meshes last used before `before` (Unix time).
+  Status idle_meshes(double before, std::vector<MeshRecord>* out);
+  /// Marks a mesh expired (its file is gone); get_mesh still finds it, list_meshes no longer.
+  Status expire_mesh(const std::string& mesh_id);
 
  private:
   Status exec(const char* sql);

@@ -138,8 +138,19 @@ bool finite(const Vec3& v) { return v.allFinite(); }
 
 }  // namespace
 
+namespace {
+
+/// Steady-clock time, ns (scene leases).
+int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
 struct ScenePool::Entry {
   std::mutex mu;
+  std::atomic<int64_t> last_used_ns{steady_ns()};  ///< when a call last named it (lease)
   std::string id;
   std::string owner;  ///< the creating caller's principal
   std::shared_ptr<const Template> tmpl;
@@ -245,9 +256,17 @@ Status ScenePool::lookup(const std::vector<std::string>& ids, const std::string&
     if (!seen.insert(id).second)
       return Status::InvalidArgument(fmt::format("scene '{}' is named twice; name each scene once per call", id));
     auto it = scenes_.find(id);
-    if (it == scenes_.end() || it->second->owner != owner)  // another owner's scene: as if unknown
+    if (it == scenes_.end() || it->second->owner != owner) {  // another owner's scene: as if unknown
+      const auto gone = expired_.find(id);
+      if (it == scenes_.end() && gone != expired_.end() && gone->second.owner == owner)
+        return Status::NotFound(fmt::format(
+            "scene '{}' was destroyed after {:.0f} s without a call (this server's scene lease is {:g} s, "
+            "--scene-lease-s); create scenes again with CreateScenes", id, gone->second.idle_seconds,
+            options_.scene_lease_seconds));
       return Status::NotFound(fmt::format("no scene '{}' on this server (destroyed, never created, or created "
                                           "before a restart); create scenes with CreateScenes", id));
+    }
+    it->second->last_used_ns = steady_ns();
     out->push_back(it->second);
   }
   return Status::Ok();
@@ -696,7 +715,10 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
                               "after {} of {} scene-steps (GetState reads where they are)",
                               done_substeps.load(), substeps * n));
   out->clear();
-  for (const auto& e : entries) out->push_back(e->snapshot(req.include_positions, req.include_velocities));
+  for (const auto& e : entries) {
+    e->last_used_ns = steady_ns();  // a long call counts as use until it ends
+    out->push_back(e->snapshot(req.include_positions, req.include_velocities));
+  }
   return Status::Ok();
 }
 
@@ -745,6 +767,53 @@ Status ScenePool::destroy(const std::vector<std::string>& ids, int* destroyed, c
   }
   *destroyed = static_cast<int>(entries.size());
   return Status::Ok();
+}
+
+int ScenePool::expire_idle() {
+  if (!(options_.scene_lease_seconds > 0)) return 0;
+  const int64_t now = steady_ns();
+  const auto lease_ns = static_cast<int64_t>(options_.scene_lease_seconds * 1e9);
+  std::vector<std::pair<std::shared_ptr<Entry>, double>> gone;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (auto it = scenes_.begin(); it != scenes_.end();) {
+      Entry& e = *it->second;
+      if (now - e.last_used_ns.load() <= lease_ns) {
+        ++it;
+        continue;
+      }
+      std::unique_lock<std::mutex> busy(e.mu, std::try_to_lock);
+      if (!busy.owns_lock()) {  // a call is stepping it right now
+        ++it;
+        continue;
+      }
+      const bool watched = std::any_of(e.subscribers.begin(), e.subscribers.end(), [](auto& w) { return !w.expired(); });
+      if (watched) {  // a stream subscribes: in use
+        e.last_used_ns = now;
+        ++it;
+        continue;
+      }
+      const double idle = (now - e.last_used_ns.load()) * 1e-9;
+      expired_[e.id] = Expired{e.owner, idle};
+      expired_order_.push_back(e.id);
+      if (expired_order_.size() > kExpiredRemembered) {
+        expired_.erase(expired_order_.front());
+        expired_order_.pop_front();
+      }
+      gone.emplace_back(it->second, idle);
+      it = scenes_.erase(it);
+    }
+  }
+  for (auto& [e, idle] : gone) {
+    std::lock_guard<std::mutex> lock(e->mu);
+    gd::log().info("scene {} destroyed after {:.0f} s without a call (scene lease {:g} s)", e->id, idle,
+                   options_.scene_lease_seconds);
+    e->destroyed = true;
+    e->close_subscribers();
+    e->scene.reset();
+    e->controller.reset();
+  }
+  return static_cast<int>(gone.size());
 }
 
 Status ScenePool::subscribe(const std::vector<std::string>& ids, int every, std::shared_ptr<FrameSubscription>* out,

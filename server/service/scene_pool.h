@@ -65,6 +65,10 @@ struct PoolOptions {
   /// Most bytes of frames one subscription queues for a client that reads slower than its scenes
   /// step (flag --max-queued-frames-mb); past it the oldest frames are dropped (FrameSubscription).
   size_t max_queued_frame_bytes = size_t(16) << 20;
+  /// Scenes that no call has named for this long are destroyed by expire_idle() (flag
+  /// --scene-lease-s; 0: never): a client that dies or forgets DestroyScenes does not hold its
+  /// slots and memory for good.
+  double scene_lease_seconds = 0;
   sim::BackendKind backend = sim::BackendKind::kCpu;
 };
 
@@ -239,6 +243,10 @@ class ScenePool {
   /// Subscribes to the frames of scenes (see FrameSubscription). Unsubscribe by dropping the pointer.
   Status subscribe(const std::vector<std::string>& ids, int every, std::shared_ptr<FrameSubscription>* out,
                    const std::string& owner = {});
+  /// Destroys the scenes that no call has named for options().scene_lease_seconds (none while a
+  /// call holds them or a stream subscribes to them), logging each; later calls naming one get
+  /// NOT_FOUND saying it expired. Returns how many. The server calls it periodically.
+  int expire_idle();
 
   struct Entry;  ///< one scene (private to the implementation)
 
@@ -254,6 +262,15 @@ class ScenePool {
 
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Entry>> scenes_;
+  /// Scenes destroyed by expire_idle (id -> owner, idle seconds), the oldest forgotten past
+  /// kExpiredRemembered, so that a caller learns why its scene is gone.
+  struct Expired {
+    std::string owner;
+    double idle_seconds = 0;
+  };
+  std::map<std::string, Expired> expired_;
+  std::deque<std::string> expired_order_;
+  static constexpr size_t kExpiredRemembered = 100000;
   int reserved_ = 0;      ///< slots held by creates in progress
 };
 

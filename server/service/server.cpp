@@ -5,7 +5,9 @@
 #include <grpcpp/health_check_service_interface.h>
 #include <spdlog/fmt/fmt.h>
 
+#include <algorithm>
 #include <chrono>
+#include <condition_variable>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -77,6 +79,34 @@ struct Server::Impl {
   std::unique_ptr<grpc::Server> server;
   int port = 0;
   std::once_flag drained;
+  // The lease sweeper: expires idle scenes and meshes every quarter of the shorter lease (at
+  // most every 30 s).
+  std::thread sweeper;
+  std::mutex sweep_mu;
+  std::condition_variable sweep_cv;
+  bool sweep_stop = false;
+
+  void start_sweeper() {
+    const double s = options.scene_lease_seconds, m = options.mesh_lease_seconds;
+    if (!(s > 0) && !(m > 0)) return;
+    const double shortest = !(s > 0) ? m : !(m > 0) ? s : std::min(s, m);
+    const auto period = std::chrono::duration<double>(std::clamp(shortest / 4, 0.05, 30.0));
+    sweeper = std::thread([this, period, m] {
+      std::unique_lock<std::mutex> lock(sweep_mu);
+      while (!sweep_cv.wait_for(lock, period, [this] { return sweep_stop; })) {
+        scenes->expire_idle();
+        meshes->expire_idle(m, [this](const std::string& path) { return jobs->uses_file(path); });
+      }
+    });
+  }
+  void stop_sweeper() {
+    {
+      std::lock_guard<std::mutex> lock(sweep_mu);
+      sweep_stop = true;
+    }
+    sweep_cv.notify_all();
+    if (sweeper.joinable()) sweeper.join();
+  }
 };
 
 Server::Server() : impl_(std::make_unique<Impl>()) {}
@@ -84,6 +114,7 @@ Server::Server() : impl_(std::make_unique<Impl>()) {}
 Server::~Server() {
   drain();
   if (impl_->server) impl_->server->Wait();
+  impl_->stop_sweeper();
 }
 
 std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
@@ -96,6 +127,8 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
   if (o.max_message_mb < 1 || o.max_message_mb > 2000)
     return fail(Status::InvalidArgument("--max-message-mb must be in [1, 2000]"));
   if (o.job_workers < 1) return fail(Status::InvalidArgument("--job-workers must be >= 1"));
+  if (!(o.scene_lease_seconds >= 0)) return fail(Status::InvalidArgument("--scene-lease-s must be >= 0 (0: never)"));
+  if (!(o.mesh_lease_seconds >= 0)) return fail(Status::InvalidArgument("--mesh-lease-s must be >= 0 (0: never)"));
   if (o.auth_token_file.empty() && !o.allow_unauthenticated && !is_loopback_host(o.host))
     return fail(Status::InvalidArgument(fmt::format(
         "--host {} is reachable from other machines: give --auth-token-file FILE (and --tls-cert/--tls-key), or "
@@ -127,6 +160,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     po.max_substeps = o.max_substeps;
     po.max_queued_frame_bytes = static_cast<size_t>(o.max_queued_frames_mb) << 20;
     po.max_reply_bytes = max_bytes;
+    po.scene_lease_seconds = o.scene_lease_seconds;
     po.backend = o.backend;
     im.scenes = std::make_unique<ScenePool>(po);
     JobQueueOptions jo;
@@ -177,6 +211,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     h->SetServingStatus(true);
     h->SetServingStatus(kServiceName, true);
   }
+  im.start_sweeper();
   gd::log().info("gd-server {} on {}:{} ({} scene threads, backend {}, data in {}; {}, {})", GD_VERSION, o.host,
                  im.port, im.scenes->threads(),
                  o.backend == sim::BackendKind::kCpu ? "cpu" : o.backend == sim::BackendKind::kCuda ? "cuda" : "auto",

@@ -32,6 +32,8 @@ struct ServerOptions {
   long max_job_steps = 2'000'000;    ///< simulation steps per job (0: no limit)
   bool plots = false;
   double grace_seconds = 10;         ///< drain: how long running jobs may still take
+  double scene_lease_seconds = 3600; ///< scenes no call names for this long are destroyed (0: never)
+  double mesh_lease_seconds = 7 * 86400;  ///< uploads unused for this long are deleted (0: never)
   /// Security (docs/service.md, "Tokens and TLS").
   std::string auth_token_file;       ///< bearer tokens, one per line (empty: no authentication)
   std::string tls_cert, tls_key;     ///< PEM certificate chain and private key: serve TLS (both or neither)

@@ -309,6 +309,56 @@ TEST(ScenePool, ACreateWhoseCallerIsGoneStopsMeshingAndKeepsNoScene) {
   EXPECT_EQ(pool.size(), 2);
 }
 
+// The scene lease: a scene no call names for scene_lease_seconds goes (its slot too), and whoever
+// names it later learns why; scenes in use, by calls or by a stream, stay.
+TEST(ScenePool, ScenesNoCallNamesForTheLeaseAreDestroyedAndSaySo) {
+  PoolOptions o = small_pool();
+  o.scene_lease_seconds = 1.0;
+  ScenePool pool(o);
+  CreatedScenes idle, used, watched;
+  ASSERT_TRUE(pool.create(towel(), &idle).ok());
+  ASSERT_TRUE(pool.create(towel(), &used).ok());
+  ASSERT_TRUE(pool.create(towel(), &watched).ok());
+  std::shared_ptr<FrameSubscription> sub;
+  ASSERT_TRUE(pool.subscribe(watched.ids, 1, &sub).ok());
+  EXPECT_EQ(pool.expire_idle(), 0);  // all fresh
+  StepRequest req;
+  req.scene_ids = used.ids;
+  std::vector<SceneSnapshot> out;
+  int expired = 0;
+  for (int k = 0; k < 12; ++k) {  // 1.2 s in all, the used scene named every 0.1 s
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    ASSERT_TRUE(pool.step(req, &out).ok());
+    expired += pool.expire_idle();
+  }
+  EXPECT_EQ(expired, 1);
+  EXPECT_EQ(pool.size(), 2);
+  const Status st = pool.state(idle.ids, false, &out);
+  EXPECT_EQ(st.code(), Code::kNotFound);
+  EXPECT_NE(st.message().find("without a call"), std::string::npos) << st.message();
+  EXPECT_NE(st.message().find("--scene-lease-s"), std::string::npos) << st.message();
+  // Another owner naming the expired id learns nothing about it.
+  const Status other = pool.state(idle.ids, false, &out, "someone-else");
+  EXPECT_EQ(other.code(), Code::kNotFound);
+  EXPECT_EQ(other.message().find("without a call"), std::string::npos);
+  ASSERT_TRUE(pool.state(watched.ids, false, &out).ok());  // the stream kept it
+  sub.reset();  // unsubscribed: now it may go once idle
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  EXPECT_EQ(pool.expire_idle(), 2);
+  EXPECT_EQ(pool.size(), 0);
+  CreatedScenes again;
+  ASSERT_TRUE(pool.create(towel(), &again).ok());  // slots are free again
+}
+
+TEST(ScenePool, NoLeaseKeepsScenesForever) {
+  ScenePool pool(small_pool());  // scene_lease_seconds 0
+  CreatedScenes c;
+  ASSERT_TRUE(pool.create(towel(), &c).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(pool.expire_idle(), 0);
+  EXPECT_EQ(pool.size(), 1);
+}
+
 TEST(ScenePool, SubscribersGetEveryKthStep) {
   ScenePool pool(small_pool());
   CreatedScenes c;
