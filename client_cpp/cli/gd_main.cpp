@@ -106,6 +106,10 @@ int main(int argc, char** argv) {
   std::vector<std::string> garment_params;
   run->add_option("--garment-param", garment_params,
                   "a size of a generated garment, NAME=VALUE (repeatable; e.g. hood_length=0.25; names in docs/garments.md)");
+  std::vector<std::string> material_params;
+  run->add_option("--material-param", material_params,
+                  "a parameter of the material replaced, NAME=VALUE in catalogue units (repeatable; e.g. "
+                  "bending_g_mm2_s2_rad=1000; names in docs/materials.md)");
   run->add_option("--capture", cfg.capture_dir, "RGBench capture directory to compare with");
   run->add_option("--experiment-library", cfg.experiment_library, "RGBench experiment_library.yaml (capture timing)");
   run->add_option("--trajectory", cfg.trajectory_file, "end-effector trajectory (CSV or JSON, docs/tasks.md)");
@@ -183,6 +187,8 @@ int main(int argc, char** argv) {
   try {
     gd::log();  // the logger reads GD_LOG_LEVEL
     for (const std::string& kv : garment_params) cfg.garment_params.insert(gd::cli::parse_name_value(kv, "--garment-param"));
+    for (const std::string& kv : material_params)
+      cfg.material_params.insert(gd::cli::parse_name_value(kv, "--material-param"));
     std::map<std::string, double> task_param_values;
     for (const std::string& kv : task_params) {
       const auto [name, value] = gd::cli::parse_name_value(kv, "--task-param");
@@ -204,6 +210,7 @@ int main(int argc, char** argv) {
       r.job.vertices = cfg.vertices;
       r.job.garment_params = cfg.garment_params;
       r.job.task_params = task_param_values;
+      r.job.material_params = cfg.material_params;
       r.job.capture = cfg.capture_dir;
       r.job.icp = cfg.icp;
       r.job.label = label;

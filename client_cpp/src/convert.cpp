@@ -135,6 +135,7 @@ void to_proto(const JobSpec& in, pb::SubmitJobRequest* out) {
   out->set_label(in.label);
   out->mutable_garment_params()->insert(in.garment_params.begin(), in.garment_params.end());
   out->mutable_task_params()->insert(in.task_params.begin(), in.task_params.end());
+  out->mutable_material_params()->insert(in.material_params.begin(), in.material_params.end());
 }
 
 SceneState from_proto(const pb::SceneState& in, const char* rpc) {

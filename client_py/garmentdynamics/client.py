@@ -418,21 +418,24 @@ class Client:
                    capture: str = "", dt: Optional[float] = None, time_scale: Optional[float] = None,
                    settle: Optional[float] = None, self_contact: Optional[bool] = None, icp: bool = False,
                    label: str = "", garment_params: Optional[Dict[str, float]] = None,
-                   task_params: Optional[Dict[str, float]] = None) -> str:
+                   task_params: Optional[Dict[str, float]] = None,
+                   material_params: Optional[Dict[str, float]] = None) -> str:
         """Submits a whole rollout (garment + task) to run on the server; returns the job id.
 
         trajectory: a path to our trajectory CSV/JSON file (docs/tasks.md), or its text/bytes;
         trajectory_format "csv" | "json" (guessed from a path's suffix). capture: an RGBench
         capture directory under the server's capture root. garment_params: sizes of a generated
         garment by name, as in create_scenes. task_params: parameters of the generated task by
-        name, e.g. {"fold_duration": 5.0} (docs/tasks.md). The other arguments mirror `gd run`.
+        name, e.g. {"fold_duration": 5.0} (docs/tasks.md). material_params: parameters of the
+        material replaced, as in create_scenes. The other arguments mirror `gd run`.
         """
         if (garment is None) == (mesh_id is None):
             raise ValueError("give exactly one of garment= and mesh_id=")
         req = pb.SubmitJobRequest(material=material, task=task, mode=mode, vertices=int(vertices),
                                   capture=capture, icp=icp, label=label,
                                   garment_params={str(k): float(v) for k, v in (garment_params or {}).items()},
-                                  task_params={str(k): float(v) for k, v in (task_params or {}).items()})
+                                  task_params={str(k): float(v) for k, v in (task_params or {}).items()},
+                                  material_params={str(k): float(v) for k, v in (material_params or {}).items()})
         if garment is not None:
             req.garment = garment
         else:

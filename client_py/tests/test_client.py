@@ -213,6 +213,26 @@ def test_task_params_change_a_jobs_task(client):
                 task_params={"hold_time": 5.0})
 
 
+def test_material_params_change_a_jobs_fabric(client):
+    # A towel held up by two corners stretches more under its own weight when it is 8x as heavy.
+    summaries, finals = [], []
+    for params in ({}, {"areal_density_g_m2": 1500.0}):
+        job = client.submit_job(garment="towel", task="grasp", vertices=200, dt=0.02, time_scale=0.5, settle=0.1,
+                                self_contact=False, material_params=params)
+        report = client.wait_report(job, progress=False, include_files=True)
+        assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+        summaries.append(report["summary"])
+        obj = report["files"]["final.obj"].decode()
+        finals.append(np.array([[float(c) for c in line.split()[1:4]] for line in obj.splitlines()
+                                if line.startswith("v ")]))
+    assert "material_params" not in summaries[0]
+    assert summaries[1]["material_params"] == {"areal_density_g_m2": 1500.0}
+    assert np.abs(finals[1][:, 2] - finals[0][:, 2]).mean() > 1e-3  # the hanging towel took another shape
+    with pytest.raises(grpc.RpcError) as e:
+        client.submit_job(garment="towel", task="grasp", material_params={"bendiness": 1.0})
+    assert e.value.code() == grpc.StatusCode.INVALID_ARGUMENT and "bendiness" in e.value.details()
+
+
 def test_upload_mesh_and_create_scene_from_it(client, towel, tmp_path):
     info = client.scene_info(towel)
     rest = info["rest_positions"] - np.array([0.1, 0.0, 0.01], dtype=np.float32)

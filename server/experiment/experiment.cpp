@@ -318,7 +318,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   const Eigen::Isometry3d place = tasks::default_garment_pose();
   sim::Mesh mesh = garment.mesh;
   for (Vec3& p : mesh.x) p = place * p;
-  const sim::Material material = sim::MaterialLibrary::load_default().get(config.material);
+  const sim::Material base = sim::MaterialLibrary::load_default().get(config.material);
+  const sim::Material material = config.material_params.empty() ? base
+                                                                : sim::with_catalogue_params(base, config.material_params);
 
   // Capture and trajectory.
   std::optional<metrics::Capture> capture;
@@ -469,6 +471,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["garment_params"] = nlohmann::json::object();
   for (const auto& [name, value] : config.garment_params) s["garment_params"][name] = value;
   s["material"] = config.material;
+  if (!config.material_params.empty()) s["material_params"] = config.material_params;
   s["task"] = config.task;
   s["mode"] = config.mode;
   s["trajectory"] = traj_source;

@@ -37,6 +37,9 @@ struct ExperimentConfig {
   /// A garment type (garments::garment_types()) or the path of an .obj mesh.
   std::string garment = "tshirt";
   std::string material = "cotton";       ///< a name in the material library
+  /// Parameters of that material replaced, by name in catalogue units (sim::with_catalogue_params;
+  /// RGBench's fitted cloth_params map onto them, docs/materials.md).
+  std::map<std::string, double> material_params;
   std::string task = "fold";             ///< grasp | fold | fling
   std::string mode = "pseudo";           ///< pseudo (jaw-radius grasp) | fixed_point (RGBench's)
   int vertices = 2000;                   ///< target vertex count of a generated garment

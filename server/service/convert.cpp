@@ -168,6 +168,7 @@ Status to_job_spec(const pb::SubmitJobRequest& r, JobSpec* out) {
   out->label = r.label();
   out->garment_params.insert(r.garment_params().begin(), r.garment_params().end());
   out->task_params.insert(r.task_params().begin(), r.task_params().end());
+  out->material_params.insert(r.material_params().begin(), r.material_params().end());
   return Status::Ok();
 }
 

@@ -127,6 +127,13 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   } catch (const InputError& e) {
     return Status::InvalidArgument(e.what());
   }
+  try {  // checked now, applied when the job runs
+    if (!spec.material_params.empty())
+      (void)sim::with_catalogue_params(sim::MaterialLibrary::load_default().get(cfg->material), spec.material_params);
+  } catch (const InputError& e) {
+    return Status::InvalidArgument(fmt::format("material_params: {}", e.what()));
+  }
+  cfg->material_params = spec.material_params;
   if (spec.dt) cfg->scene.dt = *spec.dt;
   if (spec.time_scale) cfg->task_params.time_scale = *spec.time_scale;
   if (spec.settle) cfg->settle_after = *spec.settle;
@@ -201,6 +208,7 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
                                     {"time_scale", cfg->task_params.time_scale},
                                     {"settle", cfg->settle_after}, {"self_contact", cfg->scene.self_contact},
                                     {"capture", spec.capture},    {"icp", cfg->icp},
+                                    {"material_params", cfg->material_params},
                                     {"trajectory", traj ? spec.trajectory_format : std::string()}}
                          .dump();
   {

@@ -56,6 +56,7 @@ struct JobSpec {
   std::string label;
   std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
   std::map<std::string, double> task_params;     ///< TaskParams by name
+  std::map<std::string, double> material_params;  ///< material parameters replaced (sim::with_catalogue_params)
   std::string owner;                ///< the submitting caller's principal (JobRecord::owner)
 };
 

@@ -245,6 +245,8 @@ struct JobSpec {
   std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
   /// Parameters of the generated task by TaskParams name (e.g. {"fold_duration", 5}); docs/tasks.md.
   std::map<std::string, double> task_params;
+  /// Parameters of the material replaced, in catalogue units (as SceneSpec::material_params).
+  std::map<std::string, double> material_params;
 };
 
 enum class JobStatus : int {
