@@ -262,7 +262,7 @@ int main(int argc, char** argv) {
   double newton_rtol = -1, newton_atol = -1, pcg_newton_fraction = -1, pcg_tol = -1, dt = -1;
   std::string contact_hessian_arg = "default";
   std::string bending_hessian_arg = "default";
-  std::string broad_phase_arg = "embree";
+  std::string broad_phase_arg = "auto";
   std::string linear_solver_arg = "pcg";
   app.add_flag("--json", json, "Print one JSON array of results on stdout (and nothing else)");
   app.add_option("--steps", steps, "Timed steps per case")->check(CLI::PositiveNumber)->capture_default_str();
@@ -303,8 +303,10 @@ int main(int argc, char** argv) {
   app.add_option("--contact-hessian", contact_hessian_arg, "Self-contact barrier Hessian")
       ->check(CLI::IsMember({"default", "projected", "gauss-newton"}))
       ->capture_default_str();
-  app.add_option("--broad-phase", broad_phase_arg, "Self-contact broad phase (the same pairs; lbvh: the GPU's algorithm)")
-      ->check(CLI::IsMember({"embree", "lbvh"}))
+  app.add_option("--broad-phase", broad_phase_arg,
+                 "Self-contact broad phase (the same pairs; auto: embree on the CPU, lbvh on the device with CUDA; "
+                 "lbvh: the GPU's algorithm)")
+      ->check(CLI::IsMember({"auto", "embree", "lbvh"}))
       ->capture_default_str();
   app.add_option("--bending-hessian", bending_hessian_arg, "Bending Hessian")
       ->check(CLI::IsMember({"default", "gauss-newton", "projected-exact"}))
@@ -395,6 +397,7 @@ int main(int argc, char** argv) {
     if (bending_hessian_arg == "gauss-newton") opt.bending_hessian = gd::sim::BendingHessianKind::kGaussNewton;
     if (bending_hessian_arg == "projected-exact") opt.bending_hessian = gd::sim::BendingHessianKind::kProjectedExact;
     if (broad_phase_arg == "lbvh") opt.broad_phase = gd::sim::BroadPhaseKind::kLbvh;
+    if (broad_phase_arg == "embree") opt.broad_phase = gd::sim::BroadPhaseKind::kEmbree;
     if (linear_solver_arg == "direct") opt.linear_solver = gd::sim::LinearSolverKind::kDirect;
     opt.validate();
     return opt;

@@ -39,9 +39,10 @@ struct FrictionPairs {
 
 class SelfContact {
  public:
-  /// broad_phase kLbvh with on_device: the LBVH on the CUDA device (make_cuda_lbvh_broad_phase).
+  /// broad_phase kLbvh with on_device: the LBVH on the CUDA device (make_cuda_lbvh_broad_phase);
+  /// kAuto: that with on_device, else Embree.
   SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass,
-              BroadPhaseKind broad_phase = BroadPhaseKind::kEmbree, bool on_device = false);
+              BroadPhaseKind broad_phase = BroadPhaseKind::kAuto, bool on_device = false);
 
   /// Candidates: pairs that can come within dhat while moving linearly from x0 to x1.
   /// The broad phase runs with a margin of dhat + slack (slack = kBroadPhaseSlack x dhat), so its
