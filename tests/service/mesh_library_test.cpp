@@ -6,33 +6,20 @@
 
 #include <chrono>
 #include <filesystem>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "service/grid_obj.h"
 #include "service/report_store.h"
 #include "service/server_process.h"  // TempDir
 
 namespace gd::service {
 namespace {
 
+using testing::grid_obj;
 using testing::TempDir;
 namespace fs = std::filesystem;
-
-/// A flat nx x 8 grid as OBJ text.
-std::string grid_obj(int nx = 12) {
-  std::ostringstream o;
-  const int ny = 8;
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) o << "v " << 0.03 * i << " " << 0.03 * j << " 0\n";
-  for (int j = 0; j + 1 < ny; ++j)
-    for (int i = 0; i + 1 < nx; ++i) {
-      const int a = j * nx + i + 1, b = a + 1, c = a + nx, d = c + 1;
-      o << "f " << a << " " << b << " " << d << "\nf " << a << " " << d << " " << c << "\n";
-    }
-  return o.str();
-}
 
 TEST(MeshLibrary, TheSameUploadAgainIsTheSameMesh) {
   TempDir dir;

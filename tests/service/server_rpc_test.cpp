@@ -15,6 +15,7 @@
 #include <google/protobuf/descriptor.pb.h>
 
 #include "grpc/reflection/v1/reflection.grpc.pb.h"
+#include "service/grid_obj.h"
 #include "service/server_process.h"
 
 namespace gd::service::testing {
@@ -70,20 +71,6 @@ std::vector<std::string> reflected_services(const std::shared_ptr<grpc::Channel>
     }
   }
   return names;
-}
-
-/// A flat 12 x 8 grid (0.33 m x 0.21 m) as OBJ text.
-std::string grid_obj() {
-  std::ostringstream o;
-  const int nx = 12, ny = 8;
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) o << "v " << 0.03 * i << " " << 0.03 * j - 0.105 << " 0\n";
-  for (int j = 0; j + 1 < ny; ++j)
-    for (int i = 0; i + 1 < nx; ++i) {
-      const int a = j * nx + i + 1, b = a + 1, c = a + nx, d = c + 1;
-      o << "f " << a << " " << b << " " << d << "\nf " << a << " " << d << " " << c << "\n";
-    }
-  return o.str();
 }
 
 TEST(ServerRpc, ReflectionV1ListsTheServicesAndServesTheProtoFilesWithoutAToken) {
