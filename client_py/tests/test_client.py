@@ -102,7 +102,7 @@ def test_timed_arm_samples_out_of_order_are_refused_and_change_nothing(client):
             return {"position": (0.0, 0.2, z), "time": t}
         client.step([sid], [{"left": [at(0.5), at(1.0)]}])  # samples ahead of the scene's time
         before = client.get_state([sid])[0]
-        cases = [({"left": [at(0.7), at(0.6)]}, "increasing time"),          # out of order in one call
+        cases = [({"left": [at(1.2), at(1.1)]}, "not after its previous sample"),  # out of order in one call
                  ({"left": [at(0.9)]}, "not after its previous sample"),     # before the last one sent
                  ({"left": [{"position": (0, 0.2, 0.1)}, at(2.0)]}, "after its untimed one"),
                  ({"left": [at(float("nan"))]}, "not finite")]

@@ -472,7 +472,6 @@ namespace {
 /// Checks one action against its scene's vertex count; normalises nothing.
 Status check_action(const SceneAction& a, int vertex_count) {
   bool untimed[2] = {false, false};  // an untimed command (the call's end) was given: it must be the last
-  double last[2] = {-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   for (const ArmCommand& c : a.arms) {
     const int i = static_cast<int>(c.arm);
     if (i < 0 || i > 1)
@@ -481,18 +480,10 @@ Status check_action(const SceneAction& a, int vertex_count) {
       return Status::InvalidArgument(fmt::format(
           "scene '{}': the {} arm has a command after its untimed one; give every earlier sample a time, "
           "or one command per arm", a.scene_id, tasks::arm_name(c.arm)));
-    if (!c.time) {
-      untimed[i] = true;
-    } else if (!std::isfinite(*c.time)) {
+    if (!c.time) untimed[i] = true;
+    if (c.time && !std::isfinite(*c.time))  // their order is checked against the scene's trajectory in step()
       return Status::InvalidArgument(fmt::format("scene '{}': the {} arm's sample time is not finite", a.scene_id,
                                                  tasks::arm_name(c.arm)));
-    } else if (!(*c.time > last[i])) {
-      return Status::InvalidArgument(fmt::format(
-          "scene '{}': the {} arm's samples must come in increasing time (t={} s after t={} s)", a.scene_id,
-          tasks::arm_name(c.arm), *c.time, last[i]));
-    } else {
-      last[i] = *c.time;
-    }
     if (!finite(c.position))
       return Status::InvalidArgument(fmt::format("scene '{}': the {} arm's position is not finite", a.scene_id,
                                                  tasks::arm_name(c.arm)));
