@@ -131,12 +131,15 @@ GD_HD bool barrier_active(Real d2, Real offset, Real dhat) {
 /// Vertex order p, t0, t1, t2 (gradient N, Hessian N/m). Returns 0 (zero derivatives) when the gap
 /// is >= dhat and +INFINITY (zero derivatives) when it is <= 0 — the line search must reject such
 /// a configuration. grad written when non-null; hess written when non-null and kind != kNone
-/// (kExact: the true Hessian, indefinite in general; kProjected: project_psd of it).
+/// (kExact: the true Hessian, indefinite in general; kProjected: project_psd of it). dist2, when
+/// non-null, gets the squared point-triangle distance (the same bits as point_triangle_distance2).
 GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, const Vec3& t2, Real offset,
-                             Real dhat, Real kappa, VecN<12>* grad, MatN<12>* hess, HessianKind kind) {
+                             Real dhat, Real kappa, VecN<12>* grad, MatN<12>* hess, HessianKind kind,
+                             Real* dist2 = nullptr) {
   const bool want_hess = hess != nullptr && kind != HessianKind::kNone;
   const PointTriangleRegion region = point_triangle_closest_feature(p, t0, t1, t2);
   const Real d2 = point_triangle_distance2(p, t0, t1, t2, region, nullptr, nullptr);
+  if (dist2) *dist2 = d2;
   if (!contact_detail::barrier_active(d2, offset, dhat) || (grad == nullptr && !want_hess)) {
     if (grad) grad->setZero();
     if (want_hess) hess->setZero();
@@ -166,13 +169,14 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
 /// blow up) as the edges become parallel, where E -> 0. Vertex order a0, a1, b0, b1 (gradient N,
 /// Hessian N/m). Returns 0 when the gap is >= dhat and +INFINITY when it is <= 0 (zero
 /// derivatives; even for parallel edges, so a penetrating configuration is always rejected).
-/// grad/hess as in vf_contact_energy.
+/// grad/hess/dist2 as in vf_contact_energy.
 GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec3& b1, Real offset,
                              Real dhat, Real kappa, Real eps_x, VecN<12>* grad, MatN<12>* hess,
-                             HessianKind kind) {
+                             HessianKind kind, Real* dist2 = nullptr) {
   const bool want_hess = hess != nullptr && kind != HessianKind::kNone;
   const EdgeEdgeRegion region = edge_edge_closest_feature(a0, a1, b0, b1);
   const Real d2 = edge_edge_distance2(a0, a1, b0, b1, region, nullptr, nullptr);
+  if (dist2) *dist2 = d2;
   if (!contact_detail::barrier_active(d2, offset, dhat)) {
     if (grad) grad->setZero();
     if (want_hess) hess->setZero();

@@ -80,15 +80,20 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
   const bool want_h = H != nullptr;
   const detail::PairView L = want_h ? V.act : V.cand;
   if (!want_h && cand_gd_.size() < 48 * static_cast<size_t>(L.n)) Exec::resize(cand_gd_, 48 * static_cast<size_t>(L.n));
+  if (!want_h && cand_d2_.size() < static_cast<size_t>(L.n)) Exec::resize(cand_d2_, static_cast<size_t>(L.n));
   if (live_.size() < static_cast<size_t>(std::max(L.n, V.n_fr))) Exec::resize(live_, static_cast<size_t>(std::max(L.n, V.n_fr)));
   int* live = Exec::ptr(live_);  // candidates beyond dhat (most of them) add nothing
   double* HA = Exec::ptr(act_H_);
   double* HF = Exec::ptr(fr_H_);
   double* GA = want_h ? Exec::ptr(act_gd_) : Exec::ptr(cand_gd_);
   double* GF = Exec::ptr(fr_gd_);
+  // Over the candidates (no Hessian): each pair's squared distance too, which select_active and
+  // min_active_distance reuse once the line search accepts these positions (accept_step).
+  double* D2 = want_h ? nullptr : Exec::ptr(cand_d2_);
   double e = Exec::sum_effects(L.n, [=] GD_HD_LAMBDA(int c) {
     const int* vs = L.v + 4 * c;
     live[c] = 0;
+    if (D2) D2[c] = -1.0;  // not measured
     if (V.fixed[vs[0]] && V.fixed[vs[1]] && V.fixed[vs[2]] && V.fixed[vs[3]]) {  // as select_active: no free vertex
       if (want_h)
         for (int k = 0; k < kPairBlockValues; ++k) HA[kPairBlockValues * c + k] = 0.0;
@@ -96,7 +101,7 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
     }
     Vec12 ge;
     Mat12 He;
-    const double ec = detail::pair_barrier(P, L, c, x, &ge, want_h ? &He : nullptr);
+    const double ec = detail::pair_barrier(P, L, c, x, &ge, want_h ? &He : nullptr, D2 ? D2 + c : nullptr);
     if (ec == 0.0 && !want_h) return 0.0;  // beyond dhat: no gradient
     live[c] = 1;
     store_pair(V, L.v + 4 * c, ge, want_h ? &He : nullptr, HA + kPairBlockValues * c, GA + 48 * c);

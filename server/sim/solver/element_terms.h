@@ -98,13 +98,15 @@ struct View {
   const double* fr_lambda;
 };
 
-/// Self-contact barrier of pair c of a list (vertex-face or edge-edge), PSD-projected Hessian.
-GD_HD Real pair_barrier(const Params& P, const PairView& L, int c, const double* x, Vec12* g, Mat12* H) {
+/// Self-contact barrier of pair c of a list (vertex-face or edge-edge), PSD-projected Hessian;
+/// dist2 (when non-null) gets the pair's squared distance.
+GD_HD Real pair_barrier(const Params& P, const PairView& L, int c, const double* x, Vec12* g, Mat12* H,
+                        Real* dist2 = nullptr) {
   const int* v = L.v + 4 * c;
   const Vec3 a = load3(x, v[0]), b = load3(x, v[1]), q = load3(x, v[2]), d = load3(x, v[3]);
   return L.type[c] == 0
-             ? vf_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], g, H, P.contact_hessian)
-             : ee_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], L.eps[c], g, H, P.contact_hessian);
+             ? vf_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], g, H, P.contact_hessian, dist2)
+             : ee_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], L.eps[c], g, H, P.contact_hessian, dist2);
 }
 
 /// Lagged cloth-cloth friction of friction pair k.

@@ -82,13 +82,24 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
 }
 
 /// x += alpha dx, taking the line search's accepted trial point (bit for bit the state it
-/// evaluated) and its gradient. Returns whether g_ now holds the gradient at the new x.
+/// evaluated) and its gradient, and the candidate pairs' distances it measured there (the next
+/// select_active and min_active_distance read them instead of measuring again). Returns whether
+/// g_ now holds the gradient at the new x.
 template <class Exec>
 bool Solver<Exec>::accept_step(double alpha) {
   if (alpha == 0.0) return false;
   if (alpha == last_trial_alpha_) {
     std::swap(x_, x_trial_);
     std::swap(g_, g_trial_);
+    if (self_ && cand_.n > 0) {
+      Exec::download(host_x_, x_);
+      if constexpr (Exec::kHostMemory) {
+        self_->set_candidate_distances(host_x_, Exec::ptr(cand_d2_));
+      } else {
+        Exec::download(host_d2_, cand_d2_);
+        self_->set_candidate_distances(host_x_, host_d2_.data());
+      }
+    }
     return true;
   }
   axpy(alpha, dx_, x_);

@@ -106,6 +106,7 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
     ++queries_;
     raw_stamp_.assign(raw_.vf.size() + raw_.ee.size(), -1);  // new pairs: no distance known
     raw_dist_.resize(raw_stamp_.size());
+    active_raw_.assign(active_.size(), -1);  // the active pairs' raw indices are the old query's
   }
   if (!reuse) query_lo_ = motion_lo_, query_hi_ = motion_hi_;  // what later motions are checked against
   // Keep the pairs whose boxes of this motion, inflated by dhat, overlap: what a query with
@@ -158,8 +159,26 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
   }
 }
 
+void SelfContact::set_candidate_distances(const std::vector<double>& x, const double* dist2) {
+  if (x != dist_x_) dist_x_ = x, ++dist_gen_;
+  const int n = cand_.size();
+  for (int c = 0; c < n; ++c) {
+    if (dist2[c] < 0) continue;  // not measured (NaN is: pair_distance gives NaN for it too)
+    const int r = cand_raw_[c];
+    raw_dist_[r] = std::sqrt(std::max(dist2[c], 0.0));  // pair_distance's arithmetic
+    raw_stamp_[r] = dist_gen_;
+  }
+}
+
+double SelfContact::active_distance(const std::vector<double>& x, bool known, int c) const {
+  const int r = active_raw_[c];
+  if (known && r >= 0 && raw_stamp_[r] == dist_gen_) return raw_dist_[r];
+  return pair_distance(x, &active_.v[4 * c], active_.type[c]);
+}
+
 void SelfContact::select_active(const std::vector<double>& x, const std::vector<int>& fixed) {
   active_.clear();
+  active_raw_.clear();
   dropped_ = 0;
   if (x != dist_x_) dist_x_ = x, ++dist_gen_;  // distances known so far were measured elsewhere
   // The distances in parallel (the costly part), then the lists in candidate order.
@@ -188,7 +207,10 @@ void SelfContact::select_active(const std::vector<double>& x, const std::vector<
       ++dropped_;
       continue;
     }
-    if (dist < dhat_) active_.push(v, cand_.type[c], cand_.kappa[c], cand_.eps_x[c]);
+    if (dist < dhat_) {
+      active_.push(v, cand_.type[c], cand_.kappa[c], cand_.eps_x[c]);
+      active_raw_.push_back(cand_raw_[c]);
+    }
     if (k != c) {
       std::copy_n(v, 4, &cand_.v[4 * k]);
       cand_.type[k] = cand_.type[c], cand_.kappa[k] = cand_.kappa[c], cand_.eps_x[k] = cand_.eps_x[c];
@@ -210,8 +232,9 @@ void SelfContact::set_kappa_scale(Real s) {
 double SelfContact::min_active_distance(const std::vector<double>& x) const {
   double m = std::numeric_limits<double>::infinity();
   const int n = active_.size();
+  const bool known = x == dist_x_;
 #pragma omp parallel for schedule(static) reduction(min : m) if (n >= kParallelPairs)
-  for (int c = 0; c < n; ++c) m = std::min(m, pair_distance(x, &active_.v[4 * c], active_.type[c]));
+  for (int c = 0; c < n; ++c) m = std::min(m, active_distance(x, known, c));
   return m;
 }
 
@@ -219,12 +242,13 @@ void SelfContact::build_friction(const std::vector<double>& x_t) {
   // Frames in parallel (the costly part), then the list in active-pair order.
   const int n = active_.size();
   fr_scratch_.resize(11 * static_cast<size_t>(n));  // per pair: lambda, 4 weights, 6 of T
+  const bool known = x_t == dist_x_;
 #pragma omp parallel for schedule(static) if (n >= kParallelPairs)
   for (int c = 0; c < n; ++c) {
     double* o = &fr_scratch_[11 * static_cast<size_t>(c)];
     const int* v = &active_.v[4 * c];
     const Vec3 p0 = at(x_t, v[0]), p1 = at(x_t, v[1]), p2 = at(x_t, v[2]), p3 = at(x_t, v[3]);
-    const double dist = pair_distance(x_t, v, active_.type[c]);
+    const double dist = active_distance(x_t, known, c);
     double lambda = contact_normal_force(dist, 0.0, dhat_, active_.kappa[c]);
     if (active_.type[c] == 1) lambda *= ee_mollifier(p0, p1, p2, p3, active_.eps_x[c], nullptr, nullptr);
     o[0] = lambda;

@@ -58,6 +58,11 @@ class SelfContact {
   /// same positions before (a Newton iterate's contacts, then the candidates along its
   /// direction) is reused while the broad phase's answer is the same.
   void select_active(const std::vector<double>& x, const std::vector<int>& fixed);
+  /// Squared distances of the current candidates at x, measured elsewhere (the line search's
+  /// evaluation of its accepted point), one per candidate in candidates() order; a negative value
+  /// means not measured. select_active and min_active_distance at these same positions read them
+  /// instead of measuring again (the same bits: the same distance functions).
+  void set_candidate_distances(const std::vector<double>& x, const double* dist2);
   /// Lagged friction frames of the active pairs at x_t.
   void build_friction(const std::vector<double>& x_t);
 
@@ -104,11 +109,15 @@ class SelfContact {
   std::vector<double> tri_query_x_;       ///< positions of that query
   ContactPairs cand_, active_;
   std::vector<int> cand_raw_;  ///< per candidate: its index in raw_ (vf pairs, then ee pairs)
+  std::vector<int> active_raw_;  ///< per active pair: its index in raw_ (-1 after a new query)
+  /// Distance of active pair c at x: the one known when `known` (x is dist_x_) and measured,
+  /// else measured now.
+  double active_distance(const std::vector<double>& x, bool known, int c) const;
   std::vector<double> dist_;  ///< select_active's per-candidate distances
   std::vector<double> raw_dist_;  ///< per raw pair: its distance at dist_x_ when raw_stamp_ == dist_gen_
   std::vector<int> raw_stamp_;
-  std::vector<double> dist_x_;  ///< the positions of the last select_active
-  int dist_gen_ = 0;            ///< bumped when select_active sees new positions
+  std::vector<double> dist_x_;  ///< the positions of the distances known (select_active, set_candidate_distances)
+  int dist_gen_ = 0;            ///< bumped when those positions change
   FrictionPairs friction_;
   std::vector<double> fr_scratch_;  ///< build_friction's per-pair results
   int dropped_ = 0;

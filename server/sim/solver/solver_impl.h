@@ -409,6 +409,8 @@ class Solver final : public SolverBase {
   /// The step fraction of the line search's accepted trial (accept_step swaps it in).
   double last_trial_alpha_ = -1;
   Vec<double> g_trial_, cand_gd_;  ///< gradient at the trial point; candidate pairs' gradients
+  Vec<double> cand_d2_;            ///< per candidate: squared distance at the last evaluation without Hessian
+  std::vector<double> host_d2_;    ///< its host copy (backends with their own memory)
   Vec<int> live_;                  ///< per pair of the last evaluate_pairs: whether it added anything
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   bool ldlt_analyzed_ = false;
