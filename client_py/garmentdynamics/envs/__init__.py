@@ -3,6 +3,9 @@
 - GarmentEnv: one scene as a gymnasium.Env (passes gymnasium.utils.env_checker.check_env).
 - GarmentVectorEnv: N scenes as a gymnasium.vector.VectorEnv, stepped in one batched call,
   autoreset NEXT_STEP.
+- RayVectorEnv: the same over several servers (garmentdynamics.ray_servers' actors on a Ray
+  cluster, or addresses), stepped concurrently; a lost server's episodes are cut and run again
+  elsewhere (the `[ray]` extra for actors).
 
 Both are registered with Gymnasium as "garmentdynamics/Garment-v0" (gymnasium.make) and
 "garmentdynamics/Garment-v0" with gymnasium.make_vec(..., vectorization_mode="vector_entry_point").
@@ -17,6 +20,7 @@ from gymnasium.envs.registration import register, registry
 
 from .garment_env import GarmentEnv
 from .rewards import FAILURE_REWARD, TASKS, Reward
+from .ray_vector_env import RayVectorEnv
 from .vector_env import GarmentVectorEnv
 
 if "garmentdynamics/Garment-v0" not in registry:
@@ -25,4 +29,4 @@ if "garmentdynamics/Garment-v0" not in registry:
     register(id="garmentdynamics/Garment-v0", entry_point="garmentdynamics.envs.garment_env:make_garment_env",
              vector_entry_point="garmentdynamics.envs:GarmentVectorEnv", max_episode_steps=100)
 
-__all__ = ["GarmentEnv", "GarmentVectorEnv", "Reward", "TASKS", "FAILURE_REWARD"]
+__all__ = ["GarmentEnv", "GarmentVectorEnv", "RayVectorEnv", "Reward", "TASKS", "FAILURE_REWARD"]
