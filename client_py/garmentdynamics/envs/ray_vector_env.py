@@ -13,6 +13,7 @@ from .. import health
 from ..client import Client
 from .scenes import SceneBatch
 from .spaces import action_space, observation_space
+from .vector_env import reset_seeds_and_mask
 
 # A server that answers these is taken for gone (crashed, restarted without its scenes, or
 # unreachable); any other error is the caller's and is raised.
@@ -224,20 +225,10 @@ class RayVectorEnv(VectorEnv):
         return self._rehome(lost) if lost else np.zeros(0, dtype=np.int64)
 
     def reset(self, *, seed: Union[None, int, Sequence[int]] = None, options: Optional[dict] = None):
-        if isinstance(seed, (list, tuple, np.ndarray)):
-            if len(seed) != self.num_envs:
-                raise ValueError(f"{len(seed)} seeds for {self.num_envs} environments")
-            seeds = np.asarray(seed, dtype=np.int64)
-            super().reset(seed=int(seeds[0]))
-        else:
-            super().reset(seed=seed)
-            seeds = (np.arange(self.num_envs) + seed) if seed is not None else self._fresh_seeds(self.num_envs)
-        mask = np.ones(self.num_envs, dtype=bool)
-        if options and "reset_mask" in options:
-            mask = np.asarray(options["reset_mask"], dtype=bool).reshape(self.num_envs)
+        seeds, mask = reset_seeds_and_mask(self, seed, options)
         idx = np.flatnonzero(mask)
         self._cut_server = np.full(self.num_envs, -1, dtype=np.int64)
-        cut = self._reset_envs(idx, np.asarray(seeds, dtype=np.int64)[idx]) if len(idx) else np.zeros(0, np.int64)
+        cut = self._reset_envs(idx, seeds[idx]) if len(idx) else np.zeros(0, np.int64)
         self._autoreset[idx] = False
         cut_mask = np.isin(np.arange(self.num_envs), cut)
         infos = {"seed": np.asarray(seeds, dtype=np.int64), "_seed": mask.copy(), "cut": cut_mask,

@@ -12,6 +12,25 @@ from .scenes import SceneBatch
 from .spaces import action_space, observation_space
 
 
+def reset_seeds_and_mask(env: VectorEnv, seed, options: Optional[dict]):
+    """What reset(seed=, options=) of a vector env of garment scenes asks: per scene its seed
+    (a list: one each; an int s: s + i; None: drawn from np_random) and the mask of the scenes to
+    reset (options["reset_mask"], default all); seeds env.np_random as VectorEnv.reset does."""
+    n = env.num_envs
+    if isinstance(seed, (list, tuple, np.ndarray)):
+        if len(seed) != n:
+            raise ValueError(f"{len(seed)} seeds for {n} environments")
+        seeds = np.asarray(seed, dtype=np.int64)
+        VectorEnv.reset(env, seed=int(seeds[0]))
+    else:
+        VectorEnv.reset(env, seed=seed)
+        seeds = (np.arange(n) + seed) if seed is not None else env.np_random.integers(1, 2**62, size=n)
+    mask = np.ones(n, dtype=bool)
+    if options and "reset_mask" in options:
+        mask = np.asarray(options["reset_mask"], dtype=bool).reshape(n)
+    return np.asarray(seeds, dtype=np.int64), mask
+
+
 class GarmentVectorEnv(VectorEnv):
     """`num_envs` copies of GarmentEnv's task (same spaces, rewards and episode ends; see
     GarmentEnv) on one server. step() sends all the scenes' actions in one StepScenes call.
@@ -65,17 +84,7 @@ class GarmentVectorEnv(VectorEnv):
         return self.np_random.integers(1, 2**62, size=k)
 
     def reset(self, *, seed: Union[None, int, Sequence[int]] = None, options: Optional[dict] = None):
-        if isinstance(seed, (list, tuple, np.ndarray)):
-            if len(seed) != self.num_envs:
-                raise ValueError(f"{len(seed)} seeds for {self.num_envs} environments")
-            seeds = np.asarray(seed, dtype=np.int64)
-            super().reset(seed=int(seeds[0]))
-        else:
-            super().reset(seed=seed)
-            seeds = (np.arange(self.num_envs) + seed) if seed is not None else self._fresh_seeds(self.num_envs)
-        mask = np.ones(self.num_envs, dtype=bool)
-        if options and "reset_mask" in options:
-            mask = np.asarray(options["reset_mask"], dtype=bool).reshape(self.num_envs)
+        seeds, mask = reset_seeds_and_mask(self, seed, options)
         idx = np.flatnonzero(mask)
         if len(idx):
             self._obs[idx] = self._scenes.reset(idx, seeds[idx])
