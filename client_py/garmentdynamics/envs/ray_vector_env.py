@@ -13,7 +13,7 @@ from .. import health
 from ..client import Client
 from .scenes import SceneBatch
 from .spaces import action_space, observation_space
-from .vector_env import reset_seeds_and_mask
+from .vector_env import reset_seeds_and_mask, step_arrays
 
 # A server that answers these is taken for gone (crashed, restarted without its scenes, or
 # unreachable); any other error is the caller's and is raised.
@@ -238,12 +238,7 @@ class RayVectorEnv(VectorEnv):
     def step(self, actions):
         actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, 2, 8)
         n = self.num_envs
-        rewards = np.zeros(n, dtype=np.float64)
-        terminated = np.zeros(n, dtype=bool)
-        truncated = np.zeros(n, dtype=bool)
-        time = np.zeros(n, dtype=np.float64)
-        steps = np.zeros(n, dtype=np.int64)
-        failed = np.zeros(n, dtype=bool)
+        rewards, terminated, truncated, time, steps, failed = step_arrays(n)
         self._cut_server = np.full(n, -1, dtype=np.int64)
 
         to_reset = np.flatnonzero(self._autoreset)

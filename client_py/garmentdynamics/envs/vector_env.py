@@ -31,6 +31,13 @@ def reset_seeds_and_mask(env: VectorEnv, seed, options: Optional[dict]):
     return np.asarray(seeds, dtype=np.int64), mask
 
 
+def step_arrays(n: int):
+    """A vector step's per-scene results, zeroed: rewards, terminated, truncated, time, steps,
+    failed."""
+    return (np.zeros(n, dtype=np.float64), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool),
+            np.zeros(n, dtype=np.float64), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=bool))
+
+
 class GarmentVectorEnv(VectorEnv):
     """`num_envs` copies of GarmentEnv's task (same spaces, rewards and episode ends; see
     GarmentEnv) on one server. step() sends all the scenes' actions in one StepScenes call.
@@ -95,12 +102,7 @@ class GarmentVectorEnv(VectorEnv):
     def step(self, actions):
         actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, 2, 8)
         n = self.num_envs
-        rewards = np.zeros(n, dtype=np.float64)
-        terminated = np.zeros(n, dtype=bool)
-        truncated = np.zeros(n, dtype=bool)
-        time = np.zeros(n, dtype=np.float64)
-        steps = np.zeros(n, dtype=np.int64)
-        failed = np.zeros(n, dtype=bool)
+        rewards, terminated, truncated, time, steps, failed = step_arrays(n)
 
         to_reset = np.flatnonzero(self._autoreset)
         to_step = np.flatnonzero(~self._autoreset)
