@@ -83,9 +83,18 @@ def test_killed_server_cuts_exactly_its_episodes_and_the_rollout_goes_on(two_ser
         assert not info["cut"].any()
         steps = info["steps"]
         assert (steps[on_zero] == 1).all() and (np.delete(steps, on_zero) == 5).all()
-    # The actor restarted its server (a new process on a new port), which serves again.
-    h = wait_serving(servers[0])
-    assert h["serving"] and h["restarts"] == 1
+        # The actor restarted its server (a new process on a new port), which serves again ...
+        h = wait_serving(servers[0])
+        assert h["serving"] and h["restarts"] == 1
+        assert env.servers_alive == [False, True]
+        # ... and takes every scene when server 1 is lost in turn.
+        ray.get(servers[1].kill_server.remote())
+        obs, *_, info = env.step(hover_actions(6, 0.05))
+        assert info["cut"].all() and (info["cut_server"] == 1).all() and np.isfinite(obs).all()
+        assert (env.placement == 0).all() and env.servers_alive == [True, False]
+        assert env.cut_episodes == 6 + len(on_zero)
+        obs, *_, info = env.step(hover_actions(6, 0.05))
+        assert not info["cut"].any() and (info["steps"] == 1).all()
 
 
 def test_addresses_instead_of_actors(server_bin):
