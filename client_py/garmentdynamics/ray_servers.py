@@ -30,7 +30,7 @@ import grpc
 import ray
 
 from . import health
-from .client import FINAL_JOB_STATUSES, Client
+from .client import Client
 from .local_server import LocalServer
 
 
@@ -168,7 +168,7 @@ def _run_cell(server, cell: dict, job_kwargs: dict, timeout: float) -> dict:
     row.update(job=job, status=report["job"]["status"], error=report["job"]["message"], server=conn["target"],
                wall_s=round(time.monotonic() - start, 2), steps=summary.get("steps"),
                ms_per_step=summary.get("ms_per_step"), newton_per_step=summary.get("newton_per_step"),
-               final_max_z=summary.get("final", {}).get("max_z") if isinstance(summary.get("final"), dict) else None,
+               final_max_z=(summary.get("final") or {}).get("max_z"),
                intersecting_max=summary.get("intersecting_pairs_max"))
     return row
 
@@ -202,5 +202,4 @@ def write_table(rows: Sequence[Dict], path: str) -> None:
             w.writerow(r)
 
 
-__all__ = ["ServerActor", "start_servers", "stop_servers", "servers_from_env", "run_matrix", "write_table",
-           "FINAL_JOB_STATUSES"]
+__all__ = ["ServerActor", "start_servers", "stop_servers", "servers_from_env", "run_matrix", "write_table"]

@@ -140,6 +140,13 @@ def test_matrix_runs_one_job_per_cell_over_the_servers_and_reports_survive_a_res
         assert c.get_report(rows[0]["job"])["job"]["status"] == "SUCCEEDED"
 
 
+def test_servers_that_are_not_servers_are_refused_by_name():
+    with pytest.raises(ValueError, match=r"servers\[1\] is neither"):
+        RayVectorEnv(2, [{"target": "127.0.0.1:1"}, "127.0.0.1:2"])
+    with pytest.raises(ValueError, match="no servers"):
+        RayVectorEnv(2, [])
+
+
 def test_write_table_keeps_every_column(tmp_path):
     write_table([{"a": 1, "b": 2}, {"a": 3, "c": 4}], str(tmp_path / "t.csv"))
     assert (tmp_path / "t.csv").read_text().splitlines() == ["a,b,c", "1,2,", "3,,4"]

@@ -53,6 +53,10 @@ class RayVectorEnv(VectorEnv):
             raise ValueError("num_envs must be at least 1")
         if not servers:
             raise ValueError("no servers")
+        for k, srv in enumerate(servers):
+            if not (isinstance(srv, dict) and isinstance(srv.get("target"), str)) and not hasattr(srv, "connection"):
+                raise ValueError(f"servers[{k}] is neither a ServerActor handle nor a dict with a 'target' "
+                                 f"\"host:port\" string: {srv!r}")
         self.num_envs = num_envs
         self._servers = list(servers)
         self._clients: List[Optional[Client]] = [None] * len(self._servers)
@@ -62,7 +66,7 @@ class RayVectorEnv(VectorEnv):
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
                                   self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m)
         self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=len(self._servers))
-        # Scene i is scene slot_[i] of batch batch_[i]; a batch is SceneBatch scenes on one server.
+        # Scene i is scene _slot[i] of batch _batch[i]; a batch is SceneBatch scenes on one server.
         self._batches: Dict[int, SceneBatch] = {}
         self._batch_server: Dict[int, int] = {}
         self._next_batch = 0
