@@ -13,6 +13,7 @@ Throughput (--throughput 1,2,4): scene-steps per second of the same rollout (no 
 many servers, one after another.
 """
 import argparse
+import os
 import sys
 import time
 
@@ -101,6 +102,8 @@ def main():
     p.add_argument("--throughput", default="", help="comma-separated server counts: throughput only")
     args = p.parse_args()
     env_kwargs = dict(vertices=args.vertices, max_episode_steps=args.episode_steps)
+    # A fresh environment's first Ray start on a loaded machine can outlast Ray's 10 s raylet wait.
+    os.environ.setdefault("RAY_raylet_start_wait_time_s", "120")
     ray.init(num_cpus=args.num_cpus, include_dashboard=False, logging_level="ERROR")
     try:
         if args.throughput:
