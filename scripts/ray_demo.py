@@ -13,7 +13,6 @@ Throughput (--throughput 1,2,4): scene-steps per second of the same rollout (no 
 many servers, one after another.
 """
 import argparse
-import os
 import sys
 import time
 
@@ -102,9 +101,13 @@ def main():
     p.add_argument("--throughput", default="", help="comma-separated server counts: throughput only")
     args = p.parse_args()
     env_kwargs = dict(vertices=args.vertices, max_episode_steps=args.episode_steps)
-    # A fresh environment's first Ray start on a loaded machine can outlast Ray's 10 s raylet wait.
-    os.environ.setdefault("RAY_raylet_start_wait_time_s", "120")
-    ray.init(num_cpus=args.num_cpus, include_dashboard=False, logging_level="ERROR")
+    # A fresh environment's first Ray start on a loaded machine can outlast Ray's fixed 30 s wait
+    # for its raylet: try twice.
+    try:
+        ray.init(num_cpus=args.num_cpus, include_dashboard=False, logging_level="ERROR")
+    except Exception:
+        ray.shutdown()
+        ray.init(num_cpus=args.num_cpus, include_dashboard=False, logging_level="ERROR")
     try:
         if args.throughput:
             for m in [int(v) for v in args.throughput.split(",")]:

@@ -2,7 +2,6 @@
 (ray.init(num_cpus=2), two servers, one killed mid-rollout) and over plain server addresses, and
 the experiment matrix as Ray tasks. Real gd-server processes, real gRPC over loopback."""
 
-import os
 import time
 
 import numpy as np
@@ -22,8 +21,7 @@ VERTICES = 200
 @pytest.fixture(scope="module")
 def ray_cluster(server_bin):
     # A fresh virtual environment's first Ray start (bytecode, the raylet's first launch) on a
-    # loaded 2-core machine can outlast Ray's 10 s wait for its raylet: wait longer, try twice.
-    os.environ.setdefault("RAY_raylet_start_wait_time_s", "120")
+    # loaded 2-core machine once outlasted Ray's fixed 30 s wait for its raylet: try twice.
     kwargs = dict(num_cpus=2, include_dashboard=False, logging_level="ERROR",
                   runtime_env={"env_vars": {"GD_SERVER_BIN": server_bin}})
     try:
