@@ -260,6 +260,7 @@ int main(int argc, char** argv) {
   std::string precond_arg = "default";
   int newton_max = 0, pcg_max = 0, mas_domain = 0;
   double newton_rtol = -1, newton_atol = -1, pcg_newton_fraction = -1, pcg_tol = -1, dt = -1;
+  double self_friction = -1, table_friction = -1, friction_eps = -1;
   std::string contact_hessian_arg = "default";
   std::string bending_hessian_arg = "default";
   std::string broad_phase_arg = "auto";
@@ -299,6 +300,9 @@ int main(int argc, char** argv) {
   app.add_option("--dt", dt, "Time step, s (negative: default)");
   app.add_option("--pcg-newton-fraction", pcg_newton_fraction,
                  "With MAS: PCG stops at this fraction of the Newton rule's threshold (0: off; negative: default)");
+  app.add_option("--self-friction", self_friction, "Cloth-cloth Coulomb coefficient (negative: the material's)");
+  app.add_option("--table-friction", table_friction, "Cloth-table Coulomb coefficient (negative: default)");
+  app.add_option("--friction-eps", friction_eps, "Slip speed below which friction is smoothed, m/s (negative: default)");
   app.add_option("--newton-atol", newton_atol, "Residual stopping rule, absolute, m/s (negative: default)");
   app.add_option("--contact-hessian", contact_hessian_arg, "Self-contact barrier Hessian")
       ->check(CLI::IsMember({"default", "projected", "gauss-newton"}))
@@ -392,6 +396,9 @@ int main(int argc, char** argv) {
     if (pcg_tol > 0) opt.pcg_tol = pcg_tol;
     if (dt > 0) opt.dt = dt;
     if (newton_atol >= 0) opt.newton_atol = newton_atol;
+    if (self_friction >= 0) opt.self_friction = self_friction;
+    if (table_friction >= 0) opt.table_friction = table_friction;
+    if (friction_eps > 0) opt.friction_eps_v = friction_eps;
     if (contact_hessian_arg == "projected") opt.contact_hessian = gd::sim::ContactHessianKind::kProjected;
     if (contact_hessian_arg == "gauss-newton") opt.contact_hessian = gd::sim::ContactHessianKind::kGaussNewton;
     if (bending_hessian_arg == "gauss-newton") opt.bending_hessian = gd::sim::BendingHessianKind::kGaussNewton;

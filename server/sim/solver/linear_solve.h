@@ -80,7 +80,8 @@ void Solver<Exec>::prepare_linear_solve() {
   if (self_) merge_pair_blocks();
   const BlockMatrixView A = matrix_view();
   precond_->setup(A);
-  if (estimator_) estimator_->setup(A);
+  if (estimator_) estimator_->order(A);  // built by converged() if the step goes on
+  estimator_pending_ = estimator_ != nullptr;
   precond_ready_ = true;
 }
 

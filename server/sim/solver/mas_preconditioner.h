@@ -15,6 +15,13 @@
 ///   again runs of B consecutive nodes. Levels stop when one domain holds every node.
 /// - Each level's matrix is the Galerkin aggregate R_l A R_lᵀ (R_l sums the rows of a node's
 ///   vertices); each domain gets the dense (3B x 3B) block of it, Cholesky-factored.
+/// - Coarse blocks without re-reading the matrix: a level-(l+1) node's own 3x3 block is the sum
+///   of its children's blocks in their level-l domain block (all its children lie in one domain),
+///   and two level-(l+1) nodes of one domain are coupled only by entries of A whose vertices lie
+///   in different level-l domains (children of different pieces of one domain share no entry).
+///   So level 0 reads the rows of A, and each vertex keeps the list of its row's entries that
+///   cross level l's domains ("cross entries"), shrunk level by level: the coarse levels read
+///   those lists, a fraction of the matrix, instead of all of it again.
 /// Apply: z = Σ_l R_lᵀ D_l⁻¹ R_l r (restrict, per-domain dense solve, prolong, sum over levels):
 /// symmetric and positive definite, so PCG can use it.
 ///
@@ -138,6 +145,31 @@ GD_HD void part_range(const LevelView& L, int B, int d, int j, int parts, int* l
   *hi = a + static_cast<int>(verts * (j + 1) / parts);
 }
 
+/// Where vertex v's cross entries start (see the file comment): v's slots are as many as its
+/// row's entries, the mesh pattern's and the couplings'.
+GD_HD int cross_offset(const BlockMatrixView& M, int v) { return M.row_ptr[v] + (M.cpl_row_ptr ? M.cpl_row_ptr[v] : 0); }
+
+/// Calls f(column, block) for the entries of vertex v's row that level l reads: the whole row
+/// (mesh pattern and couplings) at level 0, above it the cross entries left by level l-1 (k >= 0:
+/// the mesh pattern's block k; k < 0: coupling -k-1).
+template <class F>
+GD_HD void for_entries(const BlockMatrixView& M, const int* xref, const int* xcount, int l, int v, F&& f) {
+  if (l == 0) {
+    for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) f(M.cols[k], M.vals + 9 * k);
+    if (M.cpl_row_ptr)
+      for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) f(M.cpl_cols[k], M.cpl_vals + 9 * k);
+    return;
+  }
+  const int* e = xref + cross_offset(M, v);
+  for (int i = 0; i < xcount[v]; ++i) {
+    const int k = e[i];
+    if (k >= 0)
+      f(M.cols[k], M.vals + 9 * k);
+    else
+      f(M.cpl_cols[-k - 1], M.cpl_vals + 9 * (-k - 1));
+  }
+}
+
 inline constexpr int kMaxLevels = 8;
 
 /// Most fine vertices gathered by one part of a domain (see the file comment): a level-0 or
@@ -168,16 +200,32 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
   }
 
   void setup(const BlockMatrixView& A) override {
-    A_ = A;
+    order(A);
+    build(A);
+  }
+
+  /// setup in two halves: `order` reads only the positions and the Dirichlet flags, `build` the
+  /// matrix. The Newton stopping rule's estimator orders at the iterate whose matrix it will
+  /// factor and builds only once the next check needs it (a step's last matrix is never built).
+  void order(const BlockMatrixView& A) {
     order_vertices(A);                  // level 0: free vertices in Morton order
     split_parts(0);                     // its domains' vertices in parts for the gathers
+  }
+  void build(const BlockMatrixView& A) {
+    A_ = A;
     levels_ = 1;
-    while (levels_ < kMaxLevels && level(levels_ - 1).domains > 1) {
-      if (!coarsen(A, levels_ - 1)) break;  // level l+1: connected pieces of level l's domains
-      split_parts(levels_);
-      ++levels_;
+    for (int l = 0;; ++l) {
+      // Level l+1: connected pieces of level l's domains (read from the rows at level 0, from
+      // the cross entries above).
+      const bool next = levels_ < kMaxLevels && level(l).domains > 1 && coarsen(A, l);
+      if (next) {
+        split_parts(l + 1);
+        ++levels_;
+      }
+      factor_level(A, l, next);  // dense blocks of R A Rᵀ, the next level's node diagonals, Cholesky
+      if (!next) break;
+      filter_cross(A, l);        // the entries between level l's domains, for level l+1
     }
-    for (int l = 0; l < levels_; ++l) factor_level(A, l);  // dense blocks of R A Rᵀ, Cholesky
   }
 
   void apply(const double* r, double* z) override {
@@ -212,6 +260,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     Vec<float> packed;    ///< per domain: its Cholesky factor's lower triangle, single precision
     Vec<double> rhs;      ///< per domain: 3B restricted residual, then the solution
     Vec<double> restricted;  ///< per node (levels >= 1): 3 values of R_l r (apply)
+    Vec<double> node_diag;   ///< per node (levels >= 1): its 3x3 block, from level l-1's blocks
   };
 
   mas_detail::LevelView level(int l) const {
@@ -309,10 +358,14 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     // Per part, one team: adjacency bitmasks of its domain's nodes from the part's vertices'
     // rows (node a's bits from its own vertices' rows; the pattern is symmetric, the mesh's and
     // the couplings' alike, and the per-domain pass below makes the masks symmetric regardless).
+    // Above level 0 the cross entries are enough: two nodes of a level-l domain share no entry
+    // whose vertices lie in one level-(l-1) domain (those vertices would be in one node).
     ensure(s.part_adj, static_cast<size_t>(s.parts) * B);
     uint64_t* part_adj = Exec::ptr(s.part_adj);
     const int* part_start = Exec::ptr(s.part_start);
     const int* part_domain = Exec::ptr(s.part_domain);
+    const int* xref = Exec::ptr(xref_);
+    const int* xcount = Exec::ptr(xcount_);
     Exec::for_each_team(s.parts, [=] GD_HD_LAMBDA(const Team& team, int p) {
       const int d = part_domain[p], first = d * B;
       const int count = L.nodes - first < B ? L.nodes - first : B;
@@ -332,9 +385,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
             const int nb = L.node_of[j];
             if (nb >= first && nb < first + count && nb != first + a) bits |= uint64_t(1) << (nb - first);
           };
-          for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) visit(M.cols[k]);
-          if (M.cpl_row_ptr)
-            for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) visit(M.cpl_cols[k]);
+          mas_detail::for_entries(M, xref, xcount, l, v, [&](int j, const double*) { visit(j); });
           return bits;
         });
         team.single([&] { adj[a] = mask; });
@@ -416,8 +467,9 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     return true;
   }
 
-  /// Dense blocks of level l's aggregated matrix per domain, Cholesky-factored.
-  void factor_level(const BlockMatrixView& A, int l) {
+  /// Dense blocks of level l's aggregated matrix per domain, Cholesky-factored; with `next`
+  /// (level l+1 exists), level l+1's node diagonal blocks from them before the factorisation.
+  void factor_level(const BlockMatrixView& A, int l, bool next) {
     LevelStore& s = store_[l];
     const mas_detail::LevelView L = level(l);
     const int B = B_, m = 3 * B_;
@@ -426,10 +478,17 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     ensure(s.packed, static_cast<size_t>(L.domains) * tri);
     ensure(s.rhs, static_cast<size_t>(L.domains) * m);
     if (l > 0) ensure(s.restricted, 3 * static_cast<size_t>(L.nodes));
+    if (next) ensure(store_[l + 1].node_diag, 9 * static_cast<size_t>(std::max(store_[l + 1].nodes, 1)));
     double* dense = Exec::ptr(s.dense);
     float* packed = Exec::ptr(s.packed);
     const int* part_start = Exec::ptr(s.part_start);
     const int* part_domain = Exec::ptr(s.part_domain);
+    const int* xref = Exec::ptr(xref_);
+    const int* xcount = Exec::ptr(xcount_);
+    const double* node_diag = l > 0 ? Exec::ptr(s.node_diag) : nullptr;
+    double* next_diag = next ? Exec::ptr(store_[l + 1].node_diag) : nullptr;
+    const int* local_comp = next ? Exec::ptr(s.local_comp) : nullptr;
+    const int* comp = next ? Exec::ptr(s.comp_count) : nullptr;
     const BlockMatrixView M = A;
     // Per part, one team: the blocks its vertices' rows add to the domain's block, in the order
     // of a loop over the part (the same bits whatever the team). A team of one takes node after
@@ -448,7 +507,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
       if (lo >= hi) return;  // the same on every lane
       const int a_lo = L.node_of[L.members[lo]] - first, a_hi = L.node_of[L.members[hi - 1]] - first + 1;
       // Calls add(nb, block) for every block of node a's rows inside [lo, hi) whose column is
-      // in this domain, in order.
+      // in this domain, in order (above level 0: its cross entries, all off node a's diagonal).
       auto for_row_blocks = [&](int a, auto&& add) {
         const int e_lo = L.offsets[first + a] > lo ? L.offsets[first + a] : lo;
         const int e_hi = L.offsets[first + a + 1] < hi ? L.offsets[first + a + 1] : hi;
@@ -458,9 +517,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
             const int nb = L.node_of[j] - first;
             if (nb >= 0 && nb < count) add(nb, blk);
           };
-          for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) visit(M.cols[k], M.vals + 9 * k);
-          if (M.cpl_row_ptr)
-            for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) visit(M.cpl_cols[k], M.cpl_vals + 9 * k);
+          mas_detail::for_entries(M, xref, xcount, l, v, visit);
         }
       };
       if constexpr (Team::kLanes == 1) {
@@ -485,7 +542,8 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
         });
       }
     }, 1);
-    // Per domain, one team: its parts added, in order, into its first part's block, then factored.
+    // Per domain, one team: its parts added, in order, into its first part's block, its nodes'
+    // own blocks (above level 0), the next level's node blocks taken, then factored.
     Exec::for_each_team(L.domains, [=] GD_HD_LAMBDA(const Team& team, int d) {
       double* D = dense + static_cast<size_t>(part_start[d]) * m * m;
       const int p0 = part_start[d], p1 = part_start[d + 1];
@@ -495,10 +553,78 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
         });
       const int first = d * B;
       const int count = L.nodes - first < B ? L.nodes - first : B;
+      if (node_diag)
+        team.range(0, count, [&](int a) {
+          const double* nd = node_diag + 9 * static_cast<size_t>(first + a);
+          double* dst = D + static_cast<size_t>(3 * a) * m + 3 * a;
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) dst[r * m + c] += nd[3 * r + c];
+        });
+      if (next_diag)  // a piece's block: the sum of its nodes' blocks among themselves
+        team.range(0, comp[d + 1] - comp[d], [&](int c) {
+          double acc[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+          for (int a = 0; a < count; ++a) {
+            if (local_comp[first + a] != c) continue;
+            const double* row = D + static_cast<size_t>(3 * a) * m;
+            for (int b = 0; b < count; ++b) {
+              if (local_comp[first + b] != c) continue;
+              for (int r = 0; r < 3; ++r)
+                for (int k = 0; k < 3; ++k) acc[3 * r + k] += row[static_cast<size_t>(r) * m + 3 * b + k];
+            }
+          }
+          for (int k = 0; k < 9; ++k) next_diag[9 * static_cast<size_t>(comp[d] + c) + k] = acc[k];
+        });
       team.range(3 * count, m, [&](int q) { D[static_cast<size_t>(q) * m + q] = 1.0; });  // padding: identity
       mas_detail::cholesky_in_place(team, D, m);
       mas_detail::pack_lower(team, D, m, packed + d * tri);
     }, 1);
+  }
+
+  /// The cross entries of level l (see the file comment): per free vertex, the entries of its row
+  /// whose column lies in another level-l domain, from the whole row at level 0 and from level
+  /// l-1's list above (in place: a list only shrinks).
+  void filter_cross(const BlockMatrixView& A, int l) {
+    const mas_detail::LevelView L = level(l);
+    const int B = B_;
+    const BlockMatrixView M = A;
+    if (l == 0) {
+      const int n = n_;
+      const double slots = Exec::sum(1, [=] GD_HD_LAMBDA(int) {
+        return static_cast<double>(M.row_ptr[n] + (M.cpl_row_ptr ? M.cpl_row_ptr[n] : 0));
+      });
+      ensure(xref_, std::max(static_cast<size_t>(slots), size_t(1)));
+      ensure(xcount_, n_);
+    }
+    int* xref = Exec::ptr(xref_);
+    int* xcount = Exec::ptr(xcount_);
+    Exec::for_each(n_, [=] GD_HD_LAMBDA(int v) {
+      const int nv = L.node_of[v];
+      if (nv < 0) {
+        xcount[v] = 0;
+        return;
+      }
+      const int dv = nv / B;
+      int* out = xref + mas_detail::cross_offset(M, v);
+      int c = 0;
+      if (l == 0) {
+        for (int k = M.row_ptr[v]; k < M.row_ptr[v + 1]; ++k) {
+          const int nj = L.node_of[M.cols[k]];
+          if (nj >= 0 && nj / B != dv) out[c++] = k;
+        }
+        if (M.cpl_row_ptr)
+          for (int k = M.cpl_row_ptr[v]; k < M.cpl_row_ptr[v + 1]; ++k) {
+            const int nj = L.node_of[M.cpl_cols[k]];
+            if (nj >= 0 && nj / B != dv) out[c++] = -k - 1;
+          }
+      } else {
+        const int had = xcount[v];
+        for (int i = 0; i < had; ++i) {
+          const int e = out[i];
+          if (L.node_of[e >= 0 ? M.cols[e] : M.cpl_cols[-e - 1]] / B != dv) out[c++] = e;
+        }
+      }
+      xcount[v] = c;
+    });
   }
 
   /// R_l r for level l >= 1, from level l-1's (r itself at level 0, a vertex per node): each
@@ -589,6 +715,8 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
   int levels_ = 0;
   BlockMatrixView A_{};
   Vec<uint64_t> keys_;
+  Vec<int> xref_;    ///< per free vertex, at cross_offset: its cross entries (filter_cross)
+  Vec<int> xcount_;  ///< per vertex: how many
   LevelStore store_[kMaxLevels];
 };
 

@@ -16,6 +16,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
   P_.quasi_static = quasi_static;
   P_.friction_eps = opt_.friction_eps_v * opt_.dt;
   precond_ready_ = false;  // set up again at this step's first Newton iteration
+  estimator_pending_ = false;
   if (quasi_static) Exec::fill(v_, 0.0);
   copy(x_, x_t_);
   copy(v_, v_t_);

@@ -350,7 +350,8 @@ class Solver final : public SolverBase {
   Vec<double> f_ext_;
   Vec<double> x_, v_, x_t_, v_t_, g_, dx_, r_, z_, p_, ap_, x_trial_, vals_, kin_target_, hinge_grad_t_;
   std::unique_ptr<Preconditioner<Exec>> precond_;
-  std::unique_ptr<Preconditioner<Exec>> estimator_;  ///< MAS for the stopping rule when PCG's is not
+  std::unique_ptr<MultilevelAdditiveSchwarz<Exec>> estimator_;  ///< MAS for the stopping rule when PCG's is not
+  bool estimator_pending_ = false;  ///< estimator_ is ordered for the current matrix but not built
   std::vector<int> kin_fixed_host_;
   // self-contact (host bookkeeping, device pair lists)
   std::unique_ptr<SelfContact> self_;

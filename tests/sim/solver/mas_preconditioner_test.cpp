@@ -164,26 +164,19 @@ TEST(MasPreconditioner, LevelsAreNestedPartitionsOfTheFreeVertices) {
   EXPECT_LE(P.level(P.levels() - 1).nodes, 16 * 16);
 }
 
-// The coarse levels' one or two domains hold hundreds of vertices each and are gathered in
-// parts by several threads: the apply must still be Σ_l R_lᵀ D_l⁻¹ R_l r with D_l the exact
-// Galerkin blocks R_l A R_lᵀ per domain (built here in double from the levels' partitions), and
-// the same bits at one thread and at two.
-TEST(MasPreconditioner, ApplyIsTheSumOfTheLevelsGalerkinBlockSolvesAtAnyThreadCount) {
-  System s = make_system(make_rect(0.3, 0.3, 0.01), 400, 11);
-  s.fixed[3] = 1;
-  const int B = 16;
-  Mas P(s.n(), B);
-  P.setup(s.view());
-  ASSERT_GE(P.levels(), 3);
-  const Eigen::VectorXd r = random_vector(3 * s.n(), 12);
-  const Eigen::SparseMatrix<double> A = s.dense().sparseView();
+/// Σ_l R_lᵀ D_l⁻¹ R_l r with D_l the exact Galerkin blocks R_l A R_lᵀ per domain of P's levels,
+/// built here in double from the levels' partitions (Dirichlet rows: r). largest_domain: the
+/// most vertices under one domain.
+Eigen::VectorXd galerkin_reference(const System& s, const Mas& P, int B, const Eigen::VectorXd& r, bool couplings,
+                                   int* largest_domain) {
+  const Eigen::SparseMatrix<double> A = s.dense(couplings).sparseView();
   Eigen::VectorXd ref = Eigen::VectorXd::Zero(3 * s.n());
-  int largest_domain = 0;
+  *largest_domain = 0;
   for (int l = 0; l < P.levels(); ++l) {
     const mas_detail::LevelView L = P.level(l);
     for (int d = 0; d < L.domains; ++d) {
       const int first = d * B, count = std::min(B, L.nodes - first);
-      largest_domain = std::max(largest_domain, L.offsets[first + count] - L.offsets[first]);
+      *largest_domain = std::max(*largest_domain, L.offsets[first + count] - L.offsets[first]);
       std::vector<Eigen::Triplet<double>> t;  // restriction to the domain's nodes
       for (int a = 0; a < count; ++a)
         for (int e = L.offsets[first + a]; e < L.offsets[first + a + 1]; ++e)
@@ -195,10 +188,27 @@ TEST(MasPreconditioner, ApplyIsTheSumOfTheLevelsGalerkinBlockSolvesAtAnyThreadCo
       ref += R.transpose() * D.ldlt().solve(rd);
     }
   }
-  ASSERT_GT(largest_domain, mas_detail::kPartVertices) << "no domain is gathered in parts";
   for (int i = 0; i < s.n(); ++i)
     if (s.fixed[i]) ref.segment<3>(3 * i) = r.segment<3>(3 * i);
+  return ref;
+}
+
+// The coarse levels' one or two domains hold hundreds of vertices each and are gathered in
+// parts by several threads: the apply must still be Σ_l R_lᵀ D_l⁻¹ R_l r with D_l the exact
+// Galerkin blocks R_l A R_lᵀ per domain, and the same bits at one thread and at two.
+TEST(MasPreconditioner, ApplyIsTheSumOfTheLevelsGalerkinBlockSolvesAtAnyThreadCount) {
+  System s = make_system(make_rect(0.3, 0.3, 0.01), 400, 11);
+  s.fixed[3] = 1;
+  const int B = 16;
+  Mas P(s.n(), B);
+  P.setup(s.view());
+  ASSERT_GE(P.levels(), 3);
+  const Eigen::VectorXd r = random_vector(3 * s.n(), 12);
+  int largest_domain = 0;
+  const Eigen::VectorXd ref = galerkin_reference(s, P, B, r, false, &largest_domain);
+  ASSERT_GT(largest_domain, mas_detail::kPartVertices) << "no domain is gathered in parts";
   const int threads = omp_get_max_threads();
+
   omp_set_num_threads(1);
   Mas one(s.n(), B);
   one.setup(s.view());
@@ -235,6 +245,54 @@ TEST(MasPreconditioner, TheGpuWarpTeamsGiveTheCpuResultToRounding) {
       EXPECT_LT((zw - zc).norm(), 1e-9 * zc.norm()) << "domain size " << B;
     }
   }
+}
+
+// The coarse levels read only the entries between the finer level's domains (and the finer
+// blocks for a node's own block): contact couplings between far vertices, which join distant
+// domains and cross every level below the top, must reach each level's Galerkin blocks, on the
+// CPU and in the GPU's warp teams.
+TEST(MasPreconditioner, FarCouplingsEnterEveryLevelsGalerkinBlocks) {
+  System s = make_system(make_rect(0.3, 0.3, 0.01), 400, 17);
+  s.fixed[7] = 1;
+  const int n = s.n();
+  std::vector<std::vector<std::pair<int, Mat3>>> rows(n);
+  std::mt19937 rng(18);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  for (int k = 0; k < n / 4; ++k) {  // PSD pair blocks [K -K; -K K] between random vertices
+    const int i = pick(rng), j = pick(rng);
+    if (i == j) continue;
+    const Mat3 K = 3e3 * (1 + k % 5) * Mat3::Identity();
+    rows[i].push_back({j, -K});
+    rows[j].push_back({i, -K});
+    for (int c = 0; c < 3; ++c) {
+      s.vals[9 * s.d.diag[i] + 4 * c] += K(c, c);
+      s.vals[9 * s.d.diag[j] + 4 * c] += K(c, c);
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    s.cpl_row_ptr[i + 1] = s.cpl_row_ptr[i] + static_cast<int>(rows[i].size());
+    for (const auto& [j, B] : rows[i]) {
+      s.cpl_cols.push_back(j);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) s.cpl_vals.push_back(B(r, c));
+    }
+  }
+  const int B = 16;
+  Mas P(n, B);
+  MultilevelAdditiveSchwarz<CpuGpuPathsExec> warp(n, B);
+  P.setup(s.view(true));
+  warp.setup(s.view(true));
+  ASSERT_GE(P.levels(), 2);
+  const Eigen::VectorXd r = random_vector(3 * n, 19);
+  int largest_domain = 0;
+  const Eigen::VectorXd ref = galerkin_reference(s, P, B, r, true, &largest_domain);
+  const Eigen::VectorXd z = apply(P, r);
+  EXPECT_LT((z - ref).norm(), 1e-4 * ref.norm());
+  Eigen::VectorXd zw(r.size());
+  warp.apply(r.data(), zw.data());
+  EXPECT_LT((zw - z).norm(), 1e-9 * z.norm());
+  int largest_without = 0;  // the couplings do change the blocks
+  EXPECT_GT((galerkin_reference(s, P, B, r, false, &largest_without) - ref).norm(), 1e-3 * ref.norm());
 }
 
 TEST(MasPreconditioner, DirichletRowsPassThroughAndDoNotLeak) {
