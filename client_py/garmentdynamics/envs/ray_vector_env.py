@@ -13,7 +13,7 @@ from .. import health
 from ..client import Client
 from .scenes import SceneBatch
 from .spaces import action_space, observation_space
-from .vector_env import reset_seeds_and_mask, step_arrays
+from .vector_env import StepResults, reset_seeds_and_mask
 
 # A server that answers these is taken for gone (crashed, restarted without its scenes, or
 # unreachable); any other error is the caller's and is raised.
@@ -242,7 +242,7 @@ class RayVectorEnv(VectorEnv):
     def step(self, actions):
         actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, 2, 8)
         n = self.num_envs
-        rewards, terminated, truncated, time, steps, failed = step_arrays(n)
+        out = StepResults(n)
         self._cut_server = np.full(n, -1, dtype=np.int64)
 
         to_reset = np.flatnonzero(self._autoreset)
@@ -255,21 +255,16 @@ class RayVectorEnv(VectorEnv):
             for b, (x, r, term, trunc, infos) in results.items():
                 e = to_step[self._batch[to_step] == b]
                 self._obs[e] = x
-                rewards[e] = r
-                terminated[e] = term
-                truncated[e] = trunc
-                time[e] = [i["time"] for i in infos]
-                steps[e] = [i["steps"] for i in infos]
-                failed[e] = [i["failed"] for i in infos]
+                out.store(e, r, term, trunc, infos)
             if lost:
                 cut += list(self._rehome(lost))
         cut_mask = np.isin(np.arange(n), cut)
-        self._autoreset = (terminated | truncated) & ~cut_mask
+        self._autoreset = (out.terminated | out.truncated) & ~cut_mask
         stepped = ~np.isin(np.arange(n), to_reset) & ~cut_mask
-        infos = {"time": time, "_time": stepped, "steps": steps, "_steps": stepped.copy(),
-                 "failed": failed, "_failed": stepped.copy(), "cut": cut_mask, "_cut": cut_mask.copy(),
+        infos = {"time": out.time, "_time": stepped, "steps": out.steps, "_steps": stepped.copy(),
+                 "failed": out.failed, "_failed": stepped.copy(), "cut": cut_mask, "_cut": cut_mask.copy(),
                  "cut_server": self._cut_server.copy(), "_cut_server": cut_mask.copy()}
-        return self._obs.copy(), rewards, terminated, truncated, infos
+        return self._obs.copy(), out.rewards, out.terminated, out.truncated, infos
 
     def __enter__(self) -> "RayVectorEnv":
         return self

@@ -31,11 +31,26 @@ def reset_seeds_and_mask(env: VectorEnv, seed, options: Optional[dict]):
     return np.asarray(seeds, dtype=np.int64), mask
 
 
-def step_arrays(n: int):
-    """A vector step's per-scene results, zeroed: rewards, terminated, truncated, time, steps,
-    failed."""
-    return (np.zeros(n, dtype=np.float64), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool),
-            np.zeros(n, dtype=np.float64), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=bool))
+class StepResults:
+    """A vector step's per-scene results, zeroed until stored: rewards, terminated, truncated and
+    the infos' time, steps and failed."""
+
+    def __init__(self, n: int):
+        self.rewards = np.zeros(n, dtype=np.float64)
+        self.terminated = np.zeros(n, dtype=bool)
+        self.truncated = np.zeros(n, dtype=bool)
+        self.time = np.zeros(n, dtype=np.float64)
+        self.steps = np.zeros(n, dtype=np.int64)
+        self.failed = np.zeros(n, dtype=bool)
+
+    def store(self, idx, rewards, terminated, truncated, infos) -> None:
+        """The results of the scenes `idx` (a batch's step: its rewards, flags and per-scene infos)."""
+        self.rewards[idx] = rewards
+        self.terminated[idx] = terminated
+        self.truncated[idx] = truncated
+        self.time[idx] = [i["time"] for i in infos]
+        self.steps[idx] = [i["steps"] for i in infos]
+        self.failed[idx] = [i["failed"] for i in infos]
 
 
 class GarmentVectorEnv(VectorEnv):
@@ -102,7 +117,7 @@ class GarmentVectorEnv(VectorEnv):
     def step(self, actions):
         actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, 2, 8)
         n = self.num_envs
-        rewards, terminated, truncated, time, steps, failed = step_arrays(n)
+        out = StepResults(n)
 
         to_reset = np.flatnonzero(self._autoreset)
         to_step = np.flatnonzero(~self._autoreset)
@@ -111,17 +126,12 @@ class GarmentVectorEnv(VectorEnv):
         if len(to_step):
             x, r, term, trunc, infos = self._scenes.step(to_step, actions[to_step])
             self._obs[to_step] = x
-            rewards[to_step] = r
-            terminated[to_step] = term
-            truncated[to_step] = trunc
-            time[to_step] = [i["time"] for i in infos]
-            steps[to_step] = [i["steps"] for i in infos]
-            failed[to_step] = [i["failed"] for i in infos]
-        self._autoreset = terminated | truncated
+            out.store(to_step, r, term, trunc, infos)
+        self._autoreset = out.terminated | out.truncated
         stepped = ~np.isin(np.arange(n), to_reset)
-        infos = {"time": time, "_time": stepped, "steps": steps, "_steps": stepped.copy(),
-                 "failed": failed, "_failed": stepped.copy()}
-        return self._obs.copy(), rewards, terminated, truncated, infos
+        infos = {"time": out.time, "_time": stepped, "steps": out.steps, "_steps": stepped.copy(),
+                 "failed": out.failed, "_failed": stepped.copy()}
+        return self._obs.copy(), out.rewards, out.terminated, out.truncated, infos
 
     def close_extras(self, **kwargs):
         self._scenes.close()
