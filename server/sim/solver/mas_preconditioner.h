@@ -212,7 +212,6 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     split_parts(0);                     // its domains' vertices in parts for the gathers
   }
   void build(const BlockMatrixView& A) {
-    A_ = A;
     levels_ = 1;
     for (int l = 0;; ++l) {
       // Level l+1: connected pieces of level l's domains (read from the rows at level 0, from
@@ -713,7 +712,6 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
 
   int n_, B_;
   int levels_ = 0;
-  BlockMatrixView A_{};
   Vec<uint64_t> keys_;
   Vec<int> xref_;    ///< per free vertex, at cross_offset: its cross entries (filter_cross)
   Vec<int> xcount_;  ///< per vertex: how many
