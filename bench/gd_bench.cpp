@@ -300,9 +300,16 @@ int main(int argc, char** argv) {
   app.add_option("--dt", dt, "Time step, s (negative: default)");
   app.add_option("--pcg-newton-fraction", pcg_newton_fraction,
                  "With MAS: PCG stops at this fraction of the Newton rule's threshold (0: off; negative: default)");
-  app.add_option("--self-friction", self_friction, "Cloth-cloth Coulomb coefficient (negative: the material's)");
-  app.add_option("--table-friction", table_friction, "Cloth-table Coulomb coefficient (negative: default)");
-  app.add_option("--friction-eps", friction_eps, "Slip speed below which friction is smoothed, m/s (negative: default)");
+  const CLI::Validator finite(
+      [](std::string& text) {
+        double v = 0;
+        return CLI::detail::lexical_cast(text, v) && std::isfinite(v) ? std::string() : "must be a finite number";
+      },
+      "FINITE");
+  app.add_option("--self-friction", self_friction, "Cloth-cloth Coulomb coefficient (negative: the material's)")->check(finite);
+  app.add_option("--table-friction", table_friction, "Cloth-table Coulomb coefficient (negative: default)")->check(finite);
+  app.add_option("--friction-eps", friction_eps, "Slip speed below which friction is smoothed, m/s (negative: default)")
+      ->check(finite);
   app.add_option("--newton-atol", newton_atol, "Residual stopping rule, absolute, m/s (negative: default)");
   app.add_option("--contact-hessian", contact_hessian_arg, "Self-contact barrier Hessian")
       ->check(CLI::IsMember({"default", "projected", "gauss-newton"}))
