@@ -510,6 +510,11 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                 {"extent_x", fin.extent_x}, {"extent_y", fin.extent_y}};
   s["garment_length"] = garment.length;
   s["garment_width"] = garment.width;
+  // How far apart the trajectory leaves the grippers (a fling spreads the garment between them).
+  if (!traj.left.empty() && !traj.right.empty()) {
+    const double t_end = traj.end_time();
+    s["gripper_separation_final"] = (traj.left.sample(t_end).position - traj.right.sample(t_end).position).norm();
+  }
   s["settled_before_planning"] = settled ? config.task_params.start_delay : 0.0;  // s (generated tasks)
   nlohmann::json ev = nlohmann::json::array();
   for (const tasks::GripperEvent& e : run.controller().events())

@@ -141,7 +141,7 @@ CaseResult cantilever_case(const sim::Material& m) {
   r.detail = "overhang " + std::to_string(c.overhang * 100) + " cm at " + std::to_string(c.angle_deg) +
              " deg after " + std::to_string(c.evaluations) + " static solves";
   r.seconds = seconds_since(t0);
-  return finish(r, 0.05);
+  return finish(r, 0.02);  // 0.0-0.9% measured (docs/validation.md)
 }
 
 CaseResult cantilever_mesh_independence_case(const sim::Material& m) {
@@ -156,7 +156,7 @@ CaseResult cantilever_mesh_independence_case(const sim::Material& m) {
   r.vertices = fine.vertices;
   r.detail = "bending length with 12 vs 24 elements along the overhang";
   r.seconds = seconds_since(t0);
-  return finish(r, 0.05);
+  return finish(r, 0.015);  // 0.4% measured for cotton
 }
 
 CaseResult tensile_case(const sim::Material& m) {

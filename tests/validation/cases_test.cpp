@@ -19,18 +19,19 @@ void expect_pass(const CaseResult& r) {
 
 class Cantilever : public ::testing::TestWithParam<std::string> {};
 
-// ASTM D1388: the simulated bending length is within 5% of (G / (W g))^(1/3) for every fabric.
+// ASTM D1388: the simulated bending length is within 2% of (G / (W g))^(1/3) for every fabric
+// (0.0-0.9% measured since hinges on the clamp line stand for their free wing alone).
 TEST_P(Cantilever, BendingLengthMatchesRigidity) {
   const CaseResult r = cantilever_case(library().get(GetParam()));
   expect_pass(r);
-  EXPECT_LE(r.rel_error, 0.05);
+  EXPECT_LE(r.rel_error, 0.02);
 }
 
 INSTANTIATE_TEST_SUITE_P(TenFabrics, Cantilever,
                          ::testing::Values("cotton", "linen", "wool", "polyester", "nylon", "silk", "knit", "velvet",
                                            "leather", "fur"));
 
-TEST(CantileverMesh, TwoResolutionsAgreeWithinFivePercent) {
+TEST(CantileverMesh, TwoResolutionsAgreeWithinOneAndAHalfPercent) {
   expect_pass(cantilever_mesh_independence_case(library().get("cotton")));
 }
 

@@ -169,7 +169,13 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
 /// blow up) as the edges become parallel, where E -> 0. Vertex order a0, a1, b0, b1 (gradient N,
 /// Hessian N/m). Returns 0 when the gap is >= dhat and +INFINITY when it is <= 0 (zero
 /// derivatives; even for parallel edges, so a penetrating configuration is always rejected).
-/// grad/hess/dist2 as in vf_contact_energy.
+/// grad/hess/dist2 as in vf_contact_energy. The Hessian kinds: kExact the product rule above;
+/// kProjected m times the PSD projection of ∇²B (closed form, barrier_hessian.h), kGaussNewton m
+/// times B's Gauss-Newton term. Where the mollifier is active (near-parallel edges, m < 1) the
+/// last two drop the terms with ∇m, ∇²m: the gradient, and so the solution, are exact, only the
+/// Newton model differs. Projecting the full product instead (a 12x12 eigen-decomposition per
+/// pair) cost fold/20000 18% more time per step, with 4.83 against 4.58 Newton iterations
+/// (docs/physics.md, eighteenth round).
 GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec3& b1, Real offset,
                              Real dhat, Real kappa, Real eps_x, VecN<12>* grad, MatN<12>* hess,
                              HessianKind kind, Real* dist2 = nullptr) {
@@ -183,33 +189,31 @@ GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, con
     return contact_barrier(sqrt(d2) - offset, dhat, kappa, nullptr, nullptr);
   }
   const bool want = grad != nullptr || want_hess;
+  const bool exact = want_hess && kind == HessianKind::kExact;
   VecN<12> gm;
   MatN<12> Hm;
-  const Real m = ee_mollifier(a0, a1, b0, b1, eps_x, want ? &gm : nullptr, want_hess ? &Hm : nullptr);
+  const Real m = ee_mollifier(a0, a1, b0, b1, eps_x, want ? &gm : nullptr, exact ? &Hm : nullptr);
   if (!want) return m * contact_barrier(sqrt(d2) - offset, dhat, kappa, nullptr, nullptr);
   VecN<12> g2, gB;
   MatN<12> H2, HB;
-  // Gauss-Newton only where the mollifier is inactive (m = 1, zero derivatives); near-parallel
-  // edges keep the projected full Hessian.
-  const bool unmollified = m == Real(1) && gm.isZero(0);
-  const bool gauss_newton = kind == HessianKind::kGaussNewton && unmollified;
-  const bool closed_form = want_hess && kind == HessianKind::kProjected && unmollified;
-  const bool exact_h2 = want_hess && !gauss_newton && !closed_form;
-  edge_edge_distance2(a0, a1, b0, b1, region, &g2, exact_h2 ? &H2 : nullptr);
-  const Real B = contact_detail::barrier_of_distance2(d2, g2, exact_h2 ? &H2 : nullptr, offset, dhat,
-                                                      kappa, &gB, want_hess && !closed_form ? &HB : nullptr);
+  // kProjected: m times the closed-form projection of ∇²B; kGaussNewton: m times B's Gauss-Newton
+  // term. Both leave the mollifier's derivatives out of the Hessian (see the function comment).
+  const bool closed_form = want_hess && kind == HessianKind::kProjected;
+  edge_edge_distance2(a0, a1, b0, b1, region, &g2, exact ? &H2 : nullptr);
+  const Real B = contact_detail::barrier_of_distance2(d2, g2, exact ? &H2 : nullptr, offset, dhat, kappa, &gB,
+                                                      want_hess && !closed_form ? &HB : nullptr);
   if (grad) *grad = m * gB + B * gm;
   if (closed_form) {
     Real db, d2b;
     contact_barrier(sqrt(d2) - offset, dhat, kappa, &db, &d2b);
     const Vec3 x[4] = {a0, a1, b0, b1};
     projected_barrier_hessian(x, ee_region_param(region), db, d2b, hess);
-  } else if (want_hess && gauss_newton) {
-    *hess = HB;
-  } else if (want_hess) {
+    if (m != Real(1)) *hess *= m;
+  } else if (exact) {
     const MatN<12> cross = gm * gB.transpose();
     *hess = m * HB + B * Hm + cross + cross.transpose();
-    if (kind != HessianKind::kExact) project_psd<12>(hess);
+  } else if (want_hess) {
+    *hess = m * HB;
   }
   return m * B;
 }

@@ -8,6 +8,40 @@
 
 namespace gd::sim {
 
+/// Bending at the edge of a clamped region. A wing whose three vertices are all held (Dirichlet or
+/// gripped) cannot bend, so a hinge between it and a free wing stands for the free wing's area
+/// alone: coef = sqrt(3)|e|/A_free and area = A_free/3 instead of the two wings' sum, twice an
+/// interior hinge's stiffness between equal wings. With the sum, the clamped half of the hinge's
+/// area took part in the root curvature, a first-order error at every clamped edge (the
+/// cantilever's bending length 2-3% short, halving with the mesh; docs/physics.md, "Bending at
+/// clamped edges"). Runs when the held vertices change; the backend's copy is re-uploaded only
+/// when the set of such hinges changes.
+template <class Exec>
+void Solver<Exec>::clamp_hinges(const std::vector<int>& fixed, const std::vector<int>& gripped) {
+  const SceneData& d = *data_;
+  const int nh = d.hinge_count();
+  bool changed = false;
+  for (int h = 0; h < nh; ++h) {
+    const int* hv = d.hinges.data() + 4 * h;
+    auto held = [&](int v) { return fixed[v] != 0 || gripped[v] != 0; };
+    const bool edge = held(hv[0]) && held(hv[1]);
+    const bool wa = edge && held(hv[2]), wb = edge && held(hv[3]);
+    const char c = wa == wb ? 0 : (wa ? 1 : 2);
+    if (c == hinge_clamped_[h]) continue;
+    hinge_clamped_[h] = c;
+    changed = true;
+    HingeRest r = d.hinge_rest[h];
+    const Real a1 = d.hinge_wing_area[2 * h], a2 = d.hinge_wing_area[2 * h + 1];
+    const Real free_area = c == 1 ? a2 : a1;
+    if (c != 0 && free_area > 0) {
+      r.coef *= (a1 + a2) / free_area;
+      r.area = free_area / 3;
+    }
+    hinge_rest_host_[h] = r;
+  }
+  if (changed) Exec::upload(hinge_rest_, hinge_rest_host_);
+}
+
 /// Saves the step-start state, applies Dirichlet targets and an inertial predictor that stays
 /// above the table.
 template <class Exec>
@@ -34,6 +68,10 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
   for (int k : kin.vertices) (soft ? kin_flag : kin_fixed_host_)[k] = 1;
   Exec::upload(fixed_, kin_fixed_host_);
   Exec::upload(kin_flag_, kin_flag);
+  if (kin.vertices != clamp_held_) {  // hinges on the edge of a held region, when the held set changes
+    clamp_held_ = kin.vertices;
+    clamp_hinges(kin_fixed_host_, kin_flag);
+  }
   update_free_mass();
   std::vector<double> targets(3 * static_cast<size_t>(n_), 0.0);
   for (size_t k = 0; k < kin.vertices.size(); ++k)

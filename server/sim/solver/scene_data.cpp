@@ -153,6 +153,7 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
   const int nh = static_cast<int>(topo.hinges.size());
   d.hinges.resize(4 * nh);
   d.hinge_rest.resize(nh);
+  d.hinge_wing_area.resize(2 * static_cast<size_t>(nh));
   for (int h = 0; h < nh; ++h) {
     const Eigen::Vector4i& hv = topo.hinges[h];
     for (int k = 0; k < 4; ++k) d.hinges[4 * h + k] = hv[k];
@@ -187,9 +188,14 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
         D.col(1) = c[2] - c[0];
         return 0.5 * std::abs(D.determinant());
       };
-      r.coef = hinge_rest_coef(e2d.norm(), area2(corners[ta]), area2(corners[tb]), &r.area);
+      d.hinge_wing_area[2 * h] = area2(corners[ta]);
+      d.hinge_wing_area[2 * h + 1] = area2(corners[tb]);
+      r.coef = hinge_rest_coef(e2d.norm(), d.hinge_wing_area[2 * h], d.hinge_wing_area[2 * h + 1], &r.area);
     } else {
-      r.coef = hinge_rest_coef(mesh.x[hv[0]], mesh.x[hv[1]], mesh.x[hv[2]], mesh.x[hv[3]], &r.area);
+      const Vec3 &X0 = mesh.x[hv[0]], &X1 = mesh.x[hv[1]], &X2 = mesh.x[hv[2]], &X3 = mesh.x[hv[3]];
+      d.hinge_wing_area[2 * h] = 0.5 * (X1 - X0).cross(X2 - X0).norm();
+      d.hinge_wing_area[2 * h + 1] = 0.5 * (X0 - X1).cross(X3 - X1).norm();
+      r.coef = hinge_rest_coef((X1 - X0).norm(), d.hinge_wing_area[2 * h], d.hinge_wing_area[2 * h + 1], &r.area);
     }
     r.kappa_n = mat.bend_kappa_n;
     r.theta0 = use_uv ? 0.0

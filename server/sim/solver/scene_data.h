@@ -49,6 +49,7 @@ struct SceneData {
   std::vector<StretchShearRest> tri_rest;
   std::vector<int> hinges;               ///< 4 per hinge: edge (x0, x1), opposite x2, x3
   std::vector<HingeRest> hinge_rest;
+  std::vector<Real> hinge_wing_area;     ///< 2 per hinge: rest areas of wings (x0,x1,x2), (x1,x0,x3), m^2
 
   // Block-sparse (3x3) pattern, both triangles stored: row i holds cols[row_ptr[i]..row_ptr[i+1]).
   std::vector<int> row_ptr, cols;

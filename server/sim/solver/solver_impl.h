@@ -44,6 +44,8 @@ class Solver final : public SolverBase {
     Exec::upload(tri_rest_, d.tri_rest);
     Exec::upload(hinges_, d.hinges);
     Exec::upload(hinge_rest_, d.hinge_rest);
+    hinge_rest_host_ = d.hinge_rest;
+    hinge_clamped_.assign(d.hinge_count(), 0);
     Exec::upload(row_ptr_, d.row_ptr);
     Exec::upload(cols_, d.cols);
     Exec::upload(diag_, d.diag);
@@ -199,6 +201,7 @@ class Solver final : public SolverBase {
 
   // Start, accept and end of a step (predictor.h)
   void begin_step(const KinematicTargets& kin, bool quasi_static);
+  void clamp_hinges(const std::vector<int>& fixed, const std::vector<int>& gripped);
   bool accept_step(double alpha);
   void end_step();
 
@@ -353,6 +356,9 @@ class Solver final : public SolverBase {
   std::unique_ptr<MultilevelAdditiveSchwarz<Exec>> estimator_;  ///< MAS for the stopping rule when PCG's is not
   bool estimator_pending_ = false;  ///< estimator_ is ordered for the current matrix but not built
   std::vector<int> kin_fixed_host_;
+  std::vector<HingeRest> hinge_rest_host_;  ///< hinge_rest_ as uploaded (clamp_hinges)
+  std::vector<char> hinge_clamped_;         ///< per hinge: 0, or which wing (1: x2's, 2: x3's) is held
+  std::vector<int> clamp_held_;             ///< the held vertices clamp_hinges last saw
   // self-contact (host bookkeeping, device pair lists)
   std::unique_ptr<SelfContact> self_;
   double kappa_scale_ = 1;
