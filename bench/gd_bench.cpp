@@ -232,13 +232,13 @@ void print_table(const std::vector<CaseResult>& rs) {
   }
   std::printf("(ms/step: mean wall time of a step; newton, pcg: mean iterations per step, PCG summed over "
               "Newton iterations; converged: steps whose Newton solve stopped before its cap)\n");
-  std::printf("\nms per step by stage:\n%-14s %9s %9s %9s %9s %9s %9s %9s %9s %9s %7s\n", "case", "predictor",
-              "contacts", "assembly", "precond", "pcg", "ccd", "linesrch", "intersect", "untangle", "evals");
+  std::printf("\nms per step by stage:\n%-14s", "case");
+  gd::sim::StageTimes{}.for_each_ms([](const char* name, double) { std::printf(" %13s", name); });
+  std::printf(" %7s\n", "evals");
   for (const auto& r : rs) {
-    const gd::sim::StageTimes& t = r.stage;
-    std::printf("%-14s %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f %7.2f\n", r.name.c_str(),
-                1e3 * t.predictor, 1e3 * t.contacts, 1e3 * t.assembly, 1e3 * t.precond, 1e3 * t.pcg, 1e3 * t.ccd,
-                1e3 * t.line_search, 1e3 * t.intersections, 1e3 * t.untangle, r.energy_evals);
+    std::printf("%-14s", r.name.c_str());
+    r.stage.for_each_ms([](const char*, double ms) { std::printf(" %13.2f", ms); });
+    std::printf(" %7.2f\n", r.energy_evals);
   }
 }
 

@@ -11,7 +11,8 @@ import subprocess
 import pytest
 from gd_bench_path import gd_bench_candidates
 
-STAGES = {"predictor", "contacts", "assembly", "precond", "pcg", "ccd", "line_search", "intersections", "untangle"}
+STAGES = {"predictor", "contacts", "assembly", "couplings", "precond", "pcg", "ccd", "line_search", "intersections",
+          "untangle", "stopping"}
 
 
 BENCH = next(iter(gd_bench_candidates()), None)

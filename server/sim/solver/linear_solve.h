@@ -77,12 +77,24 @@ void Solver<Exec>::merge_pair_blocks() {
 template <class Exec>
 void Solver<Exec>::prepare_linear_solve() {
   if (opt_.linear_solver == LinearSolverKind::kDirect && Exec::kHostMemory) return;
-  if (self_) merge_pair_blocks();
-  const BlockMatrixView A = matrix_view();
-  precond_->setup(A);
-  if (estimator_) estimator_->order(A);  // built by converged() if the step goes on
-  estimator_pending_ = estimator_ != nullptr;
+  precond_->setup(matrix_view());
   precond_ready_ = true;
+}
+
+/// Before a linear solve: the contact couplings as a matrix (PCG's and the preconditioners').
+template <class Exec>
+void Solver<Exec>::merge_couplings() {
+  if (opt_.linear_solver == LinearSolverKind::kDirect && Exec::kHostMemory) return;
+  if (self_) merge_pair_blocks();
+}
+
+/// After the preconditioner's setup: the stopping rule's own MAS instance, where PCG's
+/// preconditioner is not one, ordered at this iterate (built by converged() if the step goes on).
+template <class Exec>
+void Solver<Exec>::order_estimator() {
+  if (!precond_ready_ || !estimator_) return;
+  estimator_->order(matrix_view());
+  estimator_pending_ = true;
 }
 
 /// The assembled Hessian and contact couplings at x_, as the preconditioners read them.

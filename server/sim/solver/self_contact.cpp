@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <omp.h>
 
 #include "sim/contact/barrier.h"
 #include "sim/contact/distance.h"
@@ -135,27 +136,43 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
       keep_[c] = near(edges_[p[0]].data(), 2, edges_[p[1]].data(), 2);
     }
   }
-  cand_.clear();
-  cand_raw_.clear();
-  const size_t total = std::count(keep_.begin(), keep_.end(), 1);
-  cand_.v.reserve(4 * total), cand_.type.reserve(total), cand_.kappa.reserve(total), cand_.eps_x.reserve(total);
-  cand_raw_.reserve(total);
-  for (int c = 0; c < nvf; ++c) {
-    if (!keep_[c]) continue;
-    const auto& p = raw_.vf[c];
-    const int v[4] = {p[0], d_.tris[3 * p[1]], d_.tris[3 * p[1] + 1], d_.tris[3 * p[1] + 2]};
-    cand_.push(v, 0, kappa_scale_ * kappa_per_mass_ * d_.mass[v[0]], 0.0);
-    cand_raw_.push_back(c);
-  }
-  for (int c = 0; c < nee; ++c) {
-    if (!keep_[nvf + c]) continue;
-    const auto& p = raw_.ee[c];
-    const auto& a = edges_[p[0]];
-    const auto& b = edges_[p[1]];
-    const int v[4] = {a[0], a[1], b[0], b[1]};
-    const double m = 0.25 * (d_.mass[v[0]] + d_.mass[v[1]] + d_.mass[v[2]] + d_.mass[v[3]]);
-    cand_.push(v, 1, kappa_scale_ * kappa_per_mass_ * m, 1e-3 * edge_len2_[p[0]] * edge_len2_[p[1]]);
-    cand_raw_.push_back(nvf + c);
+  // The kept pairs in raw order (vf pairs, then ee pairs): chunks of the raw list counted, then
+  // filled, in parallel (a serial pass over ~6.6 million raw pairs was ~10 ms per call at
+  // fold/40000, where the candidates are ~85,000).
+  const int raw_total = nvf + nee;
+  const int chunks = raw_total >= kParallelPairs ? 4 * std::max(1, omp_get_max_threads()) : 1;
+  auto chunk_lo = [&](int j) { return static_cast<int>(static_cast<long>(raw_total) * j / chunks); };
+  std::vector<int> start(chunks + 1, 0);
+#pragma omp parallel for schedule(static) if (chunks > 1)
+  for (int j = 0; j < chunks; ++j)
+    start[j + 1] = static_cast<int>(std::count(keep_.begin() + chunk_lo(j), keep_.begin() + chunk_lo(j + 1), 1));
+  for (int j = 0; j < chunks; ++j) start[j + 1] += start[j];
+  const int total = start[chunks];
+  cand_.v.resize(4 * static_cast<size_t>(total));
+  cand_.type.resize(total), cand_.kappa.resize(total), cand_.eps_x.resize(total);
+  cand_raw_.resize(total);
+  const Real kappa = kappa_scale_ * kappa_per_mass_;
+#pragma omp parallel for schedule(static) if (chunks > 1)
+  for (int j = 0; j < chunks; ++j) {
+    int k = start[j];
+    for (int c = chunk_lo(j); c < chunk_lo(j + 1); ++c) {
+      if (!keep_[c]) continue;
+      int* v = &cand_.v[4 * static_cast<size_t>(k)];
+      if (c < nvf) {
+        const auto& p = raw_.vf[c];
+        v[0] = p[0], v[1] = d_.tris[3 * p[1]], v[2] = d_.tris[3 * p[1] + 1], v[3] = d_.tris[3 * p[1] + 2];
+        cand_.type[k] = 0, cand_.kappa[k] = kappa * d_.mass[v[0]], cand_.eps_x[k] = 0.0;
+      } else {
+        const auto& p = raw_.ee[c - nvf];
+        const auto& a = edges_[p[0]];
+        const auto& b = edges_[p[1]];
+        v[0] = a[0], v[1] = a[1], v[2] = b[0], v[3] = b[1];
+        const double m = 0.25 * (d_.mass[v[0]] + d_.mass[v[1]] + d_.mass[v[2]] + d_.mass[v[3]]);
+        cand_.type[k] = 1, cand_.kappa[k] = kappa * m, cand_.eps_x[k] = 1e-3 * edge_len2_[p[0]] * edge_len2_[p[1]];
+      }
+      cand_raw_[k] = c;
+      ++k;
+    }
   }
 }
 

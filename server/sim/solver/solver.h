@@ -20,31 +20,36 @@ struct StageTimes {
   double predictor = 0;      ///< lagged friction frames, Dirichlet targets, predictor and its CCD
   double contacts = 0;       ///< active-pair selection and the candidate search along each Newton step
   double assembly = 0;       ///< gradient and PSD Hessian (and the gradients of the residual checks)
-  double precond = 0;        ///< merging the contact couplings and the preconditioner setup
+  double couplings = 0;      ///< the contact pairs' off-diagonal blocks merged into a block CSR
+  double precond = 0;        ///< PCG's preconditioner setup
   double pcg = 0;            ///< PCG iterations
   double ccd = 0;            ///< step bound: CCD against cloth, table and colliders
   double line_search = 0;    ///< energy evaluations of the backtracking line search
   double intersections = 0;  ///< exact intersecting-pair count after the step
   double untangle = 0;       ///< untangling fail-safe
+  double stopping = 0;       ///< Newton's stopping rule: its estimator's setup and solve, the residual
   double total() const {
-    return predictor + contacts + assembly + precond + pcg + ccd + line_search + intersections + untangle;
+    return predictor + contacts + assembly + couplings + precond + pcg + ccd + line_search + intersections +
+           untangle + stopping;
   }
   StageTimes& operator+=(const StageTimes& o) {
-    predictor += o.predictor, contacts += o.contacts, assembly += o.assembly, precond += o.precond, pcg += o.pcg;
-    ccd += o.ccd, line_search += o.line_search, intersections += o.intersections, untangle += o.untangle;
+    predictor += o.predictor, contacts += o.contacts, assembly += o.assembly, couplings += o.couplings;
+    precond += o.precond, pcg += o.pcg, ccd += o.ccd, line_search += o.line_search;
+    intersections += o.intersections, untangle += o.untangle, stopping += o.stopping;
     return *this;
   }
   StageTimes& operator*=(double f) {
-    predictor *= f, contacts *= f, assembly *= f, precond *= f, pcg *= f;
-    ccd *= f, line_search *= f, intersections *= f, untangle *= f;
+    predictor *= f, contacts *= f, assembly *= f, couplings *= f, precond *= f, pcg *= f;
+    ccd *= f, line_search *= f, intersections *= f, untangle *= f, stopping *= f;
     return *this;
   }
   /// Each stage in milliseconds, by name (the keys of gd-bench --json and summary.json).
   template <class F>
   void for_each_ms(F&& f) const {
     f("predictor", 1e3 * predictor), f("contacts", 1e3 * contacts), f("assembly", 1e3 * assembly);
-    f("precond", 1e3 * precond), f("pcg", 1e3 * pcg), f("ccd", 1e3 * ccd), f("line_search", 1e3 * line_search);
-    f("intersections", 1e3 * intersections), f("untangle", 1e3 * untangle);
+    f("couplings", 1e3 * couplings), f("precond", 1e3 * precond), f("pcg", 1e3 * pcg), f("ccd", 1e3 * ccd);
+    f("line_search", 1e3 * line_search), f("intersections", 1e3 * intersections), f("untangle", 1e3 * untangle);
+    f("stopping", 1e3 * stopping);
   }
 };
 

@@ -120,7 +120,9 @@ class Solver final : public SolverBase {
         break;
       }
       if (k == 0 && residual_rule() && predictor_converged(&st)) break;  // nothing left to solve
-      timed(T.precond, [&] { prepare_linear_solve(); });            // contact couplings, preconditioner
+      timed(T.couplings, [&] { merge_couplings(); });               // contact pairs' blocks as a matrix
+      timed(T.precond, [&] { prepare_linear_solve(); });            // PCG's preconditioner
+      timed(T.stopping, [&] { order_estimator(); });                // the stopping rule's, ordered at x
       timed(T.pcg, [&] { st.pcg_iters += solve_linear(scale); });   // dx = -H^-1 g (inexact)
       timed(T.contacts, [&] { find_contacts_along_step(); });       // broad phase on the motion x -> x + dx
       double alpha_max = 1, alpha = 0;
@@ -245,7 +247,9 @@ class Solver final : public SolverBase {
   // ... on the backend, the GPU's path (coupling_merge.h)
   bool backend_merge_fits() const;
   void merge_pair_blocks_on_backend();
+  void merge_couplings();
   void prepare_linear_solve();
+  void order_estimator();
   BlockMatrixView matrix_view();
   int solve_linear(double first_step);
   int solve_pcg(double first_step);

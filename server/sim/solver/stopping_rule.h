@@ -16,18 +16,20 @@ namespace gd::sim {
 template <class Exec>
 bool Solver<Exec>::converged(StepStats* st, int k, bool gradient_known, double scale) {
   if (!gradient_known) timed(st->stage.assembly, [&] { evaluate(x_, g_, false); });
-  Preconditioner<Exec>* estimator = estimator_ ? estimator_.get() : precond_.get();
-  if (precond_ready_ && estimator_pending_) {  // the last iteration's matrix is still assembled
-    timed(st->stage.precond, [&] { estimator_->build(matrix_view()); });
-    estimator_pending_ = false;
-  }
-  if (precond_ready_ && estimator->estimates_smooth_modes()) {
-    timed(st->stage.pcg, [&] { estimator->apply(Exec::ptr(g_), Exec::ptr(z_)); });
-    st->residual = rms_velocity(z_);
-  } else {
-    st->residual = residual_bound();
-  }
-  st->converged = st->residual <= residual_threshold(scale) && !pressed();
+  timed(st->stage.stopping, [&] {
+    Preconditioner<Exec>* estimator = estimator_ ? estimator_.get() : precond_.get();
+    if (precond_ready_ && estimator_pending_) {  // the last iteration's matrix is still assembled
+      estimator_->build(matrix_view());
+      estimator_pending_ = false;
+    }
+    if (precond_ready_ && estimator->estimates_smooth_modes()) {
+      estimator->apply(Exec::ptr(g_), Exec::ptr(z_));
+      st->residual = rms_velocity(z_);
+    } else {
+      st->residual = residual_bound();
+    }
+    st->converged = st->residual <= residual_threshold(scale) && !pressed();
+  });
   gd::log().trace("newton {}: next correction {:.3g} m/s (first step {:.3g}){}", k, st->residual, scale,
                   st->converged ? ", converged" : "");
   return st->converged;

@@ -30,6 +30,10 @@ struct CpuExec {
   /// The contact couplings are merged by the host's OpenMP code, reading the pairs in place
   /// (pair_blocks.cpp); policies without it merge on the backend (coupling_merge.h).
   static constexpr bool kHostMerge = true;
+  /// The LBVH broad phase's pairs are sorted per query and unpacked on the host
+  /// (lbvh_broad_phase.h); policies without it sort and unpack them on the backend and copy the
+  /// result back in one piece.
+  static constexpr bool kHostPairs = true;
 
   template <class T>
   using Vector = std::vector<T>;
@@ -42,6 +46,9 @@ struct CpuExec {
   static void upload(Vector<T>& dst, const std::vector<T>& src) { dst = src; }
   template <class T>
   static void download(std::vector<T>& dst, const Vector<T>& src) { dst = src; }
+  /// src's src.size() values copied to dst (host memory the caller sized).
+  template <class T>
+  static void download_to(T* dst, const Vector<T>& src) { std::copy(src.begin(), src.end(), dst); }
   template <class T>
   static void resize(Vector<T>& v, size_t n) { v.assign(n, T{}); }
   /// n elements whose values the caller overwrites before reading: keeps what is there and
@@ -168,6 +175,7 @@ struct CpuGpuPathsExec : CpuExec {
   static constexpr const char* kName = "cpu-gpu-paths";
   static constexpr bool kColoring = false;
   static constexpr bool kHostMerge = false;  ///< as CudaExec
+  static constexpr bool kHostPairs = false;  ///< as CudaExec
   static constexpr int kPcgCheckEvery = 8;  ///< as CudaExec
   /// Add into memory other threads may add into at the same time.
   static inline void add(double* p, double v) { std::atomic_ref<double>(*p).fetch_add(v, std::memory_order_relaxed); }
@@ -214,6 +222,11 @@ struct CpuGpuPathsExec : CpuExec {
   static void download(std::vector<T>& dst, const Vector<T>& src) {
     ++host_round_trips().downloads;
     CpuExec::download(dst, src);
+  }
+  template <class T>
+  static void download_to(T* dst, const Vector<T>& src) {
+    ++host_round_trips().downloads;
+    CpuExec::download_to(dst, src);
   }
   template <class T>
   static T read(const Vector<T>& v, size_t i) {

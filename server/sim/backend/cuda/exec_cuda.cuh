@@ -7,7 +7,9 @@
 /// its worker threads run on separate streams and overlap. Every launch is checked; a failure
 /// throws BackendError, which fails the step of that scene (Scene::step), not the process.
 
+#include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_reduce.cuh>
+#include <cub/device/device_scan.cuh>
 #include <thrust/device_vector.h>
 #include <thrust/execution_policy.h>
 #include <thrust/fill.h>
@@ -15,8 +17,6 @@
 #include <thrust/reduce.h>
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/iterator/transform_iterator.h>
-#include <thrust/scan.h>
-#include <thrust/sort.h>
 #include <thrust/transform_reduce.h>
 
 #include <cstdint>
@@ -48,6 +48,7 @@ struct CudaExec {
   static constexpr bool kColoring = false;
   static constexpr bool kHostMemory = false;  ///< device vectors: host-side stages copy them
   static constexpr bool kHostMerge = false;   ///< contact couplings merged on the device
+  static constexpr bool kHostPairs = false;   ///< broad-phase pairs sorted and unpacked on the device
 
   template <class T>
   using Vector = thrust::device_vector<T>;
@@ -63,6 +64,12 @@ struct CudaExec {
     ++host_round_trips().downloads;
     dst.resize(src.size());
     thrust::copy(src.begin(), src.end(), dst.begin());
+  }
+  /// src's src.size() values copied to dst (host memory the caller sized): one copy.
+  template <class T>
+  static void download_to(T* dst, const Vector<T>& src) {
+    ++host_round_trips().downloads;
+    if (!src.empty()) check(cudaMemcpy(dst, ptr(src), sizeof(T) * src.size(), cudaMemcpyDeviceToHost), "download");
   }
   template <class T>
   static void resize(Vector<T>& v, size_t n) { v.assign(n, T{}); }
@@ -108,11 +115,13 @@ struct CudaExec {
   }
 
   /// Device scratch of at least `bytes` for slot `k` (0: CUB's temporary storage, 1: values of
-  /// sum_effects, 2: one double read back by sum/max), this thread's, kept until the process
-  /// ends and grown as needed: no allocation per reduction.
+  /// sum_effects, 2: one double read back by sum/max, 3: the second buffer of sort and
+  /// exclusive_scan), this thread's, kept until the process ends and grown as needed: no
+  /// allocation per reduction, sort or scan (thrust's allocated and freed per call, and a free
+  /// waits for the whole device).
   static void* scratch(int k, size_t bytes) {
-    thread_local void* buffer[3] = {nullptr, nullptr, nullptr};
-    thread_local size_t capacity[3] = {0, 0, 0};
+    thread_local void* buffer[4] = {nullptr, nullptr, nullptr, nullptr};
+    thread_local size_t capacity[4] = {0, 0, 0, 0};
     if (bytes > capacity[k]) {
       if (buffer[k]) check(cudaFree(buffer[k]), "cudaFree of scratch");
       buffer[k] = nullptr;
@@ -214,10 +223,28 @@ struct CudaExec {
 #endif
   }
 
-  static void sort(Vector<uint64_t>& v) { thrust::sort(thrust::device, v.begin(), v.end()); }
+  /// Ascending radix sort of the whole vector (CUB, scratch buffers).
+  static void sort(Vector<uint64_t>& v) {
+    const int n = static_cast<int>(v.size());
+    if (n < 2) return;
+    uint64_t* keys = ptr(v);
+    cub::DoubleBuffer<uint64_t> buf(keys, static_cast<uint64_t*>(scratch(3, sizeof(uint64_t) * n)));
+    size_t bytes = 0;
+    check(cub::DeviceRadixSort::SortKeys(nullptr, bytes, buf, n), "sort (size)");
+    check(cub::DeviceRadixSort::SortKeys(scratch(0, bytes), bytes, buf, n), "sort");
+    if (buf.Current() != keys)
+      check(cudaMemcpyAsync(keys, buf.Current(), sizeof(uint64_t) * n, cudaMemcpyDeviceToDevice), "sort (copy)");
+  }
+  /// Exclusive prefix sum of v[0, count) in place (CUB into scratch, copied back).
   template <class T>
   static void exclusive_scan(Vector<T>& v, int count) {
-    thrust::exclusive_scan(thrust::device, v.begin(), v.begin() + count, v.begin());
+    if (count <= 0) return;
+    T* data = ptr(v);
+    T* out = static_cast<T*>(scratch(3, sizeof(T) * static_cast<size_t>(count)));
+    size_t bytes = 0;
+    check(cub::DeviceScan::ExclusiveSum(nullptr, bytes, data, out, count), "scan (size)");
+    check(cub::DeviceScan::ExclusiveSum(scratch(0, bytes), bytes, data, out, count), "scan");
+    check(cudaMemcpyAsync(data, out, sizeof(T) * static_cast<size_t>(count), cudaMemcpyDeviceToDevice), "scan (copy)");
   }
   template <class T>
   static T read(const Vector<T>& v, size_t i) {
