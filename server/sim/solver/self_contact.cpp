@@ -137,8 +137,8 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
     }
   }
   // The kept pairs in raw order (vf pairs, then ee pairs): chunks of the raw list counted, then
-  // filled, in parallel (a serial pass over ~6.6 million raw pairs was ~10 ms per call at
-  // fold/40000, where the candidates are ~85,000).
+  // filled, in parallel (at fold/40000 a query holds up to ~6.6 million raw pairs for ~85,000
+  // candidates, and each call re-filters all of them).
   const int raw_total = nvf + nee;
   const int chunks = raw_total >= kParallelPairs ? 4 * std::max(1, omp_get_max_threads()) : 1;
   auto chunk_lo = [&](int j) { return static_cast<int>(static_cast<long>(raw_total) * j / chunks); };
