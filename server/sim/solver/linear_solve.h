@@ -76,7 +76,7 @@ void Solver<Exec>::merge_pair_blocks() {
 /// Before a linear solve: the contact couplings as a matrix, then the preconditioners' setup.
 template <class Exec>
 void Solver<Exec>::prepare_linear_solve() {
-  if (opt_.linear_solver == LinearSolverKind::kDirect && Exec::kHostMemory) return;
+  if (direct_solve()) return;
   precond_->setup(matrix_view());
   precond_ready_ = true;
 }
@@ -84,7 +84,7 @@ void Solver<Exec>::prepare_linear_solve() {
 /// Before a linear solve: the contact couplings as a matrix (PCG's and the preconditioners').
 template <class Exec>
 void Solver<Exec>::merge_couplings() {
-  if (opt_.linear_solver == LinearSolverKind::kDirect && Exec::kHostMemory) return;
+  if (direct_solve()) return;
   if (self_) merge_pair_blocks();
 }
 

@@ -339,6 +339,10 @@ class Solver final : public SolverBase {
     return std::max(opt_.newton_atol, opt_.newton_rtol * first_step);
   }
 
+  /// Whether the linear solve is the sparse direct one (host memory only): no couplings' CSR and
+  /// no preconditioner to prepare.
+  bool direct_solve() const { return Exec::kHostMemory && opt_.linear_solver == LinearSolverKind::kDirect; }
+
   /// Total mass of the free vertices, kg (set by begin_step: the Dirichlet set changes only there).
   double free_mass() const { return free_mass_; }
 
