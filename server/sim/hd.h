@@ -10,3 +10,12 @@
 #define GD_HD inline
 #define GD_HD_LAMBDA
 #endif
+
+namespace gd::sim {
+
+/// Two sums taken by one loop (Exec::sum2_effects_to): each iteration returns its two terms.
+struct Sum2 {
+  double a = 0, b = 0;
+};
+
+}  // namespace gd::sim

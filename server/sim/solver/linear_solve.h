@@ -8,9 +8,11 @@
 
 namespace gd::sim {
 
-/// y = A x over free vertices (Dirichlet rows and columns act as identity / zero).
+/// y = A x over free vertices (Dirichlet rows and columns act as identity / zero), and x·y into
+/// *xy (the backend's memory) in the same pass. A Dirichlet column needs no test: assembly and
+/// the couplings' merge leave its blocks zero (scatter and merge_pair_blocks skip it).
 template <class Exec>
-void Solver<Exec>::spmv(const Vec<double>& xs, Vec<double>& ys) {
+void Solver<Exec>::spmv_dot_to(const Vec<double>& xs, Vec<double>& ys, double* xy) {
   const detail::View V = view();
   const double* x = Exec::ptr(xs);
   const double* A = Exec::ptr(vals_);
@@ -19,25 +21,25 @@ void Solver<Exec>::spmv(const Vec<double>& xs, Vec<double>& ys) {
   const int* crp = Exec::ptr(cpl_row_ptr_);
   const int* ccols = Exec::ptr(cpl_cols_);
   const double* cvals = Exec::ptr(cpl_vals_);
-  Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
-    double acc[3] = {0, 0, 0};
+  Exec::sum_effects_to(n_, [=] GD_HD_LAMBDA(int i) {
+    const double* xi = x + 3 * i;
     if (V.fixed[i]) {
       detail::store3(y, i, detail::load3(x, i));
-      return;
+      return xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2];
     }
+    double acc[3] = {0, 0, 0};
     auto add_row = [&](const int* rp, const int* cols, const double* vals) {
       for (int k = rp[i]; k < rp[i + 1]; ++k) {
-        const int j = cols[k];
-        if (V.fixed[j]) continue;
         const double* b = vals + 9 * k;
-        const double* xj = x + 3 * j;
+        const double* xj = x + 3 * cols[k];
         for (int r = 0; r < 3; ++r) acc[r] += b[3 * r] * xj[0] + b[3 * r + 1] * xj[1] + b[3 * r + 2] * xj[2];
       }
     };
     add_row(V.row_ptr, V.cols, A);
     if (couplings) add_row(crp, ccols, cvals);  // contact pairs' off-diagonal blocks
     y[3 * i] = acc[0], y[3 * i + 1] = acc[1], y[3 * i + 2] = acc[2];
-  }, Exec::kParallelMinHeavy);
+    return xi[0] * acc[0] + xi[1] * acc[1] + xi[2] * acc[2];
+  }, xy, Exec::kParallelMinHeavy);
 }
 
 /// The pairs' off-diagonal blocks summed per coupled (row, column) vertex pair into a block CSR
@@ -132,6 +134,9 @@ int Solver<Exec>::solve_pcg(double first_step) {
   // linear solve is no more exact than the Newton iteration needs. In the first Newton iteration
   // the step built so far stands for the first step (it only grows, so the test stays strict).
   const bool newton_stop = residual_rule() && opt_.pcg_newton_fraction > 0 && precond_->estimates_smooth_modes();
+  // A block-diagonal preconditioner (block-Jacobi) is applied inside the update pass, which then
+  // also takes r·z: three passes over the vectors per iteration instead of six.
+  const double* block_diag = newton_stop ? nullptr : precond_->block_inverse();
   Exec::fill(dx_, 0.0);
   copy(g_, r_);
   scale(-1.0, r_);  // r = -g (free rows; Dirichlet rows of g are zero)
@@ -150,20 +155,23 @@ int Solver<Exec>::solve_pcg(double first_step) {
   auto stopped = [&] { return Exec::read(pcg_s_, kPcgStop) != 0.0; };
   for (int k = 0; k < opt_.pcg_max_iters; ++k) {
     const bool check = (k + 1) % Exec::kPcgCheckEvery == 0;
-    spmv(p_, ap_);
-    dot_to(p_, ap_, S + kPcgPap);
+    spmv_dot_to(p_, ap_, S + kPcgPap);  // Ap, and pAp
     Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // alpha = rz / pAp, or stop where pAp is not positive
       const double pap = S[kPcgPap];
       if (S[kPcgStop] == 0.0 && !(pap > 0)) S[kPcgStop] = 1.0;
       S[kPcgAlpha] = S[kPcgStop] == 0.0 ? S[kPcgRz] / pap : 0.0;
       if (S[kPcgStop] == 0.0) S[kPcgIters] += 1.0;
     });
-    pcg_update_to(S + kPcgAlpha, p_, ap_, dx_, r_, S + kPcgRr);  // dx += alpha p, r -= alpha Ap, |r|²
+    if (block_diag) {  // dx += alpha p, r -= alpha Ap, |r|², z = D r and r·z in one pass
+      pcg_update_precond_to(S + kPcgAlpha, p_, ap_, dx_, r_, block_diag, z_, S + kPcgRr, S + kPcgRzNew);
+    } else {
+      pcg_update_to(S + kPcgAlpha, p_, ap_, dx_, r_, S + kPcgRr);  // dx += alpha p, r -= alpha Ap, |r|²
+    }
     Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // the relative residual test
       if (std::sqrt(S[kPcgRr]) <= tol_r) S[kPcgStop] = 1.0;
     });
     if (Exec::kPcgCheckEvery == 1 && stopped()) break;
-    precond_->apply(Exec::ptr(r_), Exec::ptr(z_));
+    if (!block_diag) precond_->apply(Exec::ptr(r_), Exec::ptr(z_));
     if (newton_stop) {
       mass_norm_to(z_, S + kPcgZm);
       if (first <= 0) mass_norm_to(dx_, S + kPcgDxm);
@@ -174,7 +182,7 @@ int Solver<Exec>::solve_pcg(double first_step) {
       });
       if (Exec::kPcgCheckEvery == 1 && stopped()) break;
     }
-    dot_to(r_, z_, S + kPcgRzNew);
+    if (!block_diag) dot_to(r_, z_, S + kPcgRzNew);
     Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // beta = rz_new / rz (0 once stopped)
       S[kPcgBeta] = S[kPcgStop] == 0.0 ? S[kPcgRzNew] / S[kPcgRz] : 0.0;
       if (S[kPcgStop] == 0.0) S[kPcgRz] = S[kPcgRzNew];

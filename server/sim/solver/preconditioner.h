@@ -41,6 +41,10 @@ class Preconditioner {
   /// that the Newton stopping rule may use it to predict the next correction. Block-Jacobi
   /// underestimates a uniform force by the stiffness ratio and does not.
   virtual bool estimates_smooth_modes() const { return false; }
+  /// Where M^-1 is block-diagonal: its 3x3 blocks, row-major, 9 per vertex (the backend's
+  /// memory), so that PCG can apply it inside its update pass (Solver::pcg_update_precond_to);
+  /// null otherwise.
+  virtual const double* block_inverse() const { return nullptr; }
 };
 
 template <class Exec>
@@ -73,6 +77,8 @@ class BlockJacobi final : public Preconditioner<Exec> {
       z[3 * i + 2] = m[6] * r0 + m[7] * r1 + m[8] * r2;
     }, Exec::kParallelMinVector / 3);
   }
+
+  const double* block_inverse() const override { return Exec::ptr(inv_); }
 
  private:
   int n_;

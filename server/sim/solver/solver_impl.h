@@ -242,7 +242,7 @@ class Solver final : public SolverBase {
   double sum_elements(const Coloring& coloring, int count, const F& f);
 
   // Linear solve: matrix-vector product, contact couplings, PCG, direct (linear_solve.h)
-  void spmv(const Vec<double>& xs, Vec<double>& ys);
+  void spmv_dot_to(const Vec<double>& xs, Vec<double>& ys, double* xy);  ///< y = A x, and x·y into *xy
   void merge_pair_blocks();
   // ... on the backend, the GPU's path (coupling_merge.h)
   bool backend_merge_fits() const;
@@ -275,6 +275,10 @@ class Solver final : public SolverBase {
   /// x += a p, r -= a q and |r|² into *rr, one pass (PCG's update; a in the backend's memory).
   void pcg_update_to(const double* a, const Vec<double>& ps, const Vec<double>& qs, Vec<double>& xs, Vec<double>& rs,
                      double* rr);
+  /// The same update with a block-diagonal preconditioner applied in the same pass: also z = D r
+  /// (D: 9 values per vertex) and r·z into *rz.
+  void pcg_update_precond_to(const double* a, const Vec<double>& ps, const Vec<double>& qs, Vec<double>& xs,
+                             Vec<double>& rs, const double* D, Vec<double>& zs, double* rr, double* rz);
   void xpby_scalar(const Vec<double>& xs, const double* b, Vec<double>& ys);  ///< y = x + b y
 
   // Energies, strain and memory for reports (diagnostics.h)

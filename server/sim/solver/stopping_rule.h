@@ -15,6 +15,15 @@ namespace gd::sim {
 /// search when it was computed there.
 template <class Exec>
 bool Solver<Exec>::converged(StepStats* st, int k, bool gradient_known, double scale) {
+  // A pair pressed too close keeps the step going whatever the estimate says: no estimate then
+  // (its setup is the rule's cost), and the last one checked stays in st->residual.
+  bool held = false;
+  timed(st->stage.stopping, [&] { held = pressed(); });
+  if (held) {
+    gd::log().trace("newton {}: a pair is pressed closer than {} CCD floors, not converged", k, kPressedGapFloors);
+    st->converged = false;
+    return false;
+  }
   if (!gradient_known) timed(st->stage.assembly, [&] { evaluate(x_, g_, false); });
   timed(st->stage.stopping, [&] {
     Preconditioner<Exec>* estimator = estimator_ ? estimator_.get() : precond_.get();
@@ -28,7 +37,7 @@ bool Solver<Exec>::converged(StepStats* st, int k, bool gradient_known, double s
     } else {
       st->residual = residual_bound();
     }
-    st->converged = st->residual <= residual_threshold(scale) && !pressed();
+    st->converged = st->residual <= residual_threshold(scale);
   });
   gd::log().trace("newton {}: next correction {:.3g} m/s (first step {:.3g}){}", k, st->residual, scale,
                   st->converged ? ", converged" : "");

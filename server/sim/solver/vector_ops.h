@@ -66,6 +66,38 @@ void Solver<Exec>::pcg_update_to(const double* a, const Vec<double>& ps, const V
   }, rr, Exec::kParallelMinVector);
 }
 
+/// pcg_update_to with a block-diagonal preconditioner in the same pass, per vertex: x += a p,
+/// r -= a q, z = D r (D's 3x3 block of the vertex, row-major), and |r|² into *rr, r·z into *rz.
+template <class Exec>
+void Solver<Exec>::pcg_update_precond_to(const double* a, const Vec<double>& ps, const Vec<double>& qs,
+                                         Vec<double>& xs, Vec<double>& rs, const double* D, Vec<double>& zs,
+                                         double* rr, double* rz) {
+  const double* p = Exec::ptr(ps);
+  const double* q = Exec::ptr(qs);
+  double* x = Exec::ptr(xs);
+  double* r = Exec::ptr(rs);
+  double* z = Exec::ptr(zs);
+  Exec::sum2_effects_to(n_, [=] GD_HD_LAMBDA(int i) {
+    const double alpha = *a;
+    double ri[3];
+    for (int c = 0; c < 3; ++c) {
+      const int k = 3 * i + c;
+      x[k] += alpha * p[k];
+      r[k] += -alpha * q[k];
+      ri[c] = r[k];
+    }
+    const double* m = D + 9 * i;
+    Sum2 s;
+    for (int c = 0; c < 3; ++c) {
+      const double zc = m[3 * c] * ri[0] + m[3 * c + 1] * ri[1] + m[3 * c + 2] * ri[2];
+      z[3 * i + c] = zc;
+      s.a += ri[c] * ri[c];
+      s.b += ri[c] * zc;
+    }
+    return s;
+  }, rr, rz, Exec::kParallelMinVector / 3);
+}
+
 template <class Exec>
 void Solver<Exec>::xpby_scalar(const Vec<double>& xs, const double* b, Vec<double>& ys) {
   const double* x = Exec::ptr(xs);

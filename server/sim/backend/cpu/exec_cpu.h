@@ -16,6 +16,7 @@
 
 #include "sim/backend/round_trips.h"
 #include "sim/demand.h"
+#include "sim/hd.h"
 #include "sim/team.h"
 
 namespace gd::sim {
@@ -128,6 +129,39 @@ struct CpuExec {
   template <class F>
   static void sum_effects_to(int n, const F& f, double* out, int parallel_min = kParallelMin) {
     *out = CpuExec::sum_effects(n, f, parallel_min);
+  }
+  /// Two sums of one loop into *out_a and *out_b (the backend's memory): f(i) returns both terms
+  /// of i as a Sum2 and may write memory (each i evaluated exactly once); blocked as sum() is, so
+  /// the bits do not depend on the thread count.
+  template <class F>
+  static void sum2_effects_to(int n, const F& f, double* out_a, double* out_b, int parallel_min = kParallelMin) {
+    double a = 0.0, b = 0.0;
+    if (n < parallel_min || n <= 0) {
+      for (int i = 0; i < n; ++i) {
+        const Sum2 s = f(i);
+        a += s.a, b += s.b;
+      }
+    } else {
+      const int block = std::max(64, parallel_min / 8);
+      const int blocks = (n + block - 1) / block;
+      constexpr int kOnStack = 256;
+      Sum2 stack[kOnStack];
+      std::vector<Sum2> heap(blocks > kOnStack ? blocks : 0);
+      Sum2* part = blocks > kOnStack ? heap.data() : stack;
+#pragma omp parallel for schedule(static)
+      for (int blk = 0; blk < blocks; ++blk) {
+        Sum2 p;
+        const int end = std::min(n, (blk + 1) * block);
+        for (int i = blk * block; i < end; ++i) {
+          const Sum2 s = f(i);
+          p.a += s.a, p.b += s.b;
+        }
+        part[blk] = p;
+      }
+      for (int blk = 0; blk < blocks; ++blk) a += part[blk].a, b += part[blk].b;
+    }
+    *out_a = a;
+    *out_b = b;
   }
   /// PCG reads its stop flag every this many iterations (Solver::solve_pcg): every iteration on
   /// the CPU, where a read costs nothing.

@@ -25,6 +25,7 @@
 
 #include "sim/backend/round_trips.h"
 #include "sim/demand.h"
+#include "sim/hd.h"
 #include "sim/team.h"
 
 namespace gd::sim {
@@ -177,6 +178,28 @@ struct CudaExec {
     size_t bytes = 0;
     check(cub::DeviceReduce::Sum(nullptr, bytes, values, out, n), "reduction (size)");
     check(cub::DeviceReduce::Sum(scratch(0, bytes), bytes, values, out, n), "reduction");
+  }
+
+  /// Two sums of one loop into *out_a and *out_b, device memory: f(i) returns both terms of i as
+  /// a Sum2 and may write memory (each i evaluated exactly once); one kernel writes the terms,
+  /// two CUB reductions add them.
+  template <class F>
+  static void sum2_effects_to(int n, const F& f, double* out_a, double* out_b, int /*parallel_min*/ = 0) {
+    if (n <= 0) {
+      check(cudaMemsetAsync(out_a, 0, sizeof(double)), "cudaMemsetAsync");
+      check(cudaMemsetAsync(out_b, 0, sizeof(double)), "cudaMemsetAsync");
+      return;
+    }
+    double* values = static_cast<double*>(scratch(1, 2 * sizeof(double) * static_cast<size_t>(n)));
+    for_each(n, [=] __host__ __device__(int i) {
+      const Sum2 s = f(i);
+      values[i] = s.a;
+      values[n + i] = s.b;
+    });
+    size_t bytes = 0;
+    check(cub::DeviceReduce::Sum(nullptr, bytes, values, out_a, n), "reduction (size)");
+    check(cub::DeviceReduce::Sum(scratch(0, bytes), bytes, values, out_a, n), "reduction");
+    check(cub::DeviceReduce::Sum(scratch(0, bytes), bytes, values + n, out_b, n), "reduction");
   }
 
   /// Sum of f(i) where f also writes memory (each i evaluated exactly once), read back.
