@@ -10,6 +10,9 @@
 ///   gd synth-capture --garment G --task T --out DIR [...]
 ///       a synthetic capture in RGBench's layout filmed from a reference simulation (for
 ///       trying `gd run --capture` without the real dataset).
+///   gd converge --garment G --task T --vertices 1000,2000,4000,8000 --out DIR [...]
+///       a mesh-convergence study: the same run at each resolution, each shape's distance to the
+///       finest run's (server/experiment/convergence.h lists the files it writes).
 ///
 ///
 /// With `--server HOST:PORT` the same `gd run` is submitted to a gd-server as a job (progress
@@ -25,10 +28,14 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <map>
+#include <memory>
+#include <sstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "experiment/convergence.h"
 #include "experiment/experiment.h"
 #include "experiment/progress.h"
 #include "experiment/synthetic_capture.h"
@@ -69,6 +76,39 @@ int cmd_metrics(const std::string& sim, const std::string& real, bool json) {
   } else {
     for (const auto& n : gd::metrics::kMetricNames) std::printf("%-10s %.6f\n", n.key, m.*n.field);
   }
+  return 0;
+}
+
+int cmd_converge(const gd::experiment::ConvergenceConfig& cfg, bool quiet) {
+  std::unique_ptr<gd::experiment::ProgressBar> bar;
+  int bar_run = -1;
+  auto progress = [&](int run, int runs, int vertices, double t, double end) {
+    if (quiet) return;
+    if (run != bar_run) {
+      if (bar) bar->finish();
+      std::fprintf(stderr, "run %d/%d: %d vertices\n", run + 1, runs, vertices);
+      bar = std::make_unique<gd::experiment::ProgressBar>(end, "s");
+      bar_run = run;
+    }
+    bar->update(t);
+  };
+  const auto result = gd::experiment::run_convergence(cfg, progress);
+  if (bar) bar->finish();
+  std::printf("distance to the finest run (%d vertices), symmetric, mm:\n",
+              result.summary["reference_vertices"].get<int>());
+  std::printf("%9s %9s %10s %10s\n", "vertices", "t (s)", "chamfer", "hausdorff");
+  for (const auto& r : result.rows)
+    std::printf("%9d %9s %10.2f %10.2f\n", r.vertices, r.final ? "final" : fmt::format("{:.2f}", r.t).c_str(),
+                1e3 * r.cd, 1e3 * r.hd);
+  const bool png = std::filesystem::exists(cfg.base.out_dir + "/convergence.png");
+  std::printf("files in %s: convergence.csv, convergence.json%s, v<N>/ per run\n", cfg.base.out_dir.c_str(),
+              png ? ", convergence.png" : "");
+  for (const auto& run : result.summary["runs"])
+    if (run.value("failed", false)) {
+      std::fprintf(stderr, "gd: the run at %d vertices failed: %s\n", run.value("vertices", 0),
+                   run.value("failure", std::string("?")).c_str());
+      return 1;
+    }
   return 0;
 }
 
@@ -181,6 +221,29 @@ int main(int argc, char** argv) {
   std::string syn_out;
   syn->add_option("--out", syn_out, "capture directory to write")->required();
 
+  gd::experiment::ConvergenceConfig conv;
+  std::string conv_vertices = "1000,2000,4000";
+  bool conv_quiet = false, conv_no_plots = false;
+  auto* cvg = app.add_subcommand("converge", "mesh-convergence study: one task at several resolutions, shapes "
+                                             "compared with the finest run's");
+  cvg->add_option("--garment", conv.base.garment, "garment type (generated at each vertex count)")->capture_default_str();
+  cvg->add_option("--material", conv.base.material, "fabric")->capture_default_str();
+  cvg->add_option("--task", conv.base.task, "grasp | fold | fling")->capture_default_str();
+  cvg->add_option("--vertices", conv_vertices, "comma-separated target vertex counts; the largest is the reference")
+      ->capture_default_str();
+  cvg->add_option("--snapshot-every", conv.snapshot_interval,
+                  "also compare the shapes every S seconds along the runs (0: final shapes only)")
+      ->capture_default_str();
+  cvg->add_option("--samples", conv.samples, "surface points sampled per shape")->capture_default_str();
+  cvg->add_option("--dt", conv.base.scene.dt, "time step, s")->capture_default_str();
+  cvg->add_option("--time-scale", conv.base.task_params.time_scale, "speed factor of the task's slow parts")
+      ->capture_default_str();
+  cvg->add_option("--settle", conv.base.settle_after, "seconds simulated after the trajectory ends")->capture_default_str();
+  cvg->add_option("--threads", conv.base.scene.threads, "CPU threads (0: all)");
+  cvg->add_option("--out", conv.base.out_dir, "output directory")->required();
+  cvg->add_flag("--no-plots", conv_no_plots, "do not draw the PNG plots");
+  cvg->add_flag("--quiet", conv_quiet, "no progress bars");
+
   gd::cli::RemoteCommands remote(app);
 
   CLI11_PARSE(app, argc, argv);
@@ -246,6 +309,21 @@ int main(int argc, char** argv) {
       else if (backend == "auto") cfg.scene.backend = gd::sim::BackendKind::kAuto;
       else throw gd::sim::InputError("unknown backend '" + backend + "'; use cpu, cuda or auto");
       return cmd_run(cfg, quiet);
+    }
+    if (*cvg) {
+      conv.vertices.clear();
+      std::stringstream list(conv_vertices);
+      for (std::string item; std::getline(list, item, ',');) {
+        try {
+          size_t used = 0;
+          conv.vertices.push_back(std::stoi(item, &used));
+          if (used != item.size()) throw std::invalid_argument(item);
+        } catch (const std::exception&) {
+          throw gd::sim::InputError("--vertices takes comma-separated integers (got '" + conv_vertices + "')");
+        }
+      }
+      if (conv_no_plots) conv.base.plots = false;
+      return cmd_converge(conv, conv_quiet);
     }
     if (*syn) {
       if (ref_no_self_contact) ref.scene.self_contact = false;

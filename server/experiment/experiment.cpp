@@ -282,14 +282,14 @@ int run_process(const std::vector<std::string>& args, bool quiet) {
 
 }  // namespace
 
-bool plot_report(const std::string& dir) {
+bool run_plot_script(const std::string& script_name, const std::string& dir) {
   std::vector<std::string> pythons;
   if (const char* e = std::getenv("GD_PYTHON"); e && *e) pythons.emplace_back(e);
 #ifdef GD_BUILD_VENV_PYTHON
   pythons.emplace_back(GD_BUILD_VENV_PYTHON);
 #endif
   pythons.emplace_back("python3");
-  const std::string script = std::string(GD_SOURCE_DIR) + "/scripts/plot_report.py";
+  const std::string script = std::string(GD_SOURCE_DIR) + "/scripts/" + script_name;
   if (!fs::exists(script)) {
     gd::log().warn("plots skipped: {} not found", script);
     return false;
@@ -304,6 +304,8 @@ bool plot_report(const std::string& dir) {
   gd::log().warn("plots skipped: no Python with matplotlib (set GD_PYTHON or run scripts/build)");
   return false;
 }
+
+bool plot_report(const std::string& dir) { return run_plot_script("plot_report.py", dir); }
 
 ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn& progress) {
   config.validate();

@@ -103,4 +103,8 @@ garments::Garment make_experiment_garment(const ExperimentConfig& config);
 /// (GD_PYTHON, the build's venv, python3). Returns false (and logs why) when none could.
 bool plot_report(const std::string& dir);
 
+/// Runs `python scripts/<script_name> dir` with the first Python that has matplotlib, as
+/// plot_report does (its call). Returns false (and logs why) when none could.
+bool run_plot_script(const std::string& script_name, const std::string& dir);
+
 }  // namespace gd::experiment

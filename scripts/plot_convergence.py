@@ -1,0 +1,61 @@
+#!/usr/bin/env python3
+"""Plots a mesh-convergence study written by `gd converge`.
+
+    plot_convergence.py STUDY_DIR
+
+Reads STUDY_DIR/convergence.csv (vertices, reference_vertices, t, final, cd, hd per compared
+shape) and writes STUDY_DIR/convergence.png: the symmetric Chamfer and Hausdorff distances of
+each run's shapes to the finest run's, against the vertex count (log-log), one line per compared
+time (the final shapes drawn thick).
+"""
+
+from __future__ import annotations
+
+import csv
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def main() -> int:
+    if len(sys.argv) != 2:
+        print(__doc__, file=sys.stderr)
+        return 2
+    study = Path(sys.argv[1])
+    rows = list(csv.DictReader(open(study / "convergence.csv")))
+    if not rows:
+        print(f"{study}/convergence.csv has no rows", file=sys.stderr)
+        return 1
+    series: dict[tuple[bool, float], list[tuple[int, float, float]]] = defaultdict(list)
+    for r in rows:
+        key = (r["final"] == "1", float(r["t"]))
+        series[key].append((int(r["vertices"]), float(r["cd"]), float(r["hd"])))
+    reference = rows[0]["reference_vertices"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for (final, t), pts in sorted(series.items()):
+        pts.sort()
+        n = [p[0] for p in pts]
+        label = f"final (t = {t:.2f} s)" if final else f"t = {t:.2f} s"
+        style = {"linewidth": 2.5, "color": "black"} if final else {"linewidth": 1, "alpha": 0.7}
+        for ax, k in zip(axes, (1, 2)):
+            ax.plot(n, [1e3 * p[k] for p in pts], marker="o", label=label, **style)
+    for ax, title in zip(axes, ("symmetric Chamfer distance", "symmetric Hausdorff distance")):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("vertices")
+        ax.set_ylabel("mm to the finest run")
+        ax.set_title(f"{title} to {reference} vertices")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(study / "convergence.png", dpi=120)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,229 @@
+#include "experiment/convergence.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <limits>
+#include <set>
+
+#include "garments/garment.h"
+#include <nanoflann.hpp>
+
+#include "sim/contact/distance.h"
+#include "sim/demand.h"
+#include "sim/log.h"
+
+namespace gd::experiment {
+
+namespace fs = std::filesystem;
+using sim::InputError;
+
+std::vector<sim::Vec3> sample_surface(const std::vector<sim::Vec3>& x, const std::vector<Eigen::Vector3i>& tris,
+                                            int count, unsigned seed) {
+  if (tris.empty() || count <= 0) throw InputError("sample_surface: the mesh has no triangles or count <= 0");
+  std::vector<double> cum(tris.size());
+  double total = 0;
+  for (size_t t = 0; t < tris.size(); ++t) {
+    const auto& f = tris[t];
+    total += 0.5 * (x[f[1]] - x[f[0]]).cross(x[f[2]] - x[f[0]]).norm();
+    cum[t] = total;
+  }
+  if (!(total > 0)) throw InputError("sample_surface: the mesh has zero area");
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<sim::Vec3> out;
+  out.reserve(count);
+  for (int k = 0; k < count; ++k) {
+    const double pick = u(rng) * total;
+    const size_t t = std::min(tris.size() - 1, static_cast<size_t>(std::lower_bound(cum.begin(), cum.end(), pick) - cum.begin()));
+    double a = u(rng), b = u(rng);
+    if (a + b > 1) a = 1 - a, b = 1 - b;  // uniform in the triangle
+    const auto& f = tris[t];
+    out.push_back(x[f[0]] + a * (x[f[1]] - x[f[0]]) + b * (x[f[2]] - x[f[0]]));
+  }
+  return out;
+}
+
+namespace {
+
+/// The shapes a run wrote: time (ms) -> OBJ path, the final one under key -1.
+std::map<long, std::string> run_shapes(const std::string& dir) {
+  std::map<long, std::string> shapes;
+  if (fs::exists(dir + "/final.obj")) shapes[-1] = dir + "/final.obj";
+  if (fs::is_directory(dir + "/meshes"))
+    for (const auto& e : fs::directory_iterator(dir + "/meshes")) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind("t_", 0) == 0 && e.path().extension() == ".obj")
+        shapes[std::strtol(name.c_str() + 2, nullptr, 10)] = e.path().string();
+    }
+  return shapes;
+}
+
+
+/// Exact distance from a point to the nearest triangle of a mesh: a KD-tree over the triangles'
+/// centroids gives the nearest centroid c (distance d0); the closest point lies on a triangle whose
+/// centroid is within d0 + rmax (rmax: the largest centroid-to-corner distance), so a radius search
+/// finds every triangle that can hold it.
+class SurfaceQuery {
+ public:
+  SurfaceQuery(const std::vector<sim::Vec3>& x, const std::vector<Eigen::Vector3i>& tris)
+      : x_(x), tris_(tris), src_{centroids_}, tree_(3, src_, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {
+    centroids_.reserve(tris.size());
+    for (const auto& f : tris) {
+      const sim::Vec3 c = (x[f[0]] + x[f[1]] + x[f[2]]) / 3.0;
+      centroids_.push_back(c);
+      for (int k = 0; k < 3; ++k) rmax_ = std::max(rmax_, (x[f[k]] - c).norm());
+    }
+    tree_.buildIndex();
+  }
+
+  double distance(const sim::Vec3& p) const {
+    uint32_t idx = 0;
+    double d2 = 0;
+    nanoflann::KNNResultSet<double, uint32_t> nearest(1);
+    nearest.init(&idx, &d2);
+    tree_.findNeighbors(nearest, p.data(), nanoflann::SearchParams());
+    const double r = std::sqrt(d2) + rmax_;
+    std::vector<std::pair<uint32_t, double>> found;
+    tree_.radiusSearch(p.data(), r * r * (1 + 1e-9), found, nanoflann::SearchParams());
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& item : found) {
+      const auto& f = tris_[item.first];
+      best = std::min(best, sim::point_triangle_distance2(p, x_[f[0]], x_[f[1]], x_[f[2]], nullptr, nullptr));
+    }
+    return std::sqrt(best);
+  }
+
+ private:
+  struct Source {
+    const std::vector<sim::Vec3>& pts;
+    size_t kdtree_get_point_count() const { return pts.size(); }
+    double kdtree_get_pt(uint32_t i, size_t d) const { return pts[i][int(d)]; }
+    template <class Box>
+    bool kdtree_get_bbox(Box&) const {
+      return false;
+    }
+  };
+  using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Source, double>, Source, 3, uint32_t>;
+  const std::vector<sim::Vec3>& x_;
+  const std::vector<Eigen::Vector3i>& tris_;
+  std::vector<sim::Vec3> centroids_;
+  double rmax_ = 0;
+  Source src_;
+  Tree tree_;
+};
+
+/// Mean and maximum distance from the points to the surface.
+std::pair<double, double> to_surface(const std::vector<sim::Vec3>& pts, const SurfaceQuery& surface) {
+  double sum = 0, mx = 0;
+  const long n = static_cast<long>(pts.size());
+#pragma omp parallel for schedule(static) reduction(+ : sum) reduction(max : mx)
+  for (long i = 0; i < n; ++i) {
+    const double d = surface.distance(pts[i]);
+    sum += d;
+    mx = std::max(mx, d);
+  }
+  return {n > 0 ? sum / n : 0.0, mx};
+}
+
+}  // namespace
+
+SurfaceDistance surface_distance(const sim::Mesh& a, const sim::Mesh& b, int samples) {
+  const SurfaceQuery sa(a.x, a.tris), sb(b.x, b.tris);
+  const auto [mean_ab, max_ab] = to_surface(sample_surface(a.x, a.tris, samples, 1), sb);
+  const auto [mean_ba, max_ba] = to_surface(sample_surface(b.x, b.tris, samples, 2), sa);
+  return {0.5 * (mean_ab + mean_ba), std::max(max_ab, max_ba)};
+}
+
+ConvergenceResult run_convergence(const ConvergenceConfig& config, const ConvergenceProgressFn& progress) {
+  std::vector<int> counts = config.vertices;
+  std::sort(counts.begin(), counts.end());
+  counts.erase(std::unique(counts.begin(), counts.end()), counts.end());
+  if (counts.size() < 2) throw InputError("gd converge needs at least two different vertex counts (e.g. --vertices 1000,2000,4000)");
+  for (int n : counts)
+    if (n <= 0) throw InputError(fmt::format("vertex counts must be positive (got {})", n));
+  const std::string& g = config.base.garment;
+  if (g.size() > 4 && g.substr(g.size() - 4) == ".obj")
+    throw InputError("gd converge needs a generated garment type (it remeshes it at each vertex count), not an .obj file");
+  if (config.base.out_dir.empty()) throw InputError("gd converge needs an output directory (--out)");
+  if (!(config.snapshot_interval >= 0)) throw InputError("the snapshot interval must be >= 0 s");
+  if (config.samples < 100) throw InputError(fmt::format("samples must be at least 100 (got {})", config.samples));
+  fs::create_directories(config.base.out_dir);
+
+  ConvergenceResult result;
+  nlohmann::json runs = nlohmann::json::array();
+  std::vector<std::string> dirs;
+  std::vector<bool> ok;
+  const int total = static_cast<int>(counts.size());
+  for (int r = 0; r < total; ++r) {
+    ExperimentConfig c = config.base;
+    c.vertices = counts[r];
+    c.out_dir = fmt::format("{}/v{}", config.base.out_dir, counts[r]);
+    c.mesh_interval = config.snapshot_interval;
+    gd::log().info("gd converge: run {}/{} at {} vertices -> {}", r + 1, total, counts[r], c.out_dir);
+    const ExperimentResult res = run_experiment(c, [&](double t, double end, const sim::StepStats&) {
+      if (progress) progress(r, total, counts[r], t, end);
+    });
+    runs.push_back(res.summary);
+    dirs.push_back(c.out_dir);
+    ok.push_back(!res.summary.value("failed", false));
+  }
+  if (!ok.back()) throw InputError(fmt::format("the finest run ({} vertices) failed: {}", counts.back(),
+                                                runs.back().value("failure", std::string("?"))));
+
+  // Every shape of the finest run, compared with the same time's shape of each other run.
+  const auto finest = run_shapes(dirs.back());
+  const double end_time = runs.back().value("sim_seconds", 0.0);
+  for (const auto& [ms, path] : finest) {
+    const sim::Mesh ref = sim::read_obj(path);
+    for (int r = 0; r + 1 < total; ++r) {
+      if (!ok[r]) continue;
+      const auto shapes = run_shapes(dirs[r]);
+      const auto it = shapes.find(ms);
+      if (it == shapes.end()) continue;
+      const SurfaceDistance d = surface_distance(sim::read_obj(it->second), ref, config.samples);
+      ShapeDistance row;
+      row.vertices = runs[r].value("vertices", counts[r]);
+      row.final = ms < 0;
+      row.t = ms < 0 ? end_time : 1e-3 * ms;
+      row.cd = d.cd;
+      row.hd = d.hd;
+      result.rows.push_back(row);
+    }
+  }
+  std::sort(result.rows.begin(), result.rows.end(), [](const ShapeDistance& a, const ShapeDistance& b) {
+    return a.final != b.final ? b.final : (a.t != b.t ? a.t < b.t : a.vertices < b.vertices);
+  });
+
+  const std::string out = config.base.out_dir;
+  std::ofstream csv(out + "/convergence.csv");
+  if (!csv) throw InputError(fmt::format("cannot write '{}/convergence.csv'", out));
+  csv << "vertices,reference_vertices,t,final,cd,hd\n";
+  const int ref_vertices = runs.back().value("vertices", counts.back());
+  nlohmann::json rows = nlohmann::json::array();
+  for (const ShapeDistance& s : result.rows) {
+    csv << fmt::format("{},{},{:.3f},{},{:.6f},{:.6f}\n", s.vertices, ref_vertices, s.t, s.final ? 1 : 0, s.cd, s.hd);
+    rows.push_back({{"vertices", s.vertices}, {"t", s.t}, {"final", s.final}, {"cd", s.cd}, {"hd", s.hd}});
+  }
+  csv.close();
+  result.summary = {{"garment", config.base.garment},
+                    {"task", config.base.task},
+                    {"material", config.base.material},
+                    {"vertices", counts},
+                    {"reference_vertices", ref_vertices},
+                    {"snapshot_interval", config.snapshot_interval},
+                    {"samples", config.samples},
+                    {"distance", "symmetric Chamfer (cd, mean of both directions' mean nearest distances) and "
+                                 "Hausdorff (hd), Euclidean, m, between area-sampled surfaces"},
+                    {"rows", rows},
+                    {"runs", runs}};
+  std::ofstream(out + "/convergence.json") << result.summary.dump(2) << "\n";
+  if (config.base.plots) run_plot_script("plot_convergence.py", out);  // the PNG is optional, the CSV is not
+  return result;
+}
+
+}  // namespace gd::experiment

@@ -1,0 +1,78 @@
+#pragma once
+/// \file
+/// A mesh-convergence study (`gd converge`): the same experiment run at several resolutions of
+/// one garment, each run's shapes compared with the finest run's at the same times. An FEM
+/// cloth model should give shapes that approach each other as the mesh is refined; this measures
+/// by how much they do. Writes
+///
+///     OUT/v<N>/...                   each run's own files (experiment.h), meshes in OUT/v<N>/meshes
+///     OUT/convergence.csv            vertices, t, cd, hd, per compared shape (m)
+///     OUT/convergence.json           the same rows, each run's summary, the study's settings
+///     OUT/convergence.png            distance to the finest run against vertex count, one line
+///                                    per compared time (scripts/plot_convergence.py)
+///
+/// Shapes are compared as surfaces, not vertex sets (a coarse mesh's vertices would be
+/// `spacing` apart from a fine one's on the very same surface): each mesh is sampled with
+/// `samples` area-weighted points (a fixed seed: the same points every run), each point's
+/// distance to the other surface is exact (point to nearest triangle), and the distance is the
+/// symmetric Chamfer distance (the mean of the two directions' mean distances) and the
+/// symmetric Hausdorff distance (the larger one-sided maximum).
+
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "experiment/experiment.h"
+#include "sim/mesh.h"
+
+namespace gd::experiment {
+
+struct ConvergenceConfig {
+  /// The experiment run at every resolution (its `vertices` and `out_dir` are replaced per run:
+  /// out_dir/v<N>); `out_dir` is the study's directory. Needs a generated garment (a type name).
+  ExperimentConfig base;
+  std::vector<int> vertices;      ///< target vertex counts, at least two; the largest is the reference
+  /// Seconds between shapes compared along the runs (each run writes its meshes then); 0: the
+  /// final shapes only.
+  double snapshot_interval = 0;
+  int samples = 20000;            ///< surface points per shape
+};
+
+/// Distance of one run's shape at time t to the finest run's shape at the same time.
+struct ShapeDistance {
+  int vertices = 0;     ///< the run's actual vertex count
+  double t = 0;         ///< s; the final shape has t = the runs' end time
+  bool final = false;   ///< the runs' final shapes
+  double cd = 0;        ///< symmetric Chamfer distance, m
+  double hd = 0;        ///< symmetric Hausdorff distance, m
+};
+
+struct ConvergenceResult {
+  std::vector<ShapeDistance> rows;  ///< every run but the finest, every compared time
+  nlohmann::json summary;           ///< what convergence.json holds
+};
+
+/// Reports the study's progress (which run, the run's own progress as experiment.h's).
+using ConvergenceProgressFn = std::function<void(int run, int runs, int vertices, double sim_time, double end_time)>;
+
+/// Runs the study and writes its files. Throws InputError for fewer than two distinct vertex
+/// counts, an imported (.obj) garment or bad experiment settings; a run whose simulation fails
+/// is reported in the summary and compared no further.
+ConvergenceResult run_convergence(const ConvergenceConfig& config, const ConvergenceProgressFn& progress = {});
+
+/// `count` points on the surface of (x, tris), uniformly by area (a triangle drawn with
+/// probability proportional to its area, a point uniform in it), from a fixed seed.
+std::vector<sim::Vec3> sample_surface(const std::vector<sim::Vec3>& x, const std::vector<Eigen::Vector3i>& tris,
+                                      int count, unsigned seed = 1);
+
+/// Symmetric Chamfer (cd) and Hausdorff (hd) distances between two surfaces, Euclidean, m:
+/// `samples` area-sampled points of each surface, each point's exact distance to the other
+/// surface's nearest triangle (not to its nearest sample: no sampling floor), cd the mean of the
+/// two directions' means, hd the larger maximum.
+struct SurfaceDistance {
+  double cd = 0, hd = 0;
+};
+SurfaceDistance surface_distance(const sim::Mesh& a, const sim::Mesh& b, int samples);
+
+}  // namespace gd::experiment

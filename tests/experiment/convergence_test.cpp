@@ -1,0 +1,104 @@
+// The mesh-convergence study (gd converge): its surface sampling and distances against shapes
+// whose distance is known in closed form, and one small study end to end (files, rows, refusals).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "experiment/convergence.h"
+#include "experiment/temp_dir.h"
+#include "sim/demand.h"
+#include "sim/mesh.h"
+
+namespace gd::experiment {
+namespace {
+namespace fs = std::filesystem;
+
+sim::Mesh moved(sim::Mesh m, const sim::Vec3& by) {
+  for (auto& p : m.x) p += by;
+  return m;
+}
+
+TEST(SampleSurface, DrawsByAreaOnTheSurfaceAndRepeatsItsDraw) {
+  // Two triangles of one plane, areas 1 and 3 (unit and three-unit right triangles side by side).
+  const std::vector<sim::Vec3> x = {{0, 0, 0}, {1, 0, 0}, {0, 2, 0}, {3, 0, 0}, {1, 3, 0}};
+  const std::vector<Eigen::Vector3i> tris = {{0, 1, 2}, {1, 3, 4}};  // areas 1 and 3
+  const auto pts = sample_surface(x, tris, 40000);
+  ASSERT_EQ(pts.size(), 40000u);
+  int in_first = 0;
+  for (const auto& p : pts) {
+    EXPECT_EQ(p.z(), 0.0);
+    // inside the first triangle: x >= 0, y >= 0, x + y/2 <= 1
+    if (p.x() >= 0 && p.y() >= 0 && p.x() + 0.5 * p.y() <= 1 + 1e-12) ++in_first;
+  }
+  EXPECT_NEAR(in_first / 40000.0, 0.25, 0.01);  // binomial sd 0.002
+  EXPECT_EQ(sample_surface(x, tris, 100), sample_surface(x, tris, 100)) << "a fixed seed draws the same points";
+  EXPECT_THROW(sample_surface(x, {}, 10), sim::InputError);
+}
+
+TEST(SurfaceDistance, TheSameSurfaceMeshedTwiceIsAtZeroAndAShiftIsMeasuredExactly) {
+  const sim::Mesh coarse = sim::make_rect(0.3, 0.2, 0.05), fine = sim::make_rect(0.3, 0.2, 0.007);
+  ASSERT_GT(fine.x.size(), 10 * coarse.x.size());
+  const SurfaceDistance same = surface_distance(coarse, fine, 5000);
+  EXPECT_LT(same.cd, 1e-9) << "the same rectangle: every sample lies on the other mesh";
+  EXPECT_LT(same.hd, 1e-9);
+  const SurfaceDistance lifted = surface_distance(coarse, moved(fine, {0, 0, 0.01}), 5000);
+  EXPECT_NEAR(lifted.cd, 0.01, 1e-9) << "a parallel copy 1 cm above";
+  EXPECT_NEAR(lifted.hd, 0.01, 1e-9);
+  // Slid 2 cm along x: the overlapping part is at zero, the 2 cm strips at each end up to 2 cm.
+  const SurfaceDistance slid = surface_distance(coarse, moved(fine, {0.02, 0, 0}), 20000);
+  EXPECT_NEAR(slid.hd, 0.02, 2e-4);  // the farthest sample lies within ~0.1 mm of the strip's end
+  // Mean over a 30 cm length of a ramp 0..2 cm over the 2 cm strip: 0.02 * (0.02/0.3) / 2.
+  EXPECT_NEAR(slid.cd, 0.02 * 0.02 / 0.3 / 2, 2e-4);
+}
+
+ConvergenceConfig small_study(const std::string& out) {
+  ConvergenceConfig c;
+  c.base.garment = "towel";
+  c.base.task = "grasp";
+  c.base.scene.dt = 0.01;
+  c.base.task_params.time_scale = 0.1;
+  c.base.settle_after = 0;
+  c.base.plots = false;
+  c.base.out_dir = out;
+  c.vertices = {300, 200};  // any order: the largest is the reference
+  c.snapshot_interval = 0.5;
+  c.samples = 4000;
+  return c;
+}
+
+TEST(Convergence, ComparesEachRunWithTheFinestAtTheSameTimes) {
+  const testing::TempDir tmp("convergence");
+  const ConvergenceResult r = run_convergence(small_study(tmp.str()));
+  for (const char* f : {"convergence.csv", "convergence.json", "v200/final.obj", "v300/final.obj", "v300/meshes"})
+    EXPECT_TRUE(fs::exists(tmp / f)) << f;
+  ASSERT_GE(r.rows.size(), 3u) << "t = 0, at least one snapshot, the final shapes";
+  EXPECT_TRUE(r.rows.back().final);
+  EXPECT_EQ(r.rows.front().t, 0.0);
+  // At t = 0 both towels lie flat where they were placed: the same rectangle, meshed twice.
+  EXPECT_LT(r.rows.front().cd, 1e-3);
+  for (const ShapeDistance& d : r.rows) {
+    EXPECT_LT(d.vertices, r.summary["reference_vertices"].get<int>());
+    EXPECT_TRUE(std::isfinite(d.cd) && std::isfinite(d.hd));
+    EXPECT_LE(d.cd, d.hd + 1e-12) << "a mean is at most the maximum";
+  }
+  const auto json = nlohmann::json::parse(std::ifstream(tmp / "convergence.json"));
+  EXPECT_EQ(json["runs"].size(), 2u);
+  EXPECT_EQ(json["rows"].size(), r.rows.size());
+}
+
+TEST(Convergence, RefusesWhatItCannotStudy) {
+  const testing::TempDir tmp("convergence_refusals");
+  ConvergenceConfig one = small_study(tmp.str());
+  one.vertices = {300, 300};
+  EXPECT_THROW(run_convergence(one), sim::InputError) << "one distinct vertex count";
+  ConvergenceConfig obj = small_study(tmp.str());
+  obj.base.garment = "/tmp/shirt.obj";
+  EXPECT_THROW(run_convergence(obj), sim::InputError) << "an imported mesh cannot be remeshed";
+}
+
+}  // namespace
+}  // namespace gd::experiment
