@@ -157,7 +157,12 @@ def test_step_to_time_is_one_call_per_frame_and_ends_where_per_step_commands_do(
         assert env.get_current_sim_time() == pytest.approx(ref.sim_time, abs=1e-9) and steps == 50
         x, x_ref = env.get_sim_vertices(), client.get_state([ref.scene_id])[0].positions
         assert np.linalg.norm(x - world_ee("left", ref.sim_time), axis=1).min() < 0.01  # lifted
-        np.testing.assert_allclose(x, x_ref, atol=1e-5)
+        # The two protocols give the arms' targets by different arithmetic, so the scenes differ
+        # in rounding, and a PCG stop that falls one iteration apart near its threshold parts them
+        # by the solver's tolerance (newton_atol 1e-3 m/s x dt 0.02 s = 2e-5 m per step; measured
+        # 1.9e-5 after 50 steps where one frame's PCG took 534 against 535 iterations). A protocol
+        # error (a target a step early or late) would part them by the arm's motion in a step, mm.
+        np.testing.assert_allclose(x, x_ref, atol=1e-4)
     finally:
         env.close()
         ref.close()
