@@ -16,6 +16,10 @@ namespace gd::sim {
 /// Two sums taken by one loop (Exec::sum2_effects_to): each iteration returns its two terms.
 struct Sum2 {
   double a = 0, b = 0;
+  GD_HD Sum2& operator+=(const Sum2& o) {
+    a += o.a, b += o.b;
+    return *this;
+  }
 };
 
 }  // namespace gd::sim

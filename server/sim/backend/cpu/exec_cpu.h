@@ -92,7 +92,13 @@ struct CpuExec {
   /// then differ in the last bits between 1 and 2 threads).
   template <class F>
   static double sum(int n, const F& f, int parallel_min = kParallelMin) {
-    double s = 0.0;
+    return block_sum<double>(n, f, parallel_min);
+  }
+
+  /// sum() for any T with += (double, Sum2): T{} plus f(i) in sum()'s blocks and order.
+  template <class T, class F>
+  static T block_sum(int n, const F& f, int parallel_min) {
+    T s{};
     if (n < parallel_min || n <= 0) {
       for (int i = 0; i < n; ++i) s += f(i);
       return s;
@@ -100,12 +106,12 @@ struct CpuExec {
     const int block = std::max(64, parallel_min / 8);
     const int blocks = (n + block - 1) / block;
     constexpr int kOnStack = 256;
-    double stack[kOnStack];
-    std::vector<double> heap(blocks > kOnStack ? blocks : 0);
-    double* part = blocks > kOnStack ? heap.data() : stack;
+    T stack[kOnStack];
+    std::vector<T> heap(blocks > kOnStack ? blocks : 0);
+    T* part = blocks > kOnStack ? heap.data() : stack;
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < blocks; ++b) {
-      double p = 0.0;
+      T p{};
       const int end = std::min(n, (b + 1) * block);
       for (int i = b * block; i < end; ++i) p += f(i);
       part[b] = p;
@@ -131,37 +137,13 @@ struct CpuExec {
     *out = CpuExec::sum_effects(n, f, parallel_min);
   }
   /// Two sums of one loop into *out_a and *out_b (the backend's memory): f(i) returns both terms
-  /// of i as a Sum2 and may write memory (each i evaluated exactly once); blocked as sum() is, so
-  /// the bits do not depend on the thread count.
+  /// of i as a Sum2 and may write memory (each i evaluated exactly once); each term is added in
+  /// sum()'s blocks and order, so the bits do not depend on the thread count.
   template <class F>
   static void sum2_effects_to(int n, const F& f, double* out_a, double* out_b, int parallel_min = kParallelMin) {
-    double a = 0.0, b = 0.0;
-    if (n < parallel_min || n <= 0) {
-      for (int i = 0; i < n; ++i) {
-        const Sum2 s = f(i);
-        a += s.a, b += s.b;
-      }
-    } else {
-      const int block = std::max(64, parallel_min / 8);
-      const int blocks = (n + block - 1) / block;
-      constexpr int kOnStack = 256;
-      Sum2 stack[kOnStack];
-      std::vector<Sum2> heap(blocks > kOnStack ? blocks : 0);
-      Sum2* part = blocks > kOnStack ? heap.data() : stack;
-#pragma omp parallel for schedule(static)
-      for (int blk = 0; blk < blocks; ++blk) {
-        Sum2 p;
-        const int end = std::min(n, (blk + 1) * block);
-        for (int i = blk * block; i < end; ++i) {
-          const Sum2 s = f(i);
-          p.a += s.a, p.b += s.b;
-        }
-        part[blk] = p;
-      }
-      for (int blk = 0; blk < blocks; ++blk) a += part[blk].a, b += part[blk].b;
-    }
-    *out_a = a;
-    *out_b = b;
+    const Sum2 s = block_sum<Sum2>(n, f, parallel_min);
+    *out_a = s.a;
+    *out_b = s.b;
   }
   /// PCG reads its stop flag every this many iterations (Solver::solve_pcg): every iteration on
   /// the CPU, where a read costs nothing.
