@@ -22,9 +22,7 @@ namespace gd::experiment {
 namespace fs = std::filesystem;
 using sim::InputError;
 
-std::vector<sim::Vec3> sample_surface(const std::vector<sim::Vec3>& x, const std::vector<Eigen::Vector3i>& tris,
-                                            int count, unsigned seed) {
-  if (tris.empty() || count <= 0) throw InputError("sample_surface: the mesh has no triangles or count <= 0");
+std::vector<double> cumulative_areas(const std::vector<sim::Vec3>& x, const std::vector<Eigen::Vector3i>& tris) {
   std::vector<double> cum(tris.size());
   double total = 0;
   for (size_t t = 0; t < tris.size(); ++t) {
@@ -32,6 +30,14 @@ std::vector<sim::Vec3> sample_surface(const std::vector<sim::Vec3>& x, const std
     total += 0.5 * (x[f[1]] - x[f[0]]).cross(x[f[2]] - x[f[0]]).norm();
     cum[t] = total;
   }
+  return cum;
+}
+
+std::vector<sim::Vec3> sample_surface(const std::vector<sim::Vec3>& x, const std::vector<Eigen::Vector3i>& tris,
+                                            int count, unsigned seed) {
+  if (tris.empty() || count <= 0) throw InputError("sample_surface: the mesh has no triangles or count <= 0");
+  const std::vector<double> cum = cumulative_areas(x, tris);
+  const double total = cum.back();
   if (!(total > 0)) throw InputError("sample_surface: the mesh has zero area");
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);

@@ -61,6 +61,10 @@ using ConvergenceProgressFn = std::function<void(int run, int runs, int vertices
 /// is reported in the summary and compared no further.
 ConvergenceResult run_convergence(const ConvergenceConfig& config, const ConvergenceProgressFn& progress = {});
 
+/// Running sums of the triangles' areas, m² (entry t: triangles 0..t): what an area-weighted
+/// draw searches (sample_surface, the synthetic captures' camera).
+std::vector<double> cumulative_areas(const std::vector<sim::Vec3>& x, const std::vector<Eigen::Vector3i>& tris);
+
 /// `count` points on the surface of (x, tris), uniformly by area (a triangle drawn with
 /// probability proportional to its area, a point uniform in it), from a fixed seed.
 std::vector<sim::Vec3> sample_surface(const std::vector<sim::Vec3>& x, const std::vector<Eigen::Vector3i>& tris,

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <random>
 
+#include "experiment/convergence.h"
 #include "metrics/cloud_io.h"
 #include "sim/demand.h"
 #include "sim/log.h"
@@ -33,13 +34,8 @@ namespace {
 /// Area-weighted surface samples of the cloth with noise, dropouts and an occluded disc.
 metrics::Cloud film(const std::vector<Vec3>& x, const std::vector<Eigen::Vector3i>& tris,
                     const SyntheticCaptureOptions& o, std::mt19937& rng) {
-  std::vector<double> cum(tris.size());
-  double total = 0;
-  for (size_t t = 0; t < tris.size(); ++t) {
-    const auto& f = tris[t];
-    total += 0.5 * (x[f[1]] - x[f[0]]).cross(x[f[2]] - x[f[0]]).norm();
-    cum[t] = total;
-  }
+  const std::vector<double> cum = cumulative_areas(x, tris);
+  const double total = cum.empty() ? 0.0 : cum.back();
   std::uniform_real_distribution<double> u01(0, 1);
   std::normal_distribution<double> gauss(0, o.noise);
   const Vec3 hole = x[std::uniform_int_distribution<size_t>(0, x.size() - 1)(rng)];
