@@ -231,7 +231,11 @@ def main(argv: list[str] | None = None) -> int:
             title = " / ".join(parts)
         if mean is None and isinstance(s.get("mean"), dict):
             mean = {k: (v if v is not None else math.nan) for k, v in s["mean"].items()}
-    baselines = [b for b in read_baselines(d / "comparison.csv") if b.get("simulator") in BASELINE_STYLE]
+    rows = read_baselines(d / "comparison.csv")
+    baselines = [b for b in rows if b.get("simulator") in BASELINE_STYLE]
+    if any(r.get("capture") == "synthetic" for r in rows):
+        # ours was measured against a capture a simulator made: say so beside the paper's lines
+        title += " (ours vs a synthetic capture; paper lines vs real ones)"
     plot_metrics(data, window, mean, baselines, d / "metrics_over_time.png", title)
     written = ["metrics_over_time.png"]
     if (d / "frames").is_dir():

@@ -239,6 +239,12 @@ int main(int argc, char** argv) {
   cvg->add_option("--time-scale", conv.base.task_params.time_scale, "speed factor of the task's slow parts")
       ->capture_default_str();
   cvg->add_option("--settle", conv.base.settle_after, "seconds simulated after the trajectory ends")->capture_default_str();
+  cvg->add_option("--compression-ratio", conv.base.scene.compression_ratio,
+                  "compressive / tensile stretch stiffness (0, 1]; 1: no buckling model")
+      ->capture_default_str();
+  cvg->add_option("--jaw-radius", conv.base.grippers.jaw_radius,
+                  "pseudo mode: a closing gripper holds the cloth within this distance, m")
+      ->capture_default_str();
   cvg->add_option("--threads", conv.base.scene.threads, "CPU threads (0: all)");
   cvg->add_option("--out", conv.base.out_dir, "output directory")->required();
   cvg->add_flag("--no-plots", conv_no_plots, "do not draw the PNG plots");

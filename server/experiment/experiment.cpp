@@ -439,7 +439,8 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                             {"sample", capture->sample},
                             {"simulator", "garmentdynamics"},
                             {"mode", config.mode},
-                            {"camera_delay", capture->camera_delay}};
+                            {"camera_delay", capture->camera_delay},
+                            {"capture_kind", capture->synthetic.empty() ? "real" : "synthetic"}};
     metrics::write_metrics_csv(out + "/metrics.csv", ev.rows, capture->window);
     metrics::write_summary_json(out + "/metrics_summary.json", ev.rows, capture->window, extra);
     metrics::write_report_frames(out, ev.kept);
@@ -449,12 +450,15 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     s["frames_in_window"] = sum.frames;
     s["camera_delay"] = capture->camera_delay;
     s["capture"] = capture->dir;
+    s["capture_kind"] = capture->synthetic.empty() ? "real" : "synthetic";
+    if (!capture->synthetic.empty()) s["capture_synthetic"] = capture->synthetic;
     const std::string base = config.baselines_csv.empty() ? shared_dir() + "/data/rgbench/paper_baselines.csv"
                                                           : config.baselines_csv;
     if (fs::exists(base)) {
       const std::string g = extra["garment"];
       metrics::write_comparison(out, g, config.task, config.mode, "garmentdynamics (ours)", sum.mean, 1,
-                                metrics::load_paper_baselines(base, metrics::paper_garment(g), config.task));
+                                metrics::load_paper_baselines(base, metrics::paper_garment(g), config.task),
+                                capture->synthetic);
     }
   } else {
     run.advance(end_time);

@@ -98,6 +98,8 @@ SyntheticCapture make_synthetic_capture(const ExperimentConfig& reference, const
   meta.garment = garment.type;
   meta.action = reference.task;
   meta.sample = "01";
+  meta.synthetic = fmt::format("GarmentDynamics, {} {} at {} vertices, {}, dt {} s", garment.type, reference.task,
+                               scene->vertex_count(), reference.material, reference.scene.dt);
   meta.camera_delay = o.camera_delay;
   meta.has_camera_delay = true;
   meta.window = o.window;

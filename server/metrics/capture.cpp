@@ -277,6 +277,7 @@ Capture load_capture(const std::string& dir, const CaptureOptions& opt) {
   c.action = opt.action.value_or(side_str("action").value_or(""));
   c.sample = opt.sample.value_or(side_str("sample").value_or(""));
   c.robot = side_str("robot").value_or(opt.robot);
+  c.synthetic = side_str("synthetic").value_or("");
 
   // Timing, lowest precedence first: experiment library, capture.json, explicit options.
   if (!opt.experiment_library.empty()) {
@@ -381,6 +382,7 @@ void write_capture_json(const std::string& dir, const Capture& meta) {
   if (!meta.action.empty()) j["action"] = meta.action;
   if (!meta.sample.empty()) j["sample"] = meta.sample;
   if (!meta.robot.empty()) j["robot"] = meta.robot;
+  if (!meta.synthetic.empty()) j["synthetic"] = meta.synthetic;
   if (meta.has_camera_delay) j["camera_delay"] = meta.camera_delay;
   if (meta.has_window) {
     nlohmann::json ev = {{"start_record_time", meta.window.start_record_time},

@@ -94,6 +94,10 @@ struct Capture {
   std::string left_joints_csv, right_joints_csv;  ///< paths (parsed by server/tasks)
   bool has_left_joints = false, has_right_joints = false;
   std::string garment, action, robot = "piper", sample;  ///< empty when unknown
+  /// Empty for a real capture; for one a simulator made (capture.json "synthetic"), what made it,
+  /// e.g. "GarmentDynamics, tshirt grasp at 680 vertices". Reports say so beside the paper's
+  /// rows, which are measured against real captures.
+  std::string synthetic;
   double camera_delay = 0;        ///< s (RGBench camera.system_delay_time)
   bool has_camera_delay = false;  ///< false: no source gave one; 0 is used
   EvalWindow window;

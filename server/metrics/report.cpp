@@ -193,7 +193,8 @@ std::vector<BaselineRow> load_paper_baselines(const std::string& csv_path,
 void write_comparison(const std::string& dir, const std::string& garment,
                       const std::string& action, const std::string& mode,
                       const std::string& our_label, const Metrics& ours, int n_samples,
-                      const std::vector<BaselineRow>& baselines) {
+                      const std::vector<BaselineRow>& baselines, const std::string& synthetic_capture) {
+  const bool synthetic = !synthetic_capture.empty();
   fs::create_directories(dir);
   std::vector<BaselineRow> all;
   all.push_back({garment, action, our_label, mode, n_samples, ours});
@@ -203,26 +204,30 @@ void write_comparison(const std::string& dir, const std::string& garment,
     std::ofstream f = open_out((fs::path(dir) / "comparison.csv").string());
     f << "garment,action,simulator,mode,n_samples";
     for (const MetricName& n : kMetricNames) f << "," << n.key;
-    f << "\n";
+    f << ",capture\n";
     for (const BaselineRow& r : all) {
       f << r.garment << "," << r.action << "," << r.simulator << "," << r.mode << "," << r.n_samples;
       for (const MetricName& n : kMetricNames) f << "," << csv_number(r.m.*n.field);
-      f << "\n";
+      f << "," << (&r == &all.front() && synthetic ? "synthetic" : "real") << "\n";
     }
   }
   {
     std::ofstream f = open_out((fs::path(dir) / "comparison.md").string());
     f << fmt::format("# {} / {} ({}): ours beside the RGBench paper\n\n", garment, action,
                      mode.empty() ? "all modes" : mode);
-    f << "| simulator | mode | samples |";
+    if (synthetic)
+      f << "**Not comparable:** our row is measured against a synthetic capture (" << synthetic_capture
+        << "), the paper's rows against real captures of a real garment. A synthetic capture "
+           "checks the pipeline (frames, time alignment, metrics), not fidelity to real cloth.\n\n";
+    f << "| simulator | capture | mode | samples |";
     for (const MetricName& n : kMetricNames) f << " " << n.key << " |";
-    f << "\n|---|---|---|";
+    f << "\n|---|---|---|---|";
     for (size_t k = 0; k < kMetricNames.size(); ++k) f << "---|";
     f << "\n";
     for (const BaselineRow& r : all) {
       const bool us = &r == &all.front();
-      f << "| " << (us ? "**" + r.simulator + "**" : r.simulator) << " | " << r.mode << " | "
-        << r.n_samples << " |";
+      f << "| " << (us ? "**" + r.simulator + "**" : r.simulator) << " | " << (us && synthetic ? "synthetic" : "real")
+        << " | " << r.mode << " | " << r.n_samples << " |";
       for (const MetricName& n : kMetricNames) {
         const double v = r.m.*n.field;
         f << " " << (std::isfinite(v) ? fmt::format("{:.4f}", v) : std::string("-")) << " |";

@@ -66,11 +66,14 @@ std::vector<BaselineRow> load_paper_baselines(const std::string& csv_path,
 /// Writes <dir>/comparison.csv (the baselines' columns: garment,action,simulator,mode,n_samples,
 /// seven metrics; our row first with simulator `our_label`) and <dir>/comparison.md (a markdown
 /// table of the same rows, 4 decimals, with the RGBench credit). `ours` is normally
-/// summarize(...).mean; `n_samples` is how many captures it averages.
+/// summarize(...).mean; `n_samples` is how many captures it averages. `synthetic_capture`: empty
+/// when ours was measured against real captures, else what made the capture (Capture::synthetic);
+/// then the CSV's `capture` column and the markdown say that our row is not comparable with the
+/// paper's, which are measured against real captures.
 void write_comparison(const std::string& dir, const std::string& garment,
                       const std::string& action, const std::string& mode,
                       const std::string& our_label, const Metrics& ours, int n_samples,
-                      const std::vector<BaselineRow>& baselines);
+                      const std::vector<BaselineRow>& baselines, const std::string& synthetic_capture = "");
 
 /// Writes <dir>/frames/sim_<k>.ply and real_<k>.ply for each kept pair (k = 0, 1, ...) and
 /// <dir>/frames/frames.json ([{"k", "row", "sim_time"}, ...]) for scripts/plot_report.py.

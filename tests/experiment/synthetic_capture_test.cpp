@@ -61,6 +61,9 @@ TEST(SyntheticCapture, WritesRgbenchLayout) {
   ASSERT_GT(c.frames.size(), 20u);
   EXPECT_NEAR(c.camera_delay, 0.06, 1e-12);
   EXPECT_TRUE(c.has_calibration);
+  // It says what made it, so that reports never pass it off as a real capture.
+  EXPECT_NE(c.synthetic.find("GarmentDynamics"), std::string::npos) << c.synthetic;
+  EXPECT_NE(c.synthetic.find("vertices"), std::string::npos) << c.synthetic;
   // Frame k was filmed at sim time k / fps and stamped master_start + k / fps - delay.
   const SyntheticCaptureOptions o;
   EXPECT_NEAR(c.frames[1].timestamp - c.frames[0].timestamp, 1.0 / 8, 1e-5);
@@ -93,6 +96,8 @@ TEST(SyntheticCapture, RunnerRecoversTheReferenceWithTimeAlignment) {
   EXPECT_LT(r.summary["cd_l2_s2r"].get<double>(), 0.01);
   EXPECT_LT(mean_cd(r), 0.03);
   EXPECT_TRUE(fs::exists(run.out_dir + "/metrics.csv"));
+  EXPECT_EQ(r.summary["capture_kind"], "synthetic");
+  EXPECT_NE(r.summary["capture_synthetic"].get<std::string>().find("GarmentDynamics"), std::string::npos);
   EXPECT_TRUE(fs::exists(run.out_dir + "/frames/sim_0.ply"));
 
   // The same capture claiming a camera delay 0.5 s too long compares the wrong instants.

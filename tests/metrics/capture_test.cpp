@@ -104,6 +104,10 @@ TEST(Capture, CaptureJsonAndOptionsGiveTiming) {
   EXPECT_DOUBLE_EQ(c.camera_delay, 0.05);
   EXPECT_DOUBLE_EQ(c.window.end_calculate_time, 5.0);
   EXPECT_DOUBLE_EQ(c.window.start_record_time, 0.5);
+  EXPECT_TRUE(c.synthetic.empty());  // a capture that does not say otherwise is real
+  meta.synthetic = "GarmentDynamics, tshirt fold at 680 vertices";
+  write_capture_json(dir, meta);
+  EXPECT_EQ(load_capture(dir).synthetic, meta.synthetic);
 
   CaptureOptions o;
   o.camera_delay = 0.04;

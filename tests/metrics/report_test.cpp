@@ -123,13 +123,16 @@ TEST(Report, PaperBaselinesAndComparison) {
   write_comparison(d, "beige_hoodie", "fling", "fixed_point", "garmentdynamics", ours, 1, rows);
   const auto csv = read_lines(d + "/comparison.csv");
   ASSERT_EQ(csv.size(), 5u);
-  EXPECT_EQ(csv[0], "garment,action,simulator,mode,n_samples,cd_l1_s2r,cd_l2_s2r,cd_l1_r2s,hd_s2r,hd_r2s,sim_stab,z_err");
+  EXPECT_EQ(csv[0],
+            "garment,action,simulator,mode,n_samples,cd_l1_s2r,cd_l2_s2r,cd_l1_r2s,hd_s2r,hd_r2s,sim_stab,z_err,capture");
   EXPECT_EQ(csv[1].rfind("beige_hoodie,fling,garmentdynamics,fixed_point,1,0.03,", 0), 0u) << csv[1];
+  for (size_t k = 1; k < csv.size(); ++k) EXPECT_EQ(csv[k].substr(csv[k].rfind(',') + 1), "real") << csv[k];
   const auto md = read_lines(d + "/comparison.md");
   std::string all;
   for (const auto& l : md) all += l + "\n";
-  EXPECT_NE(all.find("| **garmentdynamics** | fixed_point | 1 | 0.0300 |"), std::string::npos) << all;
+  EXPECT_NE(all.find("| **garmentdynamics** | real | fixed_point | 1 | 0.0300 |"), std::string::npos) << all;
   EXPECT_NE(all.find("RGBench"), std::string::npos);
+  EXPECT_EQ(all.find("Not comparable"), std::string::npos) << all;
   testing::expect_input_error([&] { load_paper_baselines(d + "/nope.csv", "a", "b"); }, "nope.csv");
 }
 
@@ -152,6 +155,25 @@ TEST(Report, AGeneratedGarmentIsComparedWithThePapersGarmentOfItsType) {
   for (const auto& l : read_lines(d + "/comparison.md")) all += l + "\n";
   EXPECT_NE(all.find("The paper's rows are for its green_tshirt"), std::string::npos) << all;
   EXPECT_EQ(all.find("no row"), std::string::npos) << all;
+}
+
+// A metric measured against a capture the simulator made itself is labelled as such beside the
+// paper's rows (measured against real captures), in the CSV and in the markdown.
+TEST(Report, OursAgainstASyntheticCaptureIsLabelledNotComparable) {
+  BaselineRow paper{"green_tshirt", "fold", "mujoco_style3d", "fixed_point", 3, Metrics{0.04, 0.05, 0.03, 0.1, 0.1, 0, 0.01}};
+  const std::string d = temp_dir("cmp_synthetic");
+  write_comparison(d, "tshirt", "fold", "pseudo", "garmentdynamics (ours)", Metrics{0.01, 0.01, 0.01, 0.05, 0.05, 0, 0.001},
+                   1, {paper}, "GarmentDynamics, tshirt fold at 680 vertices, cotton, dt 0.01 s");
+  const auto csv = read_lines(d + "/comparison.csv");
+  ASSERT_EQ(csv.size(), 3u);
+  EXPECT_EQ(csv[1].substr(csv[1].rfind(',') + 1), "synthetic") << csv[1];
+  EXPECT_EQ(csv[2].substr(csv[2].rfind(',') + 1), "real") << csv[2];
+  std::string all;
+  for (const auto& l : read_lines(d + "/comparison.md")) all += l + "\n";
+  EXPECT_NE(all.find("**Not comparable:**"), std::string::npos) << all;
+  EXPECT_NE(all.find("tshirt fold at 680 vertices"), std::string::npos) << all;
+  EXPECT_NE(all.find("| **garmentdynamics (ours)** | synthetic | pseudo |"), std::string::npos) << all;
+  EXPECT_NE(all.find("| mujoco_style3d | real | fixed_point |"), std::string::npos) << all;
 }
 
 TEST(Report, FramesForPlots) {
