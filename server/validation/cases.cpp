@@ -241,39 +241,82 @@ double mechanical_energy(const sim::EnergyReport& e) { return e.kinetic + e.stre
 
 }  // namespace
 
-CaseResult drape_case(const sim::Material& m) {
-  const auto t0 = std::chrono::steady_clock::now();
-  CaseResult r;
-  r.name = "drape/" + m.name;
-  r.unit = "";
+DrapeMeasurement measure_drape(const sim::Material& m, double spacing, bool self_contact) {
   // Cusick drape tester: a 30 cm disc on an 18 cm support disc; DC = (A_shadow - A_support) /
-  // (A_specimen - A_support). Expected for cotton: about 0.68 (../docs/validation.md).
+  // (A_specimen - A_support).
   const double R = 0.15, r_support = 0.09;
-  Mesh mesh = sim::make_disc(R, 0.0075);
+  Mesh mesh = sim::make_disc(R, spacing);
   // A small deterministic ripple breaks the axial symmetry so that folds (nodes) can form.
   for (Vec3& p : mesh.x) p.z() = 0.5 + 2e-4 * std::sin(7 * std::atan2(p.y(), p.x())) * (p.head<2>().norm() / R);
   SceneOptions o;
   o.table = false;
   o.dt = 1.0 / 100;
+  o.self_contact = self_contact;
   o.linear_solver = sim::LinearSolverKind::kDirect;  // converged Newton steps: drape is path dependent
   auto scene = Scene::create(mesh, m, o);
   scene->pin(where(mesh, [&](const Vec3& p) { return p.head<2>().norm() <= r_support + 1e-9; }));
-  scene->step(300);  // 3 s of settling under gravity
+  DrapeMeasurement d;
+  d.vertices = scene->vertex_count();
+  for (int s = 0; s < 300 && !scene->failed(); ++s) {  // 3 s of settling under gravity
+    scene->step();
+    d.intersections = std::max(d.intersections, scene->last_stats().intersecting_pairs);
+  }
   if (!scene->failed()) scene->relax(20, 1e-6);
-  const double a_shadow = shadow_area(scene->positions(), mesh.tris, 0.001);
+  if (scene->failed()) {
+    d.coefficient = NAN;
+    return d;
+  }
+  const auto x = scene->positions();
+  d.shadow_area = shadow_area(x, mesh.tris, 0.001);
   const double a_support = kPi * r_support * r_support, a_specimen = kPi * R * R;
+  d.coefficient = (d.shadow_area - a_support) / (a_specimen - a_support);
+  // Nodes: the hanging rim's height around the disc rises and falls once per fold; count the
+  // maxima of the outer ring's height over its polar angle (smoothed over 10 degrees).
+  constexpr int kBins = 72;
+  std::vector<double> z(kBins, 0.0), cnt(kBins, 0.0);
+  for (size_t i = 0; i < x.size(); ++i) {
+    if (mesh.x[i].head<2>().norm() < R - 1.5 * spacing) continue;
+    const double a = std::atan2(x[i].y(), x[i].x());
+    const int b = std::clamp(static_cast<int>((a + kPi) / (2 * kPi) * kBins), 0, kBins - 1);
+    z[b] += std::hypot(x[i].x(), x[i].y());
+    cnt[b] += 1;
+  }
+  std::vector<double> r(kBins, 0.0);
+  for (int b = 0; b < kBins; ++b) r[b] = cnt[b] > 0 ? z[b] / cnt[b] : NAN;
+  std::vector<double> sm(kBins, 0.0);
+  for (int b = 0; b < kBins; ++b) {
+    double s = 0, c = 0;
+    for (int k = -1; k <= 1; ++k)
+      if (std::isfinite(r[(b + k + kBins) % kBins])) s += r[(b + k + kBins) % kBins], c += 1;
+    sm[b] = c > 0 ? s / c : 0;
+  }
+  for (int b = 0; b < kBins; ++b)
+    if (sm[b] > sm[(b + kBins - 1) % kBins] && sm[b] >= sm[(b + 1) % kBins]) ++d.nodes;
+  return d;
+}
+
+CaseResult drape_case(const sim::Material& m) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CaseResult r;
+  r.name = "drape/" + m.name;
+  r.unit = "";
+  // 5 mm: the coefficient is within 7% of the 3.75 mm one there (7.5 mm was 65% off; the study
+  // `gd-validate --drape-spacings` and docs/validation.md).
+  const DrapeMeasurement d = measure_drape(m, 0.005, true);
   r.expected = 0.68;
-  r.measured = scene->failed() ? NAN : (a_shadow - a_support) / (a_specimen - a_support);
-  r.vertices = scene->vertex_count();
-  r.detail = "shadow " + std::to_string(a_shadow * 1e4) + " cm^2 after 3 s and a static relaxation";
+  r.measured = d.coefficient;
+  r.vertices = d.vertices;
+  r.intersections = d.intersections;
+  r.detail = fmt::format("shadow {:.1f} cm^2 after 3 s and a static relaxation, {} nodes, self-contact on",
+                         d.shadow_area * 1e4, d.nodes);
   r.seconds = seconds_since(t0);
-  // Drape depends on shear rigidity, on the nodes that form and, until cloth self-contact lands,
-  // on folds that may pass through each other; the paper gives no drape data for its fabrics.
-  // The case reports the coefficient against a typical cotton value (0.68) and passes when it
-  // is finite and inside the range woven fabrics span (0.2 to 0.95); see docs/validation.md.
+  // Drape depends on shear rigidity and on the nodes that form; the paper gives no drape data
+  // for its fabrics. The case reports the coefficient against a typical cotton value (0.68) and
+  // passes when it is finite, inside the range woven fabrics span (0.2 to 0.95) and no folds
+  // pass through each other; see docs/validation.md.
   r = finish(r, 0.0);
   r.tolerance = NAN;
-  r.pass = std::isfinite(r.measured) && r.measured >= 0.2 && r.measured <= 0.95;
+  r.pass = std::isfinite(r.measured) && r.measured >= 0.2 && r.measured <= 0.95 && d.intersections == 0;
   return r;
 }
 

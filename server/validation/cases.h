@@ -52,6 +52,16 @@ double expected_bending_length(const sim::Material& m);
 CaseResult cantilever_case(const sim::Material& m);
 CaseResult cantilever_mesh_independence_case(const sim::Material& m);
 CaseResult tensile_case(const sim::Material& m);
+/// A Cusick drape test: a 30 cm disc of the fabric meshed at `spacing` (m) settles 3 s over an
+/// 18 cm support disc and relaxes to rest.
+struct DrapeMeasurement {
+  double coefficient = 0;   ///< DC = (shadow - support) / (specimen - support); NaN if the scene failed
+  double shadow_area = 0;   ///< m², rasterised at 1 mm
+  int nodes = 0;            ///< folds around the rim (maxima of the rim's radius over its angle)
+  int vertices = 0;
+  int intersections = 0;    ///< most intersecting triangle pairs after any step
+};
+DrapeMeasurement measure_drape(const sim::Material& m, double spacing, bool self_contact);
 CaseResult drape_case(const sim::Material& m);
 CaseResult drop_case(const sim::Material& m);
 CaseResult slide_case(const sim::Material& m);
