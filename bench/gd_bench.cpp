@@ -260,7 +260,7 @@ int main(int argc, char** argv) {
   std::string precond_arg = "default";
   int newton_max = 0, pcg_max = 0, mas_domain = 0;
   double newton_rtol = -1, newton_atol = -1, pcg_newton_fraction = -1, pcg_tol = -1, dt = -1;
-  double self_friction = -1, table_friction = -1, friction_eps = -1;
+  double self_friction = -1, table_friction = -1, friction_eps = -1, compression_ratio = -1;
   std::string contact_hessian_arg = "default";
   std::string bending_hessian_arg = "default";
   std::string broad_phase_arg = "auto";
@@ -311,6 +311,8 @@ int main(int argc, char** argv) {
   app.add_option("--friction-eps", friction_eps, "Slip speed below which friction is smoothed, m/s (negative: default)")
       ->check(finite);
   app.add_option("--newton-atol", newton_atol, "Residual stopping rule, absolute, m/s (negative: default)");
+  app.add_option("--compression-ratio", compression_ratio,
+                 "Compressive / tensile stretch stiffness, (0, 1] (negative: default)");
   app.add_option("--contact-hessian", contact_hessian_arg, "Self-contact barrier Hessian")
       ->check(CLI::IsMember({"default", "projected", "gauss-newton"}))
       ->capture_default_str();
@@ -403,6 +405,7 @@ int main(int argc, char** argv) {
     if (pcg_tol > 0) opt.pcg_tol = pcg_tol;
     if (dt > 0) opt.dt = dt;
     if (newton_atol >= 0) opt.newton_atol = newton_atol;
+    if (compression_ratio > 0) opt.compression_ratio = compression_ratio;
     if (self_friction >= 0) opt.self_friction = self_friction;
     if (table_friction >= 0) opt.table_friction = table_friction;
     if (friction_eps > 0) opt.friction_eps_v = friction_eps;
