@@ -270,19 +270,19 @@ DrapeMeasurement measure_drape(const sim::Material& m, double spacing, bool self
   d.shadow_area = shadow_area(x, mesh.tris, 0.001);
   const double a_support = kPi * r_support * r_support, a_specimen = kPi * R * R;
   d.coefficient = (d.shadow_area - a_support) / (a_specimen - a_support);
-  // Nodes: the hanging rim's height around the disc rises and falls once per fold; count the
-  // maxima of the outer ring's height over its polar angle (smoothed over 10 degrees).
+  // Nodes: seen from above, the hanging rim reaches out once per fold; count the maxima of the
+  // rim's mean distance from the axis over its polar angle (5-degree bins, smoothed over three).
   constexpr int kBins = 72;
-  std::vector<double> z(kBins, 0.0), cnt(kBins, 0.0);
+  std::vector<double> sum(kBins, 0.0), cnt(kBins, 0.0);
   for (size_t i = 0; i < x.size(); ++i) {
-    if (mesh.x[i].head<2>().norm() < R - 1.5 * spacing) continue;
+    if (mesh.x[i].head<2>().norm() < R - 1.5 * spacing) continue;  // the rim: the outer ring
     const double a = std::atan2(x[i].y(), x[i].x());
     const int b = std::clamp(static_cast<int>((a + kPi) / (2 * kPi) * kBins), 0, kBins - 1);
-    z[b] += std::hypot(x[i].x(), x[i].y());
+    sum[b] += std::hypot(x[i].x(), x[i].y());
     cnt[b] += 1;
   }
   std::vector<double> r(kBins, 0.0);
-  for (int b = 0; b < kBins; ++b) r[b] = cnt[b] > 0 ? z[b] / cnt[b] : NAN;
+  for (int b = 0; b < kBins; ++b) r[b] = cnt[b] > 0 ? sum[b] / cnt[b] : NAN;
   std::vector<double> sm(kBins, 0.0);
   for (int b = 0; b < kBins; ++b) {
     double s = 0, c = 0;
