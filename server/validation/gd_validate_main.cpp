@@ -42,7 +42,13 @@ int drape_study(const gd::sim::Material& m, const std::vector<std::string>& spac
   if (!json) std::printf("%-10s %8s %13s %8s %6s %13s %8s\n", "spacing_mm", "vertices", "self_contact", "DC", "nodes",
                          "intersecting", "seconds");
   for (const std::string& text : spacings) {
-    const double h = std::stod(text);
+    double h = NAN;
+    try {
+      size_t used = 0;
+      h = std::stod(text, &used);
+      if (used != text.size()) h = NAN;
+    } catch (const std::exception&) {
+    }
     if (!(h >= 0.002 && h <= 0.03))
       throw gd::sim::InputError("--drape-spacings: each spacing must lie in [0.002, 0.03] m (got " + text + ")");
     for (bool contact : {false, true}) {
