@@ -76,8 +76,6 @@ struct StepStats {
   /// doubled when layers get pressed together, up to 1e4; see docs/physics.md).
   double barrier_scale = 1;
   int candidates = 0;          ///< broad-phase candidate pairs
-  int max_candidates = 0;      ///< most candidate pairs along any Newton step of this step
-  int reach_limited = 0;       ///< Newton steps scaled down to the reach limit (Solver::limit_reach)
   int intersecting_pairs = 0;  ///< intersecting triangle pairs after the step (and untangling)
   int intersecting_found = 0;  ///< intersecting triangle pairs the solve left (before untangling)
   bool untangled = false;      ///< the untangling fail-safe ran this step

@@ -96,9 +96,6 @@ class Solver final : public SolverBase {
       P_.ccd_floor = kCcdFloorFraction * P_.dhat_self;
       P_.mu_self = opt.self_friction >= 0 ? opt.self_friction : d.friction;
       self_ = std::make_unique<SelfContact>(d, P_.dhat_self, P_.kappa_per_mass, opt.broad_phase, !Exec::kHostMemory);
-      // The mean edge of an equilateral triangle of the mesh's mean area.
-      const double edge = std::sqrt(4.0 / std::sqrt(3.0) * d.area / std::max(1, d.triangles()));
-      newton_reach_ = kNewtonReachEdges * edge;
     }
   }
 
@@ -127,9 +124,7 @@ class Solver final : public SolverBase {
       timed(T.precond, [&] { prepare_linear_solve(); });            // PCG's preconditioner
       timed(T.stopping, [&] { order_estimator(); });                // the stopping rule's, ordered at x
       timed(T.pcg, [&] { st.pcg_iters += solve_linear(scale); });   // dx = -H^-1 g (inexact)
-      st.reach_limited += limit_reach();                            // no vertex sweeps past a few edges
       timed(T.contacts, [&] { find_contacts_along_step(); });       // broad phase on the motion x -> x + dx
-      st.max_candidates = std::max(st.max_candidates, cand_.n);
       double alpha_max = 1, alpha = 0;
       timed(T.ccd, [&] { alpha_max = max_step(); });                // CCD: largest safe fraction of dx
       timed(T.line_search, [&] { alpha = line_search(alpha_max, e0, &st.energy_evals); });  // Armijo backtracking
@@ -262,15 +257,6 @@ class Solver final : public SolverBase {
 
   // CCD step bounds and line search (step_bounds.h)
   double max_step();
-  /// Scales dx so that no coordinate of it exceeds newton_reach_ (self-contact only). A wild
-  /// Newton direction (a pressed, ill-conditioned solve) can reach across the garment: its swept
-  /// boxes then overlap nearly everywhere, and one broad phase returned millions of pairs (19 GB
-  /// at 4000 vertices). Any shorter step along dx is still a descent step; the line search and
-  /// the next iteration go on from there. Returns whether it scaled dx.
-  bool limit_reach();
-  /// Largest Newton step per coordinate, m, with self-contact (kNewtonReachEdges mean edges).
-  double newton_reach_ = INFINITY;
-  static constexpr double kNewtonReachEdges = 3.0;
   double collider_step_bound();
   double table_ccd_bound();
   double self_ccd_bound();

@@ -64,17 +64,6 @@ double Solver<Exec>::table_ccd_bound() {
 /// read the touching edges as crossing, and the untangling fail-safe made real crossings of them.
 /// A pair within twice the floor may close to about half its distance (ccd_floor_offset).
 template <class Exec>
-bool Solver<Exec>::limit_reach() {
-  if (!self_ || !std::isfinite(newton_reach_)) return false;
-  const double reach = max_abs(dx_);
-  if (reach <= newton_reach_) return false;
-  gd::log().debug("newton step reaches {:.3g} m: scaled to {:.3g} m ({} mean edges)", reach, newton_reach_,
-                  kNewtonReachEdges);
-  scale(newton_reach_ / reach, dx_);
-  return true;
-}
-
-template <class Exec>
 double Solver<Exec>::self_ccd_bound() {
   if (!self_ || cand_.n == 0) return 1.0;
   const detail::View V = view();
