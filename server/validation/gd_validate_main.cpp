@@ -26,8 +26,10 @@ std::vector<std::string> split(const std::string& s) {
   return out;
 }
 
+/// A number, or null where it is not finite (JSON has no NaN).
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
 nlohmann::json to_json(const gd::validation::CaseResult& r) {
-  auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   nlohmann::json j = {{"name", r.name},           {"expected", num(r.expected)}, {"measured", num(r.measured)},
           {"rel_error", num(r.rel_error)}, {"pass", r.pass},          {"tolerance", r.tolerance},
           {"unit", r.unit},           {"vertices", r.vertices},      {"seconds", r.seconds},
@@ -38,9 +40,7 @@ nlohmann::json to_json(const gd::validation::CaseResult& r) {
 
 /// The drape coefficient at each spacing, self-contact off and on: how far it is from converged.
 int drape_study(const gd::sim::Material& m, const std::vector<std::string>& spacings, bool json) {
-  nlohmann::json arr = nlohmann::json::array();
-  if (!json) std::printf("%-10s %8s %13s %8s %6s %13s %8s\n", "spacing_mm", "vertices", "self_contact", "DC", "nodes",
-                         "intersecting", "seconds");
+  std::vector<double> hs;  // every spacing checked before any runs
   for (const std::string& text : spacings) {
     double h = NAN;
     try {
@@ -51,12 +51,17 @@ int drape_study(const gd::sim::Material& m, const std::vector<std::string>& spac
     }
     if (!(h >= 0.002 && h <= 0.03))
       throw gd::sim::InputError("--drape-spacings: each spacing must lie in [0.002, 0.03] m (got " + text + ")");
+    hs.push_back(h);
+  }
+  nlohmann::json arr = nlohmann::json::array();
+  if (!json) std::printf("%-10s %8s %13s %8s %6s %13s %8s\n", "spacing_mm", "vertices", "self_contact", "DC", "nodes",
+                         "intersecting", "seconds");
+  for (const double h : hs) {
     for (bool contact : {false, true}) {
       const auto t0 = std::chrono::steady_clock::now();
       std::fprintf(stderr, "drape at %.2f mm, self-contact %s ...\n", h * 1e3, contact ? "on" : "off");
       const auto d = gd::validation::measure_drape(m, h, contact);
       const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
       arr.push_back({{"spacing", h}, {"vertices", d.vertices}, {"self_contact", contact}, {"coefficient", num(d.coefficient)},
                      {"nodes", d.nodes}, {"intersecting_pairs", d.intersections}, {"seconds", sec}});
       if (!json)
