@@ -181,22 +181,30 @@ class BruteForceBroadPhase final : public BroadPhase {
  public:
   explicit BruteForceBroadPhase(Topo topo) : topo_(std::move(topo)) {}
 
-  void find(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
-            ContactCandidates* out) override {
+  bool find(const std::vector<double>& x0, const std::vector<double>& x1, double margin, ContactCandidates* out,
+            std::size_t max_pairs) override {
     GD_DEMAND(out != nullptr, "null output");
     compute_boxes(topo_, x0, x1, margin, true, &boxes_);
+    out->vf.clear();
+    out->ee.clear();
     std::vector<std::uint64_t> keys;
     for (int v = 0; v < topo_.n; ++v)
       for (int t = 0; t < topo_.tri_count(); ++t)
-        if (overlap(boxes_.vertices[std::size_t(v)], boxes_.tris[std::size_t(t)]) && !vertex_in_tri(topo_, v, t))
+        if (overlap(boxes_.vertices[std::size_t(v)], boxes_.tris[std::size_t(t)]) && !vertex_in_tri(topo_, v, t)) {
+          if (keys.size() == max_pairs) return false;
           keys.push_back(pack(v, t));
-    finish(keys, topo_.n, &out->vf);
-    keys.clear();
+        }
+    const std::size_t vf = keys.size();
     for (int a = 0; a < topo_.edge_count(); ++a)
       for (int b = a + 1; b < topo_.edge_count(); ++b)
-        if (overlap(boxes_.edges[std::size_t(a)], boxes_.edges[std::size_t(b)]) && !edges_share(topo_, a, b))
+        if (overlap(boxes_.edges[std::size_t(a)], boxes_.edges[std::size_t(b)]) && !edges_share(topo_, a, b)) {
+          if (keys.size() == max_pairs) return false;
           keys.push_back(pack(a, b));
-    finish(keys, topo_.edge_count(), &out->ee);
+        }
+    finish(std::vector<std::uint64_t>(keys.begin() + static_cast<long>(vf), keys.end()), topo_.edge_count(), &out->ee);
+    keys.resize(vf);
+    finish(keys, topo_.n, &out->vf);
+    return true;
   }
 
   void triangle_pairs(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
@@ -225,8 +233,23 @@ class BruteForceBroadPhase final : public BroadPhase {
 /// buffer's mutex, so threads practically never contend.
 class Sink {
  public:
+  /// At most `limit` keys in all may be appended from now on (until the next set_limit); keys
+  /// past it are dropped and overflowed() turns true.
+  void set_limit(std::size_t limit) {
+    limit_ = limit;
+    appended_.store(0, std::memory_order_relaxed);
+    overflow_.store(false, std::memory_order_relaxed);
+  }
+  bool overflowed() const { return overflow_.load(std::memory_order_relaxed); }
   /// Appends `count` keys found among `tested` primitive pairs Embree reported.
   void append(const std::uint64_t* keys, std::size_t count, std::size_t tested) {
+    if (limit_ != kNoPairLimit) {
+      if (overflow_.load(std::memory_order_relaxed)) return;
+      if (appended_.fetch_add(count, std::memory_order_relaxed) + count > limit_) {
+        overflow_.store(true, std::memory_order_relaxed);
+        return;
+      }
+    }
     Stripe& s = stripes_[thread_slot() % kStripes];
     std::lock_guard<std::mutex> lock(s.mutex);
     s.keys.insert(s.keys.end(), keys, keys + count);
@@ -260,6 +283,9 @@ class Sink {
     return slot;
   }
   std::array<Stripe, kStripes> stripes_;
+  std::size_t limit_ = kNoPairLimit;
+  std::atomic<std::size_t> appended_{0};
+  std::atomic<bool> overflow_{false};
 };
 
 enum class PairKind { kVertexTriangle, kEdgeEdge, kTriangleTriangle };
@@ -359,9 +385,11 @@ class EmbreeBroadPhase final : public BroadPhase {
   EmbreeBroadPhase(const EmbreeBroadPhase&) = delete;
   EmbreeBroadPhase& operator=(const EmbreeBroadPhase&) = delete;
 
-  void find(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
-            ContactCandidates* out) override {
+  bool find(const std::vector<double>& x0, const std::vector<double>& x1, double margin, ContactCandidates* out,
+            std::size_t max_pairs) override {
     GD_DEMAND(out != nullptr, "null output");
+    out->vf.clear();
+    out->ee.clear();
     const auto t0 = std::chrono::steady_clock::now();
     compute_boxes(topo_, x0, x1, margin, true, &boxes_);
     const double t_boxes = ms_since(t0);
@@ -374,10 +402,19 @@ class EmbreeBroadPhase final : public BroadPhase {
 
     const auto t2 = std::chrono::steady_clock::now();
     std::vector<std::uint64_t> vf_keys, ee_keys;
+    // The limit counts the keys the callbacks keep (before finish() drops any duplicate).
+    sink_.set_limit(max_pairs);
     const std::size_t tested_vf = collide(PairKind::kVertexTriangle, vertices_, tris_, &vf_keys);
-    const std::size_t tested_ee = collide(PairKind::kEdgeEdge, edges_, edges_, &ee_keys);
+    const std::size_t tested_ee = sink_.overflowed() ? 0 : collide(PairKind::kEdgeEdge, edges_, edges_, &ee_keys);
+    const bool overflow = sink_.overflowed();
+    sink_.set_limit(kNoPairLimit);
     check("colliding");
     const double t_collide = ms_since(t2);
+    if (overflow) {
+      gd::log().debug("embree broad phase find: margin {:.3g} m, over {} pairs; collide {:.2f} ms", margin, max_pairs,
+                      t_collide);
+      return false;
+    }
     const auto t3 = std::chrono::steady_clock::now();
     finish(vf_keys, topo_.n, &out->vf);
     finish(ee_keys, topo_.edge_count(), &out->ee);
@@ -385,6 +422,7 @@ class EmbreeBroadPhase final : public BroadPhase {
         "embree broad phase find: margin {:.3g} m, {} vf, {} ee (of {} + {} pairs from leaf overlaps); boxes {:.2f} "
         "ms, build {:.2f} ms, collide {:.2f} ms, sort {:.2f} ms",
         margin, out->vf.size(), out->ee.size(), tested_vf, tested_ee, t_boxes, t_build, t_collide, ms_since(t3));
+    return true;
   }
 
   void triangle_pairs(const std::vector<double>& x0, const std::vector<double>& x1, double margin,

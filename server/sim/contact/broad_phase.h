@@ -17,6 +17,8 @@
 /// Output lists are sorted lexicographically and free of duplicates (deterministic across runs
 /// and thread counts). Units: positions and margin in metres.
 
+#include <cstddef>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -30,6 +32,9 @@ struct ContactCandidates {
   std::vector<Eigen::Vector2i> ee;  ///< (edge a, edge b) pairs, indices into the edge list given at construction, a < b, edges share no vertex
 };
 
+/// BroadPhase::find without a limit on the number of pairs.
+inline constexpr std::size_t kNoPairLimit = std::numeric_limits<std::size_t>::max();
+
 /// Broad-phase interface (Embree on the CPU by default; the LBVH of contact/lbvh.h behind the same
 /// interface). An instance keeps its acceleration structures between calls; calls on one instance
 /// must not run concurrently.
@@ -41,8 +46,13 @@ class BroadPhase {
   /// whose distance can fall below `margin` anywhere along the linear motion from x0 to x1 is
   /// reported (no misses; extra candidates are allowed). `out` is overwritten. Throws InputError
   /// for wrong sizes, a negative or non-finite margin, or a non-finite position.
-  virtual void find(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
-                    ContactCandidates* out) = 0;
+  ///
+  /// max_pairs bounds the answer (VF and EE pairs together): when more pairs than that overlap,
+  /// find returns false and leaves `out` empty, having held no more than about max_pairs pairs in
+  /// memory on the way (a motion that sweeps boxes across the whole mesh overlaps nearly every
+  /// pair; the caller asks again about a shorter motion). Returns true otherwise.
+  virtual bool find(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
+                    ContactCandidates* out, std::size_t max_pairs = kNoPairLimit) = 0;
   /// Triangle pairs (t_a < t_b, sharing no vertex) whose swept inflated bounds overlap: used by the
   /// intersection check and untangling. Same arguments and guarantees as find(); `out` is overwritten.
   virtual void triangle_pairs(const std::vector<double>& x0, const std::vector<double>& x1, double margin,

@@ -18,6 +18,7 @@
 /// the boxes it overlaps that its filter accepts. Units are whatever the boxes are in.
 
 #include <cstdint>
+#include <limits>
 
 #include "sim/hd.h"
 
@@ -239,9 +240,11 @@ class Lbvh {
   /// For each query box q in [0, queries) (6 floats each, the policy's memory), the indices of the
   /// built boxes it overlaps that accept(q, index) keeps, as keys q << 32 | index in `out`
   /// (overwritten), grouped by query in order and in traversal order within one. Returns the
-  /// count.
+  /// count. When the count is over max_total, `out` is left empty (the pairs are counted, not
+  /// written) and the count is still returned.
   template <class Accept>
-  int query(int queries, const Vec<float>& query_boxes, const Accept& accept, Vec<uint64_t>* out) {
+  int64_t query(int queries, const Vec<float>& query_boxes, const Accept& accept, Vec<uint64_t>* out,
+                int64_t max_total = std::numeric_limits<int64_t>::max()) {
     if (n_ == 0 || queries == 0) {
       Exec::resize_for_overwrite(*out, 0);
       return 0;
@@ -254,7 +257,7 @@ class Lbvh {
     const float* leaf_box = Exec::ptr(leaf_box_);
     const int* order = Exec::ptr(order_);
     Exec::resize_for_overwrite(offsets_, static_cast<size_t>(queries) + 1);
-    int* offsets = Exec::ptr(offsets_);
+    int64_t* offsets = Exec::ptr(offsets_);  // 64-bit: a flooded query can count past 2^31 pairs
     Exec::for_each(queries + 1, [=] GD_HD_LAMBDA(int q) {
       int count = 0;
       if (q < queries)
@@ -264,11 +267,15 @@ class Lbvh {
       offsets[q] = count;
     }, Exec::kParallelMinHeavy);
     Exec::exclusive_scan(offsets_, queries + 1);
-    const int total = Exec::read(offsets_, static_cast<size_t>(queries));
+    const int64_t total = Exec::read(offsets_, static_cast<size_t>(queries));
+    if (total > max_total) {
+      Exec::resize_for_overwrite(*out, 0);
+      return total;
+    }
     Exec::resize_for_overwrite(*out, static_cast<size_t>(total));
     uint64_t* o = Exec::ptr(*out);
     Exec::for_each(queries, [=] GD_HD_LAMBDA(int q) {
-      int w = offsets[q];
+      int64_t w = offsets[q];
       lbvh::traverse(qb + 6 * q, n, left, right, node_box, leaf_box, order, [&](int k) {
         if (accept(q, k)) o[w++] = (static_cast<uint64_t>(static_cast<uint32_t>(q)) << 32) | static_cast<uint32_t>(k);
       });
@@ -281,7 +288,8 @@ class Lbvh {
  private:
   int n_ = 0;
   Vec<uint64_t> keys_;
-  Vec<int> order_, left_, right_, parent_node_, parent_leaf_, arrivals_, offsets_;
+  Vec<int> order_, left_, right_, parent_node_, parent_leaf_, arrivals_;
+  Vec<int64_t> offsets_;
   Vec<float> leaf_box_, node_box_;
 };
 

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -66,9 +67,14 @@ class LbvhBroadPhase final : public BroadPhase {
     Exec::upload(edges_, flat);
   }
 
-  void find(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
-            ContactCandidates* out) override {
+  bool find(const std::vector<double>& x0, const std::vector<double>& x1, double margin, ContactCandidates* out,
+            std::size_t max_pairs = kNoPairLimit) override {
     GD_DEMAND(out != nullptr, "null output");
+    out->vf.clear();
+    out->ee.clear();
+    const int64_t limit = max_pairs >= static_cast<std::size_t>(std::numeric_limits<int64_t>::max())
+                              ? std::numeric_limits<int64_t>::max()
+                              : static_cast<int64_t>(max_pairs);
     load(x0, x1, margin);
     const double pad = 0.5 * margin;
     boxes<1>(nullptr, n_, pad, &vertex_boxes_);
@@ -77,16 +83,23 @@ class LbvhBroadPhase final : public BroadPhase {
     const int* tris = Exec::ptr(tris_);
     const int* edges = Exec::ptr(edges_);
     tree_.build(nt_, tri_boxes_);
-    tree_.query(n_, vertex_boxes_, [=] GD_HD_LAMBDA(int v, int t) {
+    // Each query counts its pairs before writing any, so a flooded one allocates nothing.
+    const int64_t vf = tree_.query(n_, vertex_boxes_, [=] GD_HD_LAMBDA(int v, int t) {
       return tris[3 * t] != v && tris[3 * t + 1] != v && tris[3 * t + 2] != v;
-    }, &keys_);
+    }, &keys_, limit);
+    if (vf > limit) return false;
     finish(&out->vf);
     tree_.build(ne_, edge_boxes_);
-    tree_.query(ne_, edge_boxes_, [=] GD_HD_LAMBDA(int a, int b) {
+    const int64_t ee = tree_.query(ne_, edge_boxes_, [=] GD_HD_LAMBDA(int a, int b) {
       const int a0 = edges[2 * a], a1 = edges[2 * a + 1], b0 = edges[2 * b], b1 = edges[2 * b + 1];
       return b > a && a0 != b0 && a0 != b1 && a1 != b0 && a1 != b1;
-    }, &keys_);
+    }, &keys_, limit - vf);
+    if (ee > limit - vf) {
+      out->vf.clear();
+      return false;
+    }
     finish(&out->ee);
+    return true;
   }
 
   void triangle_pairs(const std::vector<double>& x0, const std::vector<double>& x1, double margin,

@@ -22,14 +22,18 @@ void Solver<Exec>::select_contacts() {
   upload_candidates();  // select_active drops pairs already at zero distance
 }
 
-/// Candidates along the Newton step x -> x + dx (for CCD and the line search).
+/// Candidates along the Newton step x -> x + dx (for CCD and the line search). A step whose
+/// query would flood the pair budget is halved first (SelfContact::find_within_budget), dx too.
 template <class Exec>
 void Solver<Exec>::find_contacts_along_step() {
   if (!self_) return;
   Exec::download(host_x_, x_);
   Exec::download(host_dx_, dx_);
-  for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] += host_x_[k];
-  self_->find(host_x_, host_dx_);
+  for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] += host_x_[k];  // the step's end
+  if (self_->find_within_budget(host_x_, &host_dx_) > 0) {
+    for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] -= host_x_[k];
+    Exec::upload(dx_, host_dx_);
+  }
   self_->select_active(host_x_, kin_fixed_host_);
   upload_candidates();
 }

@@ -112,6 +112,11 @@ struct SceneOptions {
   bool untangle = true;            ///< run the untangling fail-safe when intersections are found
   ContactHessianKind contact_hessian = ContactHessianKind::kProjected;
   BroadPhaseKind broad_phase = BroadPhaseKind::kAuto;
+  /// The most pairs one self-contact broad-phase query may hold (0: SelfContact's default, 200
+  /// per vertex and at least 100,000). A motion whose query would hold more (a wild Newton
+  /// direction sweeping boxes across the garment) is halved until it fits
+  /// (SelfContact::find_within_budget); ordinary steps stay far below it.
+  std::size_t self_contact_pair_budget = 0;
   /// With self-contact, grasped (kinematic) vertices stay in the solve, pulled to their targets by
   /// a spring of stiffness grip_stiffness * (m / dt^2 + k_membrane) per vertex (m its mass,
   /// k_membrane the fabric's largest stretch stiffness, N/m): stiff enough that a held vertex

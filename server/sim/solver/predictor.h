@@ -107,7 +107,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     // scaled back by CCD where needed.
     Exec::download(host_xt_, x_t_);
     Exec::download(host_x_, x_);
-    self_->find(host_xt_, host_x_);
+    self_->find_within_budget(host_xt_, &host_x_);  // a motion that would flood it is halved: dx below
     self_->select_active(host_xt_, kin_fixed_host_);
     self_->build_friction(host_xt_);
     upload_friction();

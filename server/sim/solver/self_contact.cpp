@@ -11,6 +11,7 @@
 #include "sim/contact/friction.h"
 #include "sim/contact/tri_tri_intersect.h"
 #include "sim/contact/untangle.h"
+#include "sim/demand.h"
 #include "sim/log.h"
 
 namespace gd::sim {
@@ -38,8 +39,13 @@ void ContactPairs::push(const int* vs, int t, double k, double e) {
 }
 
 SelfContact::SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass, BroadPhaseKind broad_phase,
-                         bool on_device)
-    : d_(data), dhat_(dhat), kappa_per_mass_(kappa_per_mass), slack_(kBroadPhaseSlack * dhat) {
+                         bool on_device, std::size_t pair_budget)
+    : d_(data),
+      dhat_(dhat),
+      kappa_per_mass_(kappa_per_mass),
+      slack_(kBroadPhaseSlack * dhat),
+      budget_(pair_budget > 0 ? pair_budget
+                              : std::max(kMinPairBudget, kPairsPerVertex * static_cast<std::size_t>(data.n))) {
   // Unique undirected edges of the triangles.
   for (int t = 0; t < d_.triangles(); ++t)
     for (int k = 0; k < 3; ++k) {
@@ -96,18 +102,23 @@ bool SelfContact::covered_by_last_query(const std::vector<double>& x0, const std
   return finite && within_translated_boxes(query_lo_, query_hi_, motion_lo_.data(), motion_hi_.data(), x0.size(), 0.5 * slack_);
 }
 
-void SelfContact::find(const std::vector<double>& x0, const std::vector<double>& x1) {
-  const bool reuse = covered_by_last_query(x0, x1);
+bool SelfContact::find(const std::vector<double>& x0, const std::vector<double>& x1, std::size_t max_pairs) {
+  const bool reuse = covered_by_last_query(x0, x1);  // the last query held at most its own bound
   if (reuse) {
     ++reuses_;
   } else {  // the broad phase also checks the sizes and finiteness of x0 and x1
     const auto t0 = std::chrono::steady_clock::now();
-    bp_->find(x0, x1, dhat_ + slack_, &raw_);
+    const bool fits = bp_->find(x0, x1, dhat_ + slack_, &raw_, max_pairs);
     bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++queries_;
     raw_stamp_.assign(raw_.vf.size() + raw_.ee.size(), -1);  // new pairs: no distance known
     raw_dist_.resize(raw_stamp_.size());
     active_raw_.assign(active_.size(), -1);  // the active pairs' raw indices are the old query's
+    if (!fits) {  // no candidates, and nothing for a later motion to reuse
+      query_lo_.clear(), query_hi_.clear();
+      cand_.clear(), cand_raw_.clear();
+      return false;
+    }
   }
   if (!reuse) query_lo_ = motion_lo_, query_hi_ = motion_hi_;  // what later motions are checked against
   // Keep the pairs whose boxes of this motion, inflated by dhat, overlap: what a query with
@@ -174,6 +185,23 @@ void SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
       ++k;
     }
   }
+  return true;
+}
+
+int SelfContact::find_within_budget(const std::vector<double>& x0, std::vector<double>* x1) {
+  GD_DEMAND(x1 != nullptr, "null motion end");
+  int halvings = 0;
+  for (;;) {
+    const bool last = halvings == kMaxFloodHalvings;
+    if (find(x0, *x1, last ? kNoPairLimit : budget_)) break;
+    for (size_t k = 0; k < x0.size(); ++k) (*x1)[k] = x0[k] + 0.5 * ((*x1)[k] - x0[k]);
+    ++halvings;
+  }
+  if (halvings > 0)
+    gd::log().debug("self-contact broad phase: the motion would have held over {} pairs; halved {} times", budget_,
+                    halvings);
+  halvings_ += halvings;
+  return halvings;
 }
 
 void SelfContact::set_candidate_distances(const std::vector<double>& x, const double* dist2) {

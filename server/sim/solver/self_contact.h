@@ -41,8 +41,10 @@ class SelfContact {
  public:
   /// broad_phase kLbvh with on_device: the LBVH on the CUDA device (make_cuda_lbvh_broad_phase);
   /// kAuto: that with on_device, else Embree.
+  /// pair_budget: find_within_budget's bound (0: the default, see pair_budget()).
   SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass,
-              BroadPhaseKind broad_phase = BroadPhaseKind::kAuto, bool on_device = false);
+              BroadPhaseKind broad_phase = BroadPhaseKind::kAuto, bool on_device = false,
+              std::size_t pair_budget = 0);
 
   /// Candidates: pairs that can come within dhat while moving linearly from x0 to x1.
   /// The broad phase runs with a margin of dhat + slack (slack = kBroadPhaseSlack x dhat), so its
@@ -51,7 +53,25 @@ class SelfContact {
   /// then had boxes within dhat + slack; a translation changes no distance); such a motion reuses
   /// them without a new query (Newton iterations of a step, cloth moving less than slack/2 from
   /// where the query saw it, and cloth falling or carried as a whole).
-  void find(const std::vector<double>& x0, const std::vector<double>& x1);
+  ///
+  /// max_pairs bounds the query's answer (BroadPhase::find): when more pairs overlap, find returns
+  /// false and leaves no candidates (and no query to reuse); the caller asks about a shorter
+  /// motion.
+  bool find(const std::vector<double>& x0, const std::vector<double>& x1, std::size_t max_pairs = kNoPairLimit);
+  /// find() on x0 -> *x1 within pair_budget(): while the query would hold more pairs, *x1 moves
+  /// halfway back towards x0 (at most kMaxFloodHalvings times, then one query without a bound).
+  /// Returns the halvings (0: *x1 untouched). A wild Newton direction (a pressed, ill-conditioned
+  /// solve) can sweep boxes across the garment: one such query held 15.8 million pairs (19 GB) at
+  /// a 4000-vertex T-shirt fold. Any shorter motion along the same direction is still a descent
+  /// step, so the caller takes the halved motion as its step.
+  int find_within_budget(const std::vector<double>& x0, std::vector<double>* x1);
+  /// The pair bound of find_within_budget: the pair_budget given at construction, else kPairsPerVertex
+  /// per vertex and at least kMinPairBudget, far above what a query of a settled or moving
+  /// garment holds (docs/physics.md, "Broad-phase floods").
+  std::size_t pair_budget() const { return budget_; }
+  static constexpr std::size_t kPairsPerVertex = 200;
+  static constexpr std::size_t kMinPairBudget = 100000;
+  static constexpr int kMaxFloodHalvings = 10;
   /// Active pairs: candidates closer than dhat at x with at least one free vertex. Pairs
   /// already at zero distance (driven there by kinematic vertices) are dropped from both lists
   /// and counted: the untangling fail-safe handles them. A pair's distance measured at these
@@ -87,6 +107,8 @@ class SelfContact {
   /// Broad-phase queries run, and find() calls answered from the last query's candidates.
   long broad_phase_queries() const { return queries_; }
   long broad_phase_reuses() const { return reuses_; }
+  /// Motions halved by find_within_budget so far.
+  long flood_halvings() const { return halvings_; }
   Real dhat() const { return dhat_; }
 
  private:
@@ -122,7 +144,8 @@ class SelfContact {
   std::vector<double> fr_scratch_;  ///< build_friction's per-pair results
   int dropped_ = 0;
   double bp_seconds_ = 0;
-  long queries_ = 0, reuses_ = 0;
+  long queries_ = 0, reuses_ = 0, halvings_ = 0;
+  std::size_t budget_;
 };
 
 /// Extra broad-phase margin as a fraction of dhat (SelfContact::find).

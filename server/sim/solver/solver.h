@@ -81,6 +81,9 @@ struct StepStats {
   bool untangled = false;      ///< the untangling fail-safe ran this step
   double broad_phase_seconds = 0;  ///< broad-phase queries (inside the predictor, contacts and intersections stages)
   int broad_phase_queries = 0;     ///< broad-phase queries run (the others reused candidates)
+  /// Halvings of motions (the predictor's, Newton steps) whose broad phase would have held more
+  /// than the pair budget (SceneOptions::self_contact_pair_budget); 0 in ordinary steps.
+  int flood_halvings = 0;
   StageTimes stage;            ///< where the step's time went
   double seconds = 0;          ///< wall time of the step
 };

@@ -95,7 +95,8 @@ class Solver final : public SolverBase {
       P_.dhat_self = P_.dhat;
       P_.ccd_floor = kCcdFloorFraction * P_.dhat_self;
       P_.mu_self = opt.self_friction >= 0 ? opt.self_friction : d.friction;
-      self_ = std::make_unique<SelfContact>(d, P_.dhat_self, P_.kappa_per_mass, opt.broad_phase, !Exec::kHostMemory);
+      self_ = std::make_unique<SelfContact>(d, P_.dhat_self, P_.kappa_per_mass, opt.broad_phase, !Exec::kHostMemory,
+                                            opt.self_contact_pair_budget);
     }
   }
 
@@ -107,6 +108,7 @@ class Solver final : public SolverBase {
     StageTimes& T = st.stage;
     const double bp_seconds_at_start = self_ ? self_->broad_phase_seconds() : 0.0;
     const long bp_queries_at_start = self_ ? self_->broad_phase_queries() : 0;
+    const long halvings_at_start = self_ ? self_->flood_halvings() : 0;
     timed(T.predictor, [&] { begin_step(kin, quasi_static); });   // lagged data, Dirichlet targets, predictor
     bool gradient_known = false;                                    // g_ is the gradient at x (line search)
     double scale = 0;                                               // the first Newton step's size, m/s
@@ -160,6 +162,7 @@ class Solver final : public SolverBase {
       st.candidates = self_->candidates().size();
       st.broad_phase_seconds = self_->broad_phase_seconds() - bp_seconds_at_start;
       st.broad_phase_queries = static_cast<int>(self_->broad_phase_queries() - bp_queries_at_start);
+      st.flood_halvings = static_cast<int>(self_->flood_halvings() - halvings_at_start);
     }
     st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return st;
