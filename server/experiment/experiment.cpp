@@ -508,6 +508,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["contacts_max"] = run.contacts_max();
   s["intersecting_pairs_max"] = run.intersecting_max();
   s["untangle_runs"] = sc.untangle_runs();
+  s["flood_halvings"] = sc.flood_halvings();
   s["failed"] = sc.failed();
   s["failure"] = sc.failure();
   s["backend"] = sc.backend();

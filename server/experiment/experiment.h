@@ -83,7 +83,7 @@ using ProgressFn = std::function<void(double sim_time, double end_time, const si
 
 struct ExperimentResult {
   /// vertices, triangles, garment, material, task, mode, steps, frames, dt, sim_seconds,
-  /// wall_seconds, ms_per_step, intersecting_pairs_max, untangle_runs, failed, failure,
+  /// wall_seconds, ms_per_step, intersecting_pairs_max, untangle_runs, flood_halvings, failed, failure,
   /// min_z_final, max_z_final, extent_x_final, extent_y_final, gripper_separation_final (m, both
   /// arms' positions at the trajectory's end), grasp events; with a capture
   /// also the seven metrics (means over the calculate window), metrics_std, frames_in_window,

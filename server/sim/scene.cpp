@@ -231,6 +231,7 @@ bool Scene::do_step(bool quasi_static) {
   }
   time_ += options_.dt;
   if (stats_.untangled) ++untangle_runs_;
+  flood_halvings_ += stats_.flood_halvings;
   gd::log().debug("step t={:.3f}: newton {} pcg {} min_alpha {:.3g} |dx|/dt {:.3g} contacts {} candidates {} "
                   "(queries {}) min gap {:.3g} barrier x{:g} grip {:.3g} N intersecting {} (found {}){}",
                   time_, stats_.newton_iters, stats_.pcg_iters, stats_.min_alpha, stats_.step_norm, stats_.contacts,

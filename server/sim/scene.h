@@ -87,6 +87,9 @@ class Scene {
   const StepStats& last_stats() const { return stats_; }
   /// Steps in which the untangling fail-safe ran, since creation.
   int untangle_runs() const { return untangle_runs_; }
+  /// Motions halved because their self-contact broad phase would have held more than the pair
+  /// budget (StepStats::flood_halvings), since creation.
+  long flood_halvings() const { return flood_halvings_; }
   EnergyReport energies() const { return solver_->energies(); }
   double max_strain() const { return solver_->max_strain(); }
   /// Bytes held per vertex by the solver (what decides how many scenes fit on a server).
@@ -119,6 +122,7 @@ class Scene {
   std::string failure_;
   StepStats stats_;
   int untangle_runs_ = 0;
+  long flood_halvings_ = 0;
 };
 
 }  // namespace gd::sim

@@ -85,10 +85,10 @@ nlohmann::json run_case(const ExperimentConfig& c, const std::string& label) {
   EXPECT_TRUE(c.scene.self_contact);
   const ExperimentResult r = run_experiment(c);
   const auto& s = r.summary;
-  gd::log().info("{}: {} vertices, {} steps, {:.1f} s wall, max intersecting pairs {}, untangling {}, final {}, "
-                 "grippers {:.3f} m apart", label, s["vertices"].get<int>(), s["steps"].get<int>(),
+  gd::log().info("{}: {} vertices, {} steps, {:.1f} s wall, max intersecting pairs {}, untangling {}, flood "
+                 "halvings {}, final {}, grippers {:.3f} m apart", label, s["vertices"].get<int>(), s["steps"].get<int>(),
                  s["wall_seconds"].get<double>(), s["intersecting_pairs_max"].get<int>(), s["untangle_runs"].get<int>(),
-                 s["final"].dump(), s.value("gripper_separation_final", 0.0));
+                 s["flood_halvings"].get<long>(), s["final"].dump(), s.value("gripper_separation_final", 0.0));
   EXPECT_FALSE(s["failed"].get<bool>()) << s["failure"];
   EXPECT_EQ(s["intersecting_pairs_max"].get<int>(), 0);
   return s;

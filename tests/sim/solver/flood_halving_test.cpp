@@ -73,6 +73,7 @@ TEST(FloodHalving, TheDefaultBudgetHalvesTheWidestMotions) {
     EXPECT_EQ(s->last_stats().intersecting_pairs, 0) << "step " << k;
   }
   EXPECT_GE(halvings, 1);
+  EXPECT_EQ(s->flood_halvings(), halvings) << "the scene's count is the steps' sum";
   EXPECT_LT(s->max_strain(), 0.1) << halvings << " halvings";
 }
 
