@@ -68,7 +68,7 @@ class LbvhBroadPhase final : public BroadPhase {
   }
 
   bool find(const std::vector<double>& x0, const std::vector<double>& x1, double margin, ContactCandidates* out,
-            std::size_t max_pairs = kNoPairLimit) override {
+            std::size_t max_pairs) override {
     GD_DEMAND(out != nullptr, "null output");
     out->vf.clear();
     out->ee.clear();

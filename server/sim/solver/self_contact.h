@@ -67,7 +67,7 @@ class SelfContact {
   int find_within_budget(const std::vector<double>& x0, std::vector<double>* x1);
   /// The pair bound of find_within_budget: the pair_budget given at construction, else kPairsPerVertex
   /// per vertex and at least kMinPairBudget, far above what a query of a settled or moving
-  /// garment holds (docs/physics.md, "Broad-phase floods").
+  /// garment holds (docs/physics.md, twenty-first round: broad-phase floods).
   std::size_t pair_budget() const { return budget_; }
   static constexpr std::size_t kPairsPerVertex = 200;
   static constexpr std::size_t kMinPairBudget = 100000;
