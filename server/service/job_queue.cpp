@@ -246,6 +246,23 @@ void JobQueue::update(const std::string& id, const std::function<void(JobRecord&
     ++l.version;
   }
   cv_.notify_all();
+  std::vector<std::function<void()>> fs;
+  {
+    std::lock_guard<std::mutex> lock(listeners_mu_);
+    for (const auto& [key, f] : listeners_) fs.push_back(f);
+  }
+  for (const auto& f : fs) f();
+}
+
+int JobQueue::add_listener(std::function<void()> f) {
+  std::lock_guard<std::mutex> lock(listeners_mu_);
+  listeners_[next_listener_] = std::move(f);
+  return next_listener_++;
+}
+
+void JobQueue::remove_listener(int id) {
+  std::lock_guard<std::mutex> lock(listeners_mu_);
+  listeners_.erase(id);
 }
 
 void JobQueue::worker() {

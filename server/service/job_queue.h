@@ -118,6 +118,13 @@ class JobQueue {
   /// job, NOT_FOUND for an unknown one. `out` receives the record as it stands after the call.
   Status cancel(const std::string& job_id, JobRecord* out, const std::string& caller = {});
 
+  /// Calls `f` after every change of a job's record, on the thread that made it, with no lock
+  /// held; f must not block. Returns an id for remove_listener.
+  int add_listener(std::function<void()> f);
+  /// Removes a listener (a call that had already begun may still run: f must stay safe to call,
+  /// e.g. through a weak_ptr).
+  void remove_listener(int id);
+
   /// Stops taking jobs, waits up to grace_seconds for the running ones, then interrupts them and
   /// the queued ones. Idempotent.
   void drain(double grace_seconds);
@@ -144,6 +151,9 @@ class JobQueue {
   std::atomic<bool> cancel_{false};
   std::set<std::string> cancelled_;  ///< running jobs a client cancelled (stop at their next step)
   std::vector<std::thread> workers_;
+  std::mutex listeners_mu_;  ///< guards listeners_ (not held while they run)
+  std::map<int, std::function<void()>> listeners_;
+  int next_listener_ = 0;
 };
 
 }  // namespace gd::service

@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();
   app.add_option("--max-streams", o.max_streams,
-                 "StreamFrames and WatchJob calls open at once, each holding a server thread; more are refused "
+                 "StreamFrames and WatchJob calls open at once (a waiting one holds no thread); more are refused "
                  "(0: no limit)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();

@@ -66,7 +66,7 @@ void FrameSubscription::push(SceneSnapshot s) {
     queued_bytes_ += bytes;
     frames_.push_back(std::move(s));
   }
-  cv_.notify_all();
+  notify();
 }
 
 void FrameSubscription::scene_closed() {
@@ -74,7 +74,22 @@ void FrameSubscription::scene_closed() {
     std::lock_guard<std::mutex> lock(mu_);
     if (open_scenes_ > 0) --open_scenes_;
   }
+  notify();
+}
+
+void FrameSubscription::set_listener(std::function<void()> f) {
+  std::lock_guard<std::mutex> lock(listener_mu_);
+  listener_ = std::move(f);
+}
+
+void FrameSubscription::notify() {
   cv_.notify_all();
+  std::function<void()> f;
+  {
+    std::lock_guard<std::mutex> lock(listener_mu_);
+    f = listener_;
+  }
+  if (f) f();
 }
 
 // --- scenes -------------------------------------------------------------------------------------

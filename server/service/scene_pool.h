@@ -180,10 +180,15 @@ class FrameSubscription {
   static size_t frame_bytes(const SceneSnapshot& s);
   /// Frames dropped so far because the queue was full.
   int64_t dropped();
-  /// Waits up to `timeout_ms` for a frame. Returns true and fills `out` when one came.
+  /// Waits up to `timeout_ms` for a frame (0: does not wait). Returns true and fills `out` when
+  /// one came.
   bool pop(SceneSnapshot* out, int timeout_ms);
   /// True when every subscribed scene is gone and no frame is left.
   bool finished();
+  /// Calls `f` after every frame queued and every scene closed, on the thread that did it (a scene
+  /// worker), with no lock held; f must not block. An empty f removes the listener (a call that
+  /// had already begun may still run: f must stay safe to call, e.g. through a weak_ptr).
+  void set_listener(std::function<void()> f);
 
   // Called by the pool.
   int every() const { return every_; }
@@ -191,8 +196,12 @@ class FrameSubscription {
   void scene_closed();
 
  private:
+  void notify();
+
   std::mutex mu_;
   std::condition_variable cv_;
+  std::mutex listener_mu_;  ///< guards listener_ (not held while it runs)
+  std::function<void()> listener_;
   std::deque<SceneSnapshot> frames_;
   int every_;
   size_t open_scenes_;

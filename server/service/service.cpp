@@ -17,7 +17,7 @@ namespace gd::service {
 
 namespace {
 
-std::string request_id(grpc::ServerContext* ctx) {
+std::string request_id(grpc::ServerContextBase* ctx) {
   const auto& md = ctx->client_metadata();
   auto it = md.find("x-request-id");
   // The client's id when it is a plain token (it is echoed into every log line of the call).
@@ -31,56 +31,44 @@ std::string request_id(grpc::ServerContext* ctx) {
 
 }  // namespace
 
-Status GarmentDynamicsService::authenticate(Ctx* ctx, std::string* owner) const {
-  owner->clear();
+Status GarmentDynamicsService::begin_call(grpc::ServerContextBase* ctx, CallLog* log) const {
+  log->request_id = request_id(ctx);
+  ctx->AddInitialMetadata("x-request-id", log->request_id);
+  log->owner.clear();
   if (!options_.tokens.enabled()) return Status::Ok();
   const auto& md = ctx->client_metadata();
   auto it = md.find("authorization");
   if (it == md.end())
     return Status::Unauthenticated("this server needs a bearer token: send metadata 'authorization: Bearer TOKEN' "
                                    "(gd --token-file FILE, Client(token_file=...), ClientOptions::token)");
-  *owner = options_.tokens.principal(std::string(it->second.data(), it->second.size()));
-  if (owner->empty())
+  log->owner = options_.tokens.principal(std::string(it->second.data(), it->second.size()));
+  if (log->owner.empty())
     return Status::Unauthenticated("unknown bearer token: use a token from this server's --auth-token-file");
   return Status::Ok();
 }
 
-Status GarmentDynamicsService::stream_limit() const {
-  return Status::ResourceExhausted(fmt::format(
-      "{} streams (StreamFrames, WatchJob) are open on this server, its limit (--max-streams); close one, or "
-      "poll with GetState / GetReport", options_.max_streams));
-}
-
 GarmentDynamicsService::GarmentDynamicsService(ScenePool& scenes, JobQueue& jobs, MeshLibrary& meshes,
                                                HandlerOptions options)
-    : scenes_(scenes), jobs_(jobs), meshes_(meshes), options_(std::move(options)) {}
+    : scenes_(scenes), jobs_(jobs), meshes_(meshes), options_(std::move(options)), streams_(options_.max_streams) {}
+
+/// The caller of a unary call (CallLog's request id and owner).
+using Call = CallLog;
 
 template <class F>
 grpc::Status GarmentDynamicsService::handle(Ctx* ctx, const char* method, bool info_level, F&& body) {
-  const auto t0 = std::chrono::steady_clock::now();
-  Call call;
+  CallLog call;
+  call.method = method;
+  call.info_level = info_level;
   Status st;
   try {
-    call.request_id = request_id(ctx);
-    ctx->AddInitialMetadata("x-request-id", call.request_id);
-    st = authenticate(ctx, &call.owner);  // before the body: no work for an unknown caller
+    st = begin_call(ctx, &call);  // before the body: no work for an unknown caller
     if (st.ok()) st = body(call);
   } catch (const std::exception& e) {
     st = Status::Internal(fmt::format("{} failed unexpectedly: {}", method, e.what()));
   } catch (...) {
     st = Status::Internal(fmt::format("{} failed unexpectedly", method));
   }
-  if (!st.ok()) st = Status(st.code(), printable_message(st.message()));  // bounded, no control characters
-  try {
-    const double ms = 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const auto level = !st.ok() && st.code() == Code::kInternal ? spdlog::level::err
-                       : info_level                              ? spdlog::level::info
-                                                                 : spdlog::level::debug;
-    gd::log().log(level, "rpc {} {}{}{} {} {:.1f} ms{}{}", call.request_id, method, call.owner.empty() ? "" : " by ",
-                  call.owner, code_name(st.code()), ms, st.ok() ? "" : ": ", st.message());
-  } catch (...) {
-  }
-  return to_grpc(st);
+  return end_call(call, std::move(st));
 }
 
 grpc::Status GarmentDynamicsService::CreateScenes(Ctx* ctx, const pb::CreateScenesRequest* req,
@@ -157,75 +145,18 @@ grpc::Status GarmentDynamicsService::GetState(Ctx* ctx, const pb::GetStateReques
   });
 }
 
-grpc::Status GarmentDynamicsService::StreamFrames(Ctx* ctx, const pb::StreamFramesRequest* req,
-                                                  grpc::ServerWriter<pb::StreamFramesResponse>* writer) {
-  return handle(ctx, "StreamFrames", false, [&](const Call& call) -> Status {
-    const StreamSlot slot(open_streams_, options_.max_streams);
-    if (!slot.ok()) return stream_limit();
-    if (req->every() < 0) return Status::InvalidArgument(fmt::format("every must be >= 1 (got {})", req->every()));
-    if (req->steps() < 0) return Status::InvalidArgument(fmt::format("steps must be >= 0 (got {})", req->steps()));
-    if (req->max_frames() < 0)
-      return Status::InvalidArgument(fmt::format("max_frames must be >= 0 (got {})", req->max_frames()));
-    const int every = req->every() == 0 ? 1 : req->every();
-    std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
-    int frames = 0;
-    pb::StreamFramesResponse msg;
-    auto send = [&](const SceneSnapshot& s) {  // keeps msg's dropped_frames
-      msg.clear_state();
-      to_proto(s, true, msg.mutable_state());
-      ++frames;
-      return writer->Write(msg);
-    };
-    const auto stop = [&] { return ctx->IsCancelled() || draining_.load(); };
-    if (req->steps() > 0) {  // the stream steps its scenes itself, holding their last commands
-      if (every > scenes_.options().max_substeps)
-        return Status::ResourceExhausted(fmt::format("every {} is over the server's limit of {} steps per call",
-                                                     every, scenes_.options().max_substeps));
-      GD_RETURN_IF_ERROR(scenes_.check(ids, call.owner));  // unknown ids: NOT_FOUND (destroyed later: the stream goes on)
-      int done = 0;
-      while (done < req->steps() && !ids.empty()) {
-        if (stop()) return Status::Ok();
-        StepRequest r;
-        r.scene_ids = ids;
-        r.substeps = std::min(every, req->steps() - done);
-        r.owner = call.owner;
-        r.cancelled = stop;
-        std::vector<SceneSnapshot> states;
-        const Status stepped = scenes_.step(r, &states);
-        if (stepped.code() == Code::kNotFound) {  // scenes destroyed under the stream: go on with the rest
-          std::vector<std::string> alive = scenes_.existing(ids, call.owner);
-          if (alive.size() == ids.size()) return stepped;
-          ids = std::move(alive);
-          continue;
-        }
-        if (stepped.code() == Code::kCancelled) return Status::Ok();  // the client left or the server drains
-        GD_RETURN_IF_ERROR(stepped);
-        done += r.substeps;
-        if (r.substeps < every) break;  // a partial period sends no frame
-        ids.clear();
-        for (const SceneSnapshot& s : states) {
-          if (!send(s)) return Status::Ok();  // the client went away
-          if (req->max_frames() > 0 && frames >= req->max_frames()) return Status::Ok();
-          if (!s.failed) ids.push_back(s.scene_id);
-        }
-      }
-      return Status::Ok();
-    }
-    std::shared_ptr<FrameSubscription> sub;
-    GD_RETURN_IF_ERROR(scenes_.subscribe(ids, every, &sub, call.owner));
-    writer->SendInitialMetadata();  // tells the client the subscription is in place
-    SceneSnapshot s;
-    while (!stop()) {
-      if (sub->pop(&s, 100)) {
-        msg.set_dropped_frames(sub->dropped());
-        if (!send(s)) return Status::Ok();
-        if (req->max_frames() > 0 && frames >= req->max_frames()) return Status::Ok();
-      } else if (sub->finished()) {
-        return Status::Ok();  // every subscribed scene was destroyed
-      }
-    }
-    return Status::Ok();
-  });
+grpc::ServerWriteReactor<pb::StreamFramesResponse>* GarmentDynamicsService::StreamFrames(
+    grpc::CallbackServerContext* ctx, const pb::StreamFramesRequest* req) {
+  CallLog call;
+  call.method = "StreamFrames";
+  try {
+    if (Status st = begin_call(ctx, &call); !st.ok()) return refused_frames(std::move(call), std::move(st));
+    return start_frames(scenes_, streams_, *req, std::move(call));
+  } catch (const std::exception& e) {
+    return refused_frames(std::move(call), Status::Internal(fmt::format("StreamFrames failed unexpectedly: {}", e.what())));
+  } catch (...) {
+    return refused_frames(std::move(call), Status::Internal("StreamFrames failed unexpectedly"));
+  }
 }
 
 grpc::Status GarmentDynamicsService::DestroyScenes(Ctx* ctx, const pb::DestroyScenesRequest* req,
@@ -251,24 +182,19 @@ grpc::Status GarmentDynamicsService::SubmitJob(Ctx* ctx, const pb::SubmitJobRequ
   });
 }
 
-grpc::Status GarmentDynamicsService::WatchJob(Ctx* ctx, const pb::WatchJobRequest* req,
-                                              grpc::ServerWriter<pb::WatchJobResponse>* writer) {
-  return handle(ctx, "WatchJob", true, [&](const Call& call) -> Status {
-    const StreamSlot slot(open_streams_, options_.max_streams);
-    if (!slot.ok()) return stream_limit();
-    if (req->job_id().empty()) return Status::InvalidArgument("no job_id given; use the id SubmitJob returned");
-    uint64_t version = 0;
-    JobRecord rec;
-    pb::WatchJobResponse msg;
-    for (;;) {
-      GD_RETURN_IF_ERROR(jobs_.wait(req->job_id(), &version, &rec, 500, call.owner));
-      msg.Clear();
-      to_proto(rec, msg.mutable_job());
-      if (!writer->Write(msg)) return Status::Ok();
-      if (job_finished(rec.status)) return Status::Ok();
-      if (ctx->IsCancelled()) return Status(Code::kCancelled, "the client cancelled the watch");
-    }
-  });
+grpc::ServerWriteReactor<pb::WatchJobResponse>* GarmentDynamicsService::WatchJob(grpc::CallbackServerContext* ctx,
+                                                                                 const pb::WatchJobRequest* req) {
+  CallLog call;
+  call.method = "WatchJob";
+  call.info_level = true;
+  try {
+    if (Status st = begin_call(ctx, &call); !st.ok()) return refused_watch(std::move(call), std::move(st));
+    return start_watch(jobs_, streams_, *req, std::move(call));
+  } catch (const std::exception& e) {
+    return refused_watch(std::move(call), Status::Internal(fmt::format("WatchJob failed unexpectedly: {}", e.what())));
+  } catch (...) {
+    return refused_watch(std::move(call), Status::Internal("WatchJob failed unexpectedly"));
+  }
 }
 
 grpc::Status GarmentDynamicsService::CancelJob(Ctx* ctx, const pb::CancelJobRequest* req, pb::CancelJobResponse* resp) {

@@ -18,6 +18,7 @@
 #include "service/job_queue.h"
 #include "service/mesh_library.h"
 #include "service/scene_pool.h"
+#include "service/streams.h"
 
 namespace gd::service {
 
@@ -25,20 +26,26 @@ namespace gd::service {
 struct HandlerOptions {
   size_t max_report_file_bytes = 32u << 20;  ///< GetReport include_files cap
   size_t max_reply_bytes = 0;                 ///< largest reply (--max-message-mb; 0: no limit)
-  /// Streams (StreamFrames, WatchJob) open at once (--max-streams): each holds a server thread
-  /// while it lasts, so more are refused (RESOURCE_EXHAUSTED) rather than growing the threads
-  /// without bound. 0: no limit.
+  /// Streams (StreamFrames, WatchJob) open at once (--max-streams); more are refused
+  /// (RESOURCE_EXHAUSTED). A waiting stream holds no thread (streams.h); each holds its frames'
+  /// queue and a connection. 0: no limit.
   int max_streams = 64;
   std::string version;
   TokenSet tokens;                            ///< --auth-token-file (empty: no authentication)
 };
 
-class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynamics::Service {
+/// The synchronous API for the unary calls (their work is bounded and runs on gRPC's thread
+/// pool) and the callback API for the two streams (streams.h: a waiting stream holds no thread).
+using ServiceBase = ::garmentdynamics::v1::GarmentDynamics::WithCallbackMethod_StreamFrames<
+    ::garmentdynamics::v1::GarmentDynamics::WithCallbackMethod_WatchJob<::garmentdynamics::v1::GarmentDynamics::Service>>;
+
+class GarmentDynamicsService final : public ServiceBase {
  public:
   GarmentDynamicsService(ScenePool& scenes, JobQueue& jobs, MeshLibrary& meshes, HandlerOptions options);
 
-  /// Ends streams (StreamFrames, WatchJob) at their next check: the server is draining.
-  void begin_drain() { draining_ = true; }
+  /// Ends every open stream (StreamFrames, WatchJob), and every later one at once: the server is
+  /// draining.
+  void begin_drain() { streams_.stop_all(); }
   /// Refuses new scenes and uploads (UNAVAILABLE) from now on: the server is shutting down.
   void stop_accepting() { refusing_ = true; }
 
@@ -51,14 +58,14 @@ class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynami
                       ::garmentdynamics::v1::StepScenesResponse* resp) override;
   grpc::Status GetState(Ctx* ctx, const ::garmentdynamics::v1::GetStateRequest* req,
                       ::garmentdynamics::v1::GetStateResponse* resp) override;
-  grpc::Status StreamFrames(Ctx* ctx, const ::garmentdynamics::v1::StreamFramesRequest* req,
-                      grpc::ServerWriter<::garmentdynamics::v1::StreamFramesResponse>* writer) override;
+  grpc::ServerWriteReactor<::garmentdynamics::v1::StreamFramesResponse>* StreamFrames(
+      grpc::CallbackServerContext* ctx, const ::garmentdynamics::v1::StreamFramesRequest* req) override;
   grpc::Status DestroyScenes(Ctx* ctx, const ::garmentdynamics::v1::DestroyScenesRequest* req,
                       ::garmentdynamics::v1::DestroyScenesResponse* resp) override;
   grpc::Status SubmitJob(Ctx* ctx, const ::garmentdynamics::v1::SubmitJobRequest* req,
                       ::garmentdynamics::v1::SubmitJobResponse* resp) override;
-  grpc::Status WatchJob(Ctx* ctx, const ::garmentdynamics::v1::WatchJobRequest* req,
-                      grpc::ServerWriter<::garmentdynamics::v1::WatchJobResponse>* writer) override;
+  grpc::ServerWriteReactor<::garmentdynamics::v1::WatchJobResponse>* WatchJob(
+      grpc::CallbackServerContext* ctx, const ::garmentdynamics::v1::WatchJobRequest* req) override;
   grpc::Status GetReport(Ctx* ctx, const ::garmentdynamics::v1::GetReportRequest* req,
                       ::garmentdynamics::v1::GetReportResponse* resp) override;
   grpc::Status CancelJob(Ctx* ctx, const ::garmentdynamics::v1::CancelJobRequest* req,
@@ -75,14 +82,11 @@ class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynami
                       ::garmentdynamics::v1::GetServerInfoResponse* resp) override;
 
  private:
-  /// Who makes a call.
-  struct Call {
-    std::string request_id;
-    std::string owner;  ///< the principal of the caller's token ("" without tokens)
-  };
-  /// OK and the caller's principal in *owner, or UNAUTHENTICATED (tokens on, none or an unknown one).
-  Status authenticate(Ctx* ctx, std::string* owner) const;
-  /// Runs a handler body with authentication, logging and exception containment.
+  /// The call's id (the client's x-request-id metadata, else a generated one, sent back as
+  /// initial metadata) and, authenticated, its caller in log->owner; UNAUTHENTICATED with
+  /// tokens on and none or an unknown one.
+  Status begin_call(grpc::ServerContextBase* ctx, CallLog* log) const;
+  /// Runs a unary handler body with authentication, logging and exception containment.
   template <class F>
   grpc::Status handle(Ctx* ctx, const char* method, bool info_level, F&& body);
 
@@ -90,21 +94,7 @@ class GarmentDynamicsService final : public ::garmentdynamics::v1::GarmentDynami
   JobQueue& jobs_;
   MeshLibrary& meshes_;
   HandlerOptions options_;
-  /// Counts an open stream for its lifetime; ok() is false (and nothing counted) past max_streams.
-  class StreamSlot {
-   public:
-    StreamSlot(std::atomic<int>& open, int max) : open_(open) { ok_ = open_.fetch_add(1) < max || max <= 0; }
-    ~StreamSlot() { open_.fetch_sub(1); }
-    bool ok() const { return ok_; }
-
-   private:
-    std::atomic<int>& open_;
-    bool ok_ = false;
-  };
-  Status stream_limit() const;
-
-  std::atomic<int> open_streams_{0};
-  std::atomic<bool> draining_{false};
+  StreamRegistry streams_;
   std::atomic<bool> refusing_{false};
 };
 
