@@ -63,10 +63,8 @@ grpc::Status GarmentDynamicsService::handle(Ctx* ctx, const char* method, bool i
   try {
     st = begin_call(ctx, &call);  // before the body: no work for an unknown caller
     if (st.ok()) st = body(call);
-  } catch (const std::exception& e) {
-    st = Status::Internal(fmt::format("{} failed unexpectedly: {}", method, e.what()));
   } catch (...) {
-    st = Status::Internal(fmt::format("{} failed unexpectedly", method));
+    st = unexpected_error(method);
   }
   return end_call(call, std::move(st));
 }
@@ -152,10 +150,8 @@ grpc::ServerWriteReactor<pb::StreamFramesResponse>* GarmentDynamicsService::Stre
   try {
     if (Status st = begin_call(ctx, &call); !st.ok()) return refused_frames(std::move(call), std::move(st));
     return start_frames(scenes_, streams_, *req, std::move(call));
-  } catch (const std::exception& e) {
-    return refused_frames(std::move(call), Status::Internal(fmt::format("StreamFrames failed unexpectedly: {}", e.what())));
   } catch (...) {
-    return refused_frames(std::move(call), Status::Internal("StreamFrames failed unexpectedly"));
+    return refused_frames(std::move(call), unexpected_error("StreamFrames"));
   }
 }
 
@@ -190,10 +186,8 @@ grpc::ServerWriteReactor<pb::WatchJobResponse>* GarmentDynamicsService::WatchJob
   try {
     if (Status st = begin_call(ctx, &call); !st.ok()) return refused_watch(std::move(call), std::move(st));
     return start_watch(jobs_, streams_, *req, std::move(call));
-  } catch (const std::exception& e) {
-    return refused_watch(std::move(call), Status::Internal(fmt::format("WatchJob failed unexpectedly: {}", e.what())));
   } catch (...) {
-    return refused_watch(std::move(call), Status::Internal("WatchJob failed unexpectedly"));
+    return refused_watch(std::move(call), unexpected_error("WatchJob"));
   }
 }
 

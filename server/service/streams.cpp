@@ -12,6 +12,16 @@
 
 namespace gd::service {
 
+Status unexpected_error(const char* method) {
+  try {
+    throw;
+  } catch (const std::exception& e) {
+    return Status::Internal(fmt::format("{} failed unexpectedly: {}", method, e.what()));
+  } catch (...) {
+    return Status::Internal(fmt::format("{} failed unexpectedly", method));
+  }
+}
+
 grpc::Status end_call(const CallLog& log, Status st) {
   if (!st.ok()) st = Status(st.code(), printable_message(st.message()));
   try {
@@ -113,7 +123,6 @@ class Stream : public grpc::ServerWriteReactor<Msg>,
     event([&] {
       busy_ = false;
       if (!ok) gone_ = true;  // the client went away
-      else written_locked();
     });
   }
   void OnSendInitialMetadataDone(bool ok) override {
@@ -134,8 +143,6 @@ class Stream : public grpc::ServerWriteReactor<Msg>,
   /// Under the lock, when no operation is in flight and the call has not ended: fill msg_ and
   /// return kWrite, set *st and return kFinish, or kWait for the next event.
   virtual Next next_locked(Status* st) = 0;
-  /// Under the lock, after a write went out.
-  virtual void written_locked() {}
   /// OnDone: drop listeners (they hold weak references and may still run once).
   virtual void detach() {}
 
@@ -161,12 +168,9 @@ class Stream : public grpc::ServerWriteReactor<Msg>,
       if (ended_ || busy_) return;
       try {
         next = next_locked(&st);
-      } catch (const std::exception& e) {
-        next = Next::kFinish;
-        st = Status::Internal(fmt::format("{} failed unexpectedly: {}", log_.method, e.what()));
       } catch (...) {
         next = Next::kFinish;
-        st = Status::Internal(fmt::format("{} failed unexpectedly", log_.method));
+        st = unexpected_error(log_.method);
       }
       if (next == Next::kWrite) busy_ = true;
       if (next == Next::kFinish) ended_ = true;
@@ -190,10 +194,8 @@ class Stream : public grpc::ServerWriteReactor<Msg>,
   void guarded(F&& f) {
     try {
       f();
-    } catch (const std::exception& e) {
-      end(Status::Internal(fmt::format("{} failed unexpectedly: {}", log_.method, e.what())));
     } catch (...) {
-      end(Status::Internal(fmt::format("{} failed unexpectedly", log_.method)));
+      end(unexpected_error(log_.method));
     }
   }
 
@@ -290,10 +292,8 @@ class SteppedFrames final : public FramesStream {
       Status st;
       try {
         st = s->run();
-      } catch (const std::exception& e) {
-        st = Status::Internal(fmt::format("StreamFrames failed unexpectedly: {}", e.what()));
       } catch (...) {
-        st = Status::Internal("StreamFrames failed unexpectedly");
+        st = unexpected_error("StreamFrames");
       }
       s->wait_idle();
       s->end(std::move(st));

@@ -39,6 +39,9 @@ struct CallLog {
   std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
 };
 
+/// INTERNAL naming `method` and the exception being handled (call it inside a catch block).
+Status unexpected_error(const char* method);
+
 /// Logs the end of a call ("rpc ID METHOD [by OWNER] CODE MS[: message]") and returns its status
 /// for gRPC, the message bounded and without control characters.
 grpc::Status end_call(const CallLog& log, Status st);
