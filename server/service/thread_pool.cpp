@@ -40,31 +40,44 @@ void ThreadPool::run(int n, const std::function<void(int)>& fn) {
   });
 }
 
-void ThreadPool::run_slices(int n, const std::function<bool(int)>& fn) {
-  if (n <= 0) return;
-  std::mutex done_mu;
-  std::condition_variable done_cv;
-  int left = n;
-  // Slice of task i: run it, then queue its next slice at the back, or count the task done.
-  std::function<void(int)> slice = [&](int i) {
-    if (fn(i)) {
-      {
-        std::lock_guard<std::mutex> lock(mu_);
-        queue_.emplace_back([&slice, i] { slice(i); });
-      }
-      cv_.notify_one();
-      return;
-    }
-    std::lock_guard<std::mutex> l(done_mu);
-    if (--left == 0) done_cv.notify_one();
-  };
+/// One run_slices call: owned by its queued tasks as well as by the caller, so that a worker that
+/// re-queues a slice may still touch it after the caller has seen the last task done and returned.
+struct ThreadPool::Batch {
+  const std::function<bool(int)>* fn;  ///< the caller's: called only before `left` reaches 0
+  std::mutex mu;
+  std::condition_variable cv;
+  int left;
+};
+
+void ThreadPool::enqueue(std::function<void()> task) {
   {
     std::lock_guard<std::mutex> lock(mu_);
-    for (int i = 0; i < n; ++i) queue_.emplace_back([&slice, i] { slice(i); });
+    queue_.push_back(std::move(task));
+  }
+  cv_.notify_one();
+}
+
+void ThreadPool::slice(const std::shared_ptr<Batch>& b, int i) {
+  if ((*b->fn)(i)) {  // more to do: queue the next slice at the back
+    enqueue([this, b, i] { slice(b, i); });
+    return;
+  }
+  std::lock_guard<std::mutex> l(b->mu);
+  if (--b->left == 0) b->cv.notify_one();
+}
+
+void ThreadPool::run_slices(int n, const std::function<bool(int)>& fn) {
+  if (n <= 0) return;
+  auto b = std::make_shared<Batch>();
+  b->fn = &fn;
+  b->left = n;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (int i = 0; i < n; ++i) queue_.push_back([this, b, i] { slice(b, i); });
   }
   cv_.notify_all();
-  std::unique_lock<std::mutex> lock(done_mu);
-  done_cv.wait(lock, [&] { return left == 0; });
+  std::unique_lock<std::mutex> lock(b->mu);
+  b->cv.wait(lock, [&] { return b->left == 0; });
 }
 
 }  // namespace gd::service

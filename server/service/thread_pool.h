@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <deque>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -35,7 +36,11 @@ class ThreadPool {
   void run_slices(int n, const std::function<bool(int)>& fn);
 
  private:
+  struct Batch;
   void loop();
+  void enqueue(std::function<void()> task);
+  /// Runs slice i of a batch; queues the next one or counts the task done.
+  void slice(const std::shared_ptr<Batch>& b, int i);
 
   std::mutex mu_;
   std::condition_variable cv_;
