@@ -112,8 +112,10 @@ class ServerProcess {
   std::shared_ptr<grpc::Channel> channel_;
 };
 
-/// A client context with a deadline (tests never hang on a stuck server).
+/// A client context with a deadline (tests never hang on a stuck server), stretched by
+/// GD_TEST_DEADLINE_SCALE where set (scripts/sanitize: instrumented servers run 5-20x slower).
 inline std::unique_ptr<grpc::ClientContext> ctx(double seconds = 60) {
+  if (const char* s = std::getenv("GD_TEST_DEADLINE_SCALE"); s && std::atof(s) > 0) seconds *= std::atof(s);
   auto c = std::make_unique<grpc::ClientContext>();
   c->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000)));
   return c;
