@@ -139,7 +139,7 @@ class Solver final : public SolverBase {
       gd::log().trace("newton {}: step rms {:.3g} m/s (max |dx|/h {:.3g}), alpha {:.3g} (max {:.3g}), pcg {}, "
                       "candidates {}, evaluations {}", k, taken, st.step_norm, alpha, alpha_max, st.pcg_iters, cand_.n,
                       st.energy_evals);
-      if (residual_rule() && small_correction(k, taken, alpha, scale) && !pressed()) {  // last correction small
+      if (k > 0 && residual_rule() && taken <= residual_threshold(scale) && !pressed()) {  // last correction small
         st.converged = true;
         break;
       }
@@ -341,13 +341,6 @@ class Solver final : public SolverBase {
   /// dynamic steps. Quasi-static steps (Scene::relax, static validation) are solves for an
   /// equilibrium, stopped by newton_tol and relax's own tolerance alone.
   bool residual_rule() const { return !P_.quasi_static && (opt_.newton_rtol > 0 || opt_.newton_atol > 0); }
-  /// Whether the correction just taken (`taken`, m/s, by a step of fraction alpha of Newton's
-  /// direction) says the step is done: after a later iteration, within the rule's threshold; after
-  /// the first, a full step within newton_atol (the correction still to come is then smaller
-  /// again, and checking it with the estimator would cost more than it tells).
-  bool small_correction(int k, double taken, double alpha, double scale) const {
-    return k > 0 ? taken <= residual_threshold(scale) : alpha >= 1 && taken <= opt_.newton_atol;
-  }
   /// The velocity correction below which Newton stops, given the first Newton step's (m/s).
   double residual_threshold(double first_step) const {
     return std::max(opt_.newton_atol, opt_.newton_rtol * first_step);
