@@ -66,16 +66,6 @@ void StreamRegistry::stop_all() {
     if (auto s = w.lock()) s->stop();
 }
 
-bool StreamRegistry::stopping() {
-  std::lock_guard<std::mutex> lock(mu_);
-  return stopping_;
-}
-
-int StreamRegistry::open() {
-  std::lock_guard<std::mutex> lock(mu_);
-  return static_cast<int>(open_.size());
-}
-
 namespace {
 
 Status stream_limit(int max) {

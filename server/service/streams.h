@@ -55,7 +55,8 @@ class StreamRegistry {
   class Stream {
    public:
     virtual ~Stream() = default;
-    /// Ends the stream at its next chance (OK); thread-safe, any number of times.
+    /// The drain: the stream ends at its next chance (a job watch after its job's final
+    /// record); thread-safe, any number of times.
     virtual void stop() = 0;
   };
 
@@ -66,8 +67,6 @@ class StreamRegistry {
   void remove(const Stream* s);
   /// Stops every open stream, and every stream added from now on.
   void stop_all();
-  bool stopping();
-  int open();
   int max() const { return max_; }
 
  private:
