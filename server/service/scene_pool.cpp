@@ -1,6 +1,5 @@
 #include "service/scene_pool.h"
 
-#include <omp.h>
 #include <spdlog/fmt/fmt.h>
 
 #include <algorithm>
@@ -16,6 +15,7 @@
 #include "garments/generator.h"
 #include "garments/mesher.h"
 #include "service/auth.h"
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
@@ -414,7 +414,7 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     std::vector<std::string> errors(count);
     pool_.run(count, [&](int i) {
       try {
-        omp_set_num_threads(std::max(1, threads() / count));
+        set_omp_threads(std::max(1, threads() / count));
         auto e = std::make_shared<Entry>();
         e->tmpl = t;
         e->build(spec.seed);
@@ -677,7 +677,7 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
   for (const auto& e : entries) e->newton = e->pcg = e->contacts = 0;
   pool_.run_slices(n, [&](int i) {
     Entry& e = *entries[i];
-    omp_set_num_threads(solver_threads);
+    set_omp_threads(solver_threads);
     const auto t0 = std::chrono::steady_clock::now();
     auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     bool more = false;

@@ -1,11 +1,10 @@
 #include "sim/scene.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
 #include <set>
 
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 
@@ -44,7 +43,7 @@ std::unique_ptr<Scene> Scene::create(const Mesh& mesh, const Material& material,
   s->mesh_ = mesh;
   s->material_ = material;
   s->options_ = options;
-  if (options.threads > 0) omp_set_num_threads(options.threads);
+  if (options.threads > 0) set_omp_threads(options.threads);
   s->data_ = std::make_shared<const SceneData>(build_scene_data(mesh, material, options));
   BackendKind b = options.backend;
   if (b == BackendKind::kAuto) b = cuda_available() ? BackendKind::kCuda : BackendKind::kCpu;

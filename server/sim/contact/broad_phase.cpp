@@ -1,9 +1,6 @@
 #include "sim/contact/broad_phase.h"
 
 #include <embree3/rtcore.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include <algorithm>
 #include <array>
@@ -17,6 +14,7 @@
 #include <utility>
 
 #include "sim/backend/cpu/exec_cpu.h"
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/contact/lbvh_broad_phase.h"
 #include "sim/solver/solver.h"
 #include "sim/demand.h"
@@ -358,11 +356,7 @@ class EmbreeBroadPhase final : public BroadPhase {
     // broad phase runs 2-3 times a step and was ~20% of a 2-thread step on one thread (gd-bench
     // fold/5000 and fold/20000 8% and 14% faster with 2 than 1 at --threads 2, interleaved). The
     // pairs are sorted after collection, so the result does not depend on the thread count.
-#ifdef _OPENMP
-    const int threads = std::max(1, omp_get_max_threads());
-#else
-    const int threads = 1;
-#endif
+    const int threads = std::max(1, omp_threads());
     device_ = rtcNewDevice(("threads=" + std::to_string(threads)).c_str());
     GD_DEMAND(device_ != nullptr, "rtcNewDevice failed (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
     rtcSetDeviceErrorFunction(device_, embree_error, nullptr);

@@ -1,6 +1,5 @@
 #include "sim/solver/pair_blocks.h"
-
-#include <omp.h>
+#include "sim/backend/cpu/omp_threads.h"
 
 #include <algorithm>
 
@@ -40,7 +39,7 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
   };
   long pairs = 0;
   for (const PairHessians& l : lists) pairs += l.count;
-  const int threads = pairs >= 2048 ? std::max(1, omp_get_max_threads()) : 1;
+  const int threads = pairs >= 2048 ? std::max(1, omp_threads()) : 1;
   // 1. Each thread counts the blocks per row of its contiguous range of pairs; a row's blocks
   //    are then laid out thread by thread, i.e. in pair order whatever the thread count.
   std::vector<int> counts(static_cast<size_t>(threads) * (n + 1), 0);
@@ -50,7 +49,7 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
   };
 #pragma omp parallel num_threads(threads)
   {
-    const int t = omp_get_thread_num();
+    const int t = omp_thread();
     long b, e;
     range(t, &b, &e);
     int* c = counts.data() + static_cast<size_t>(t) * (n + 1);
@@ -70,7 +69,7 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
   std::vector<Ref> refs(start[n]);
 #pragma omp parallel num_threads(threads)
   {
-    const int t = omp_get_thread_num();
+    const int t = omp_thread();
     long b, e;
     range(t, &b, &e);
     int* cursor = counts.data() + static_cast<size_t>(t) * (n + 1);
@@ -82,7 +81,7 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
   //    rows out, then sum the blocks (mark/pos: per-thread column stamps of the current row).
   std::vector<int>& row_ptr = out->row_ptr;
   row_ptr.assign(n + 1, 0);
-  const int row_threads = start[n] >= 4096 ? std::max(1, omp_get_max_threads()) : 1;
+  const int row_threads = start[n] >= 4096 ? std::max(1, omp_threads()) : 1;
 #pragma omp parallel num_threads(row_threads)
   {
     std::vector<int> mark(n, -1);

@@ -4,8 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <omp.h>
 
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/contact/barrier.h"
 #include "sim/contact/distance.h"
 #include "sim/contact/friction.h"
@@ -151,7 +151,7 @@ bool SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
   // filled, in parallel (at fold/40000 a query holds up to ~6.6 million raw pairs for ~85,000
   // candidates, and each call re-filters all of them).
   const int raw_total = nvf + nee;
-  const int chunks = raw_total >= kParallelPairs ? 4 * std::max(1, omp_get_max_threads()) : 1;
+  const int chunks = raw_total >= kParallelPairs ? 4 * std::max(1, omp_threads()) : 1;
   auto chunk_lo = [&](int j) { return static_cast<int>(static_cast<long>(raw_total) * j / chunks); };
   std::vector<int> start(chunks + 1, 0);
 #pragma omp parallel for schedule(static) if (chunks > 1)

@@ -2,12 +2,12 @@
 // as CpuExec::sum sums it (the same blocks in the same order, so the same bits), every
 // iteration's effect applied once, and the same bits at any thread count.
 #include <gtest/gtest.h>
-#include <omp.h>
 
 #include <cmath>
 #include <vector>
 
 #include "sim/backend/cpu/exec_cpu.h"
+#include "sim/backend/cpu/omp_threads.h"
 
 namespace gd::sim {
 namespace {
@@ -44,12 +44,12 @@ TEST(ExecSums, Sum2AddsEachTermAsSumDoes) {
 }
 
 TEST(ExecSums, Sum2HasTheSameBitsAtOneAndTwoThreads) {
-  const int before = omp_get_max_threads();
-  omp_set_num_threads(1);
+  const int before = omp_threads();
+  set_omp_threads(1);
   const Result one = sum2<CpuExec>(300000, CpuExec::kParallelMinHeavy);
-  omp_set_num_threads(2);
+  set_omp_threads(2);
   const Result two = sum2<CpuExec>(300000, CpuExec::kParallelMinHeavy);
-  omp_set_num_threads(before);
+  set_omp_threads(before);
   EXPECT_EQ(one.a, two.a);
   EXPECT_EQ(one.b, two.b);
 }

@@ -1,3 +1,4 @@
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/contact/broad_phase.h"
 
 #include <gtest/gtest.h>
@@ -9,8 +10,6 @@
 #include <functional>
 #include <limits>
 #include <random>
-
-#include <omp.h>
 
 #include "sim/backend/cpu/exec_cpu.h"
 #include "sim/contact/distance.h"
@@ -603,7 +602,7 @@ TEST(BroadPhase, LbvhGpuPathsQueriesReportExactlyTheOverlappingBoxes) {
         if (lbvh::overlap(&queries[6 * q], &boxes[6 * i]))
           expected.push_back((uint64_t(q) << 32) | uint64_t(i));
     for (int threads : {1, 2}) {
-      omp_set_num_threads(threads);
+      set_omp_threads(threads);
       for (bool gpu_paths : {false, true}) {
         std::vector<uint64_t> got = gpu_paths ? lbvh_pairs<CpuGpuPathsExec>(boxes, queries)
                                               : lbvh_pairs<CpuExec>(boxes, queries);
@@ -613,7 +612,7 @@ TEST(BroadPhase, LbvhGpuPathsQueriesReportExactlyTheOverlappingBoxes) {
         EXPECT_EQ(got, expected) << count << " boxes, " << threads << " threads, gpu paths " << gpu_paths;
       }
     }
-    omp_set_num_threads(2);
+    set_omp_threads(2);
     if (count >= 1000) EXPECT_GT(expected.size(), 100u);
   }
 }

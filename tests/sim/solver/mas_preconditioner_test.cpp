@@ -6,11 +6,11 @@
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
-#include <omp.h>
 #include <random>
 #include <set>
 
 #include "sim/backend/cpu/exec_cpu.h"
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/material.h"
 #include "sim/mesh.h"
 #include "sim/scene.h"
@@ -207,17 +207,17 @@ TEST(MasPreconditioner, ApplyIsTheSumOfTheLevelsGalerkinBlockSolvesAtAnyThreadCo
   int largest_domain = 0;
   const Eigen::VectorXd ref = galerkin_reference(s, P, B, r, false, &largest_domain);
   ASSERT_GT(largest_domain, mas_detail::kPartVertices) << "no domain is gathered in parts";
-  const int threads = omp_get_max_threads();
+  const int threads = omp_threads();
 
-  omp_set_num_threads(1);
+  set_omp_threads(1);
   Mas one(s.n(), B);
   one.setup(s.view());
   const Eigen::VectorXd z1 = apply(one, r);
-  omp_set_num_threads(2);
+  set_omp_threads(2);
   Mas two(s.n(), B);
   two.setup(s.view());
   const Eigen::VectorXd z2 = apply(two, r);
-  omp_set_num_threads(threads);
+  set_omp_threads(threads);
   EXPECT_LT((z2 - ref).norm(), 1e-4 * ref.norm());  // the factors are stored in single precision
   for (int k = 0; k < z1.size(); ++k) ASSERT_EQ(z1[k], z2[k]) << "entry " << k;
 }

@@ -1,9 +1,9 @@
 // The contact couplings' block CSR: the sums of a plain map, columns in order of first
 // appearance, Dirichlet vertices left out, the same bits on one thread and on several.
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/solver/pair_blocks.h"
 
 #include <gtest/gtest.h>
-#include <omp.h>
 
 #include <map>
 #include <random>
@@ -110,13 +110,13 @@ TEST(PairBlocks, SameBitsOnOneThreadAndOnSeveral) {
   std::vector<int> fixed(n, 0);
   for (int i = 0; i < n; i += 11) fixed[i] = 1;
   const std::vector<PairHessians> lists{act.view(), fr.view()};
-  const int saved = omp_get_max_threads();
+  const int saved = omp_threads();
   CouplingMatrix one, many;
-  omp_set_num_threads(1);
+  set_omp_threads(1);
   merge_pair_blocks(n, fixed.data(), lists, &one);
-  omp_set_num_threads(4);  // more threads than cores is fine: the split, not the speed, is tested
+  set_omp_threads(4);  // more threads than cores is fine: the split, not the speed, is tested
   merge_pair_blocks(n, fixed.data(), lists, &many);
-  omp_set_num_threads(saved);
+  set_omp_threads(saved);
   EXPECT_EQ(one.row_ptr, many.row_ptr);
   EXPECT_EQ(one.cols, many.cols);
   EXPECT_EQ(one.vals, many.vals);

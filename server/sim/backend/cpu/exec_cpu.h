@@ -6,14 +6,13 @@
 /// Coloring), so adds need no atomics and results are deterministic. CpuGpuPathsExec runs the
 /// CUDA backend's code paths on the CPU, so that CPU tests execute them.
 
-#include <omp.h>
-
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <numeric>
 #include <vector>
 
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/backend/round_trips.h"
 #include "sim/demand.h"
 #include "sim/hd.h"
