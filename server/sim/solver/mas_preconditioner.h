@@ -623,7 +623,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
         }
       }
       xcount[v] = c;
-    });
+    }, Exec::kParallelMinHeavy);  // a row each: ~10 entries, plus its contact couplings
   }
 
   /// R_l r for level l >= 1, from level l-1's (r itself at level 0, a vertex per node): each

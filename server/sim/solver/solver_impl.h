@@ -235,7 +235,8 @@ class Solver final : public SolverBase {
   double evaluate_pairs(const double* x, double* g, double* H);
   GD_HD static void store_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12* Hp,
                                double* Hpair, double* gd);
-  GD_HD static void add_pair(const detail::View& V, const int* vs, const double* gd, double* g, double* H);
+  GD_HD static void add_pair(const detail::View& V, const int* vs, const double* gd, double* g, double* H,
+                              int owner = 0, int owners = 1);
   template <int K>
   GD_HD static void scatter(const detail::View& V, const int* vs, const int* slots, const VecN<3 * K>& ge,
                             const MatN<3 * K>& He, double* g, double* H);
@@ -352,9 +353,6 @@ class Solver final : public SolverBase {
 
   /// Total mass of the free vertices, kg (set by begin_step: the Dirichlet set changes only there).
   double free_mass() const { return free_mass_; }
-
-  /// Loops that add into shared rows without colouring: serial on the CPU, atomics on the GPU.
-  static constexpr int kSerialOnCpu = Exec::kColoring ? 0x7fffffff : 0;
 
  private:
   std::shared_ptr<const SceneData> data_;
