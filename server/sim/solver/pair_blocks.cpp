@@ -1,7 +1,8 @@
 #include "sim/solver/pair_blocks.h"
-#include "sim/backend/cpu/omp_threads.h"
 
 #include <algorithm>
+
+#include "sim/backend/cpu/omp_threads.h"
 
 namespace gd::sim {
 namespace {

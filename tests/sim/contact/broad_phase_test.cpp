@@ -1,4 +1,3 @@
-#include "sim/backend/cpu/omp_threads.h"
 #include "sim/contact/broad_phase.h"
 
 #include <gtest/gtest.h>
@@ -12,6 +11,7 @@
 #include <random>
 
 #include "sim/backend/cpu/exec_cpu.h"
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/contact/distance.h"
 #include "sim/contact/lbvh.h"
 #include "sim/contact/lbvh_broad_phase.h"

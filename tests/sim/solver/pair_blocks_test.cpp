@@ -1,6 +1,5 @@
 // The contact couplings' block CSR: the sums of a plain map, columns in order of first
 // appearance, Dirichlet vertices left out, the same bits on one thread and on several.
-#include "sim/backend/cpu/omp_threads.h"
 #include "sim/solver/pair_blocks.h"
 
 #include <gtest/gtest.h>
@@ -9,6 +8,8 @@
 #include <random>
 #include <utility>
 #include <vector>
+
+#include "sim/backend/cpu/omp_threads.h"
 
 namespace gd::sim {
 namespace {
