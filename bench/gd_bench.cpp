@@ -317,8 +317,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"default", "projected", "gauss-newton"}))
       ->capture_default_str();
   app.add_option("--broad-phase", broad_phase_arg,
-                 "Self-contact broad phase (the same pairs; auto: embree on the CPU, lbvh on the device with CUDA; "
-                 "lbvh: the GPU's algorithm)")
+                 "Self-contact broad phase (the same pairs; auto: lbvh, on the CPU or on the device with CUDA; "
+                 "embree: Embree's BVH collide on the CPU)")
       ->check(CLI::IsMember({"auto", "embree", "lbvh"}))
       ->capture_default_str();
   app.add_option("--bending-hessian", bending_hessian_arg, "Bending Hessian")

@@ -174,6 +174,11 @@ int main(int argc, char** argv) {
   run->add_option("--preconditioner", preconditioner,
                   "PCG preconditioner: auto (MAS without self-contact, block-Jacobi with it) | mas | block-jacobi")
       ->capture_default_str();
+  std::string broad_phase = "auto";
+  run->add_option("--broad-phase", broad_phase,
+                  "self-contact broad phase, the same pairs by either: auto (lbvh, on the CPU or on the device with "
+                  "CUDA) | lbvh | embree (Embree's BVH collide on the CPU)")
+      ->capture_default_str();
   run->add_option("--compression-ratio", cfg.scene.compression_ratio,
                   "compressive / tensile stretch stiffness (0, 1]; 1: no buckling model")
       ->capture_default_str();
@@ -266,7 +271,7 @@ int main(int argc, char** argv) {
     }
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
-                                     "--contact-hessian", "--preconditioner", "--newton-rtol", "--no-plots", "--mesh-every",
+                                     "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
@@ -310,6 +315,10 @@ int main(int argc, char** argv) {
       else if (preconditioner == "block-jacobi") cfg.scene.preconditioner = gd::sim::PreconditionerKind::kBlockJacobi;
       else if (preconditioner == "auto") cfg.scene.preconditioner = gd::sim::PreconditionerKind::kAuto;
       else throw gd::sim::InputError("unknown --preconditioner '" + preconditioner + "'; use auto, mas or block-jacobi");
+      if (broad_phase == "embree") cfg.scene.broad_phase = gd::sim::BroadPhaseKind::kEmbree;
+      else if (broad_phase == "lbvh") cfg.scene.broad_phase = gd::sim::BroadPhaseKind::kLbvh;
+      else if (broad_phase == "auto") cfg.scene.broad_phase = gd::sim::BroadPhaseKind::kAuto;
+      else throw gd::sim::InputError("unknown --broad-phase '" + broad_phase + "'; use auto, embree or lbvh");
       if (backend == "cpu") cfg.scene.backend = gd::sim::BackendKind::kCpu;
       else if (backend == "cuda") cfg.scene.backend = gd::sim::BackendKind::kCuda;
       else if (backend == "auto") cfg.scene.backend = gd::sim::BackendKind::kAuto;

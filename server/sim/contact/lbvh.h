@@ -100,14 +100,18 @@ constexpr int kStack = 64;
 
 /// Visits every leaf whose box overlaps box q, calling visit(leaf's box index) in traversal order.
 /// node_box: 6 floats per internal node; leaf_box: 6 per sorted leaf; order: box index per leaf.
+/// With node_max (per internal node: the largest box index below it), only the leaves whose box
+/// index is above `above`: subtrees holding none are not entered (a self query visits each
+/// unordered pair from one side only).
 template <class F>
 GD_HD void traverse(const float* q, int n, const int* left, const int* right, const float* node_box,
-                    const float* leaf_box, const int* order, const F& visit) {
+                    const float* leaf_box, const int* order, const F& visit, const int* node_max = nullptr,
+                    int above = -1) {
   if (n == 1) {
-    if (overlap(q, leaf_box)) visit(order[0]);
+    if (order[0] > above && overlap(q, leaf_box)) visit(order[0]);
     return;
   }
-  if (!overlap(q, node_box)) return;  // the root
+  if (!overlap(q, node_box) || (node_max && node_max[0] <= above)) return;  // the root
   int stack[kStack];
   int top = 0;
   int node = 0;
@@ -117,8 +121,9 @@ GD_HD void traverse(const float* q, int n, const int* left, const int* right, co
     for (int c = 0; c < 2; ++c) {
       const int ref = kids[c];
       if (is_leaf(ref)) {
-        if (overlap(q, leaf_box + 6 * leaf_of(ref))) visit(order[leaf_of(ref)]);
-      } else if (overlap(q, node_box + 6 * ref)) {
+        const int k = order[leaf_of(ref)];
+        if (k > above && overlap(q, leaf_box + 6 * leaf_of(ref))) visit(k);
+      } else if ((!node_max || node_max[ref] > above) && overlap(q, node_box + 6 * ref)) {
         if (next < 0) {
           next = ref;
         } else {
@@ -193,7 +198,7 @@ class Lbvh {
     // 2. The radix tree, with parent links (the root, node 0, has none).
     const int m = n_ - 1;
     const int n = n_;
-    for (auto* v : {&left_, &right_, &parent_node_, &arrivals_}) Exec::resize_for_overwrite(*v, m);
+    for (auto* v : {&left_, &right_, &parent_node_, &arrivals_, &node_max_}) Exec::resize_for_overwrite(*v, m);
     Exec::resize_for_overwrite(parent_leaf_, n_);
     Exec::resize_for_overwrite(node_box_, 6 * static_cast<size_t>(m));
     int* left = Exec::ptr(left_);
@@ -217,8 +222,10 @@ class Lbvh {
       arrivals[i] = 0;
       if (i == 0) parent_node[0] = -1;
     });
-    // 3. Boxes bottom-up: the second child to reach a node makes its box and goes on.
+    // 3. Boxes (and largest box indices) bottom-up: the second child to reach a node makes its
+    //    box and goes on.
     float* node_box = Exec::ptr(node_box_);
+    int* node_max = Exec::ptr(node_max_);
     Exec::for_each(n_, [=] GD_HD_LAMBDA(int leaf) {
       int node = parent_leaf[leaf];
       while (node >= 0) {
@@ -232,6 +239,10 @@ class Lbvh {
           node_box[6 * node + k] = alo < clo ? alo : clo;
           node_box[6 * node + 3 + k] = ahi > chi ? ahi : chi;
         }
+        const volatile int* ma = lbvh::is_leaf(left[node]) ? order + lbvh::leaf_of(left[node]) : node_max + left[node];
+        const volatile int* mc = lbvh::is_leaf(right[node]) ? order + lbvh::leaf_of(right[node]) : node_max + right[node];
+        const int la = *ma, lc = *mc;
+        node_max[node] = la > lc ? la : lc;
         node = parent_node[node];
       }
     }, 1);
@@ -242,9 +253,11 @@ class Lbvh {
   /// (overwritten), grouped by query in order and in traversal order within one. Returns the
   /// count. When the count is over max_total, `out` is left empty (the pairs are counted, not
   /// written) and the count is still returned.
+  /// self_above: the query boxes are the built boxes themselves and only indices above the
+  /// query's are wanted (each unordered pair once): subtrees without one are not entered.
   template <class Accept>
   int64_t query(int queries, const Vec<float>& query_boxes, const Accept& accept, Vec<uint64_t>* out,
-                int64_t max_total = std::numeric_limits<int64_t>::max()) {
+                int64_t max_total = std::numeric_limits<int64_t>::max(), bool self_above = false) {
     if (n_ == 0 || queries == 0) {
       Exec::resize_for_overwrite(*out, 0);
       return 0;
@@ -256,6 +269,7 @@ class Lbvh {
     const float* node_box = n_ > 1 ? Exec::ptr(node_box_) : nullptr;
     const float* leaf_box = Exec::ptr(leaf_box_);
     const int* order = Exec::ptr(order_);
+    const int* node_max = self_above && n_ > 1 ? Exec::ptr(node_max_) : nullptr;
     Exec::resize_for_overwrite(offsets_, static_cast<size_t>(queries) + 1);
     int64_t* offsets = Exec::ptr(offsets_);  // 64-bit: a flooded query can count past 2^31 pairs
     Exec::for_each(queries + 1, [=] GD_HD_LAMBDA(int q) {
@@ -263,7 +277,7 @@ class Lbvh {
       if (q < queries)
         lbvh::traverse(qb + 6 * q, n, left, right, node_box, leaf_box, order, [&](int k) {
           if (accept(q, k)) ++count;
-        });
+        }, node_max, self_above ? q : -1);
       offsets[q] = count;
     }, Exec::kParallelMinHeavy);
     Exec::exclusive_scan(offsets_, queries + 1);
@@ -278,7 +292,7 @@ class Lbvh {
       int64_t w = offsets[q];
       lbvh::traverse(qb + 6 * q, n, left, right, node_box, leaf_box, order, [&](int k) {
         if (accept(q, k)) o[w++] = (static_cast<uint64_t>(static_cast<uint32_t>(q)) << 32) | static_cast<uint32_t>(k);
-      });
+      }, node_max, self_above ? q : -1);
     }, Exec::kParallelMinHeavy);
     return total;
   }
@@ -289,6 +303,7 @@ class Lbvh {
   int n_ = 0;
   Vec<uint64_t> keys_;
   Vec<int> order_, left_, right_, parent_node_, parent_leaf_, arrivals_;
+  Vec<int> node_max_;  ///< per internal node: the largest box index below it (self queries)
   Vec<int64_t> offsets_;
   Vec<float> leaf_box_, node_box_;
 };

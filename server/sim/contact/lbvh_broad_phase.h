@@ -93,7 +93,7 @@ class LbvhBroadPhase final : public BroadPhase {
     const int64_t ee = tree_.query(ne_, edge_boxes_, [=] GD_HD_LAMBDA(int a, int b) {
       const int a0 = edges[2 * a], a1 = edges[2 * a + 1], b0 = edges[2 * b], b1 = edges[2 * b + 1];
       return b > a && a0 != b0 && a0 != b1 && a1 != b0 && a1 != b1;
-    }, &keys_, limit - vf);
+    }, &keys_, limit - vf, /*self_above=*/true);
     if (ee > limit - vf) {
       out->vf.clear();
       return false;
@@ -115,7 +115,7 @@ class LbvhBroadPhase final : public BroadPhase {
         for (int j = 0; j < 3; ++j)
           if (tris[3 * a + i] == tris[3 * b + j]) return false;
       return true;
-    }, &keys_);
+    }, &keys_, std::numeric_limits<int64_t>::max(), /*self_above=*/true);
     finish(out);
   }
 

@@ -31,9 +31,10 @@ enum class BendingHessianKind {
 /// Which broad phase finds self-contact candidates (contact/broad_phase.h); both report the same
 /// pairs.
 enum class BroadPhaseKind {
-  kAuto,    ///< the default: Embree on the CPU backends, the LBVH on the device with CUDA (fold steps
-            ///< 1.1-1.35x faster than with Embree on the host, H200, docs/physics.md)
-  kEmbree,  ///< Embree's BVH collide on the CPU: the fastest measured on the CPU here
+  kAuto,    ///< the default: the LBVH, on the CPU policy for the CPU backends and on the device with
+            ///< CUDA (fold steps 1.1-1.35x faster than with Embree on the host, H200; on 2 CPU threads
+            ///< its broad phase takes about half Embree's time, docs/physics.md)
+  kEmbree,  ///< Embree's BVH collide on the CPU (the CPU default until 2026-11-27)
   kLbvh     ///< the policy-generic LBVH (contact/lbvh.h, Karras 2012), the GPU's algorithm (on the
             ///< CPU with the CPU backends, on the device with CUDA)
 };

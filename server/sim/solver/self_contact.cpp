@@ -57,7 +57,7 @@ SelfContact::SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass, 
   });
   edges_.erase(std::unique(edges_.begin(), edges_.end()), edges_.end());
   for (const auto& e : edges_) edge_len2_.push_back((at(d_.x, e[0]) - at(d_.x, e[1])).squaredNorm());
-  if (broad_phase == BroadPhaseKind::kLbvh || (broad_phase == BroadPhaseKind::kAuto && on_device)) {
+  if (broad_phase != BroadPhaseKind::kEmbree) {
     bp_ = on_device ? make_cuda_lbvh_broad_phase(d_.tris, edges_, d_.n) : make_lbvh_broad_phase(d_.tris, edges_, d_.n);
   } else {
     bp_ = make_embree_broad_phase(d_.tris, edges_, d_.n);

@@ -59,6 +59,7 @@ double largest_difference(BackendKind other, const Mesh& m, const SceneOptions& 
                           double* moved, BroadPhaseKind other_broad_phase = BroadPhaseKind::kEmbree) {
   SceneOptions a = base, b = base;
   a.backend = BackendKind::kCpu;
+  a.broad_phase = BroadPhaseKind::kEmbree;
   b.backend = other;
   b.broad_phase = other_broad_phase;
   auto cpu = Scene::create(m, cotton(), a);
@@ -125,6 +126,7 @@ TEST(BroadPhases, LbvhAndEmbreeTakeBitIdenticalSteps) {
   SceneOptions a, b;
   a.self_contact = b.self_contact = true;
   a.threads = b.threads = 2;
+  a.broad_phase = BroadPhaseKind::kEmbree;
   b.broad_phase = BroadPhaseKind::kLbvh;
   auto embree = Scene::create(m, cotton(), a);
   auto lbvh = Scene::create(m, cotton(), b);

@@ -617,6 +617,46 @@ TEST(BroadPhase, LbvhGpuPathsQueriesReportExactlyTheOverlappingBoxes) {
   }
 }
 
+/// A self query (the built boxes as queries, self_above): each overlapping pair once, as
+/// (lower index, higher index), whichever subtrees the index bound skips.
+template <class Exec>
+std::vector<uint64_t> lbvh_self_pairs(const std::vector<float>& boxes) {
+  Lbvh<Exec> tree;
+  const int n = static_cast<int>(boxes.size() / 6);
+  tree.build(n, boxes);
+  std::vector<uint64_t> out;
+  tree.query(n, boxes, [](int, int) { return true; }, &out, std::numeric_limits<int64_t>::max(), true);
+  return out;
+}
+
+TEST(BroadPhase, LbvhSelfQueriesReportEachOverlappingPairOnceAboveTheQuery) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int count : {1, 2, 3, 17, 1000, 4000}) {
+    std::vector<float> boxes;
+    for (int i = 0; i < count; ++i) {
+      float c[3], h = 0.03f * u(rng);
+      for (float& v : c) v = i % 7 == 6 ? 0.25f : u(rng);  // every seventh box at one point
+      for (int d = 0; d < 3; ++d) boxes.push_back(c[d] - h);
+      for (int d = 0; d < 3; ++d) boxes.push_back(c[d] + h);
+    }
+    std::vector<uint64_t> expected;
+    for (int q = 0; q < count; ++q)
+      for (int k = q + 1; k < count; ++k)
+        if (lbvh::overlap(&boxes[6 * q], &boxes[6 * k])) expected.push_back((uint64_t(q) << 32) | uint64_t(k));
+    for (int threads : {1, 2}) {
+      set_omp_threads(threads);
+      for (bool gpu_paths : {false, true}) {
+        std::vector<uint64_t> got = gpu_paths ? lbvh_self_pairs<CpuGpuPathsExec>(boxes) : lbvh_self_pairs<CpuExec>(boxes);
+        std::sort(got.begin(), got.end());
+        EXPECT_EQ(got, expected) << count << " boxes, " << threads << " threads, gpu paths " << gpu_paths;
+      }
+    }
+    set_omp_threads(2);
+    if (count >= 1000) EXPECT_GT(expected.size(), 1000u);
+  }
+}
+
 /// The whole LBVH broad phase on the GPU's paths policy (uncoloured parallel loops, atomics) and,
 /// where a CUDA device exists, on the device: the brute force's sets.
 void expect_lbvh_matches_brute_force(const std::function<std::unique_ptr<BroadPhase>(const Flat&)>& make) {
