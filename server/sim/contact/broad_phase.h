@@ -35,8 +35,8 @@ struct ContactCandidates {
 /// BroadPhase::find without a limit on the number of pairs.
 inline constexpr std::size_t kNoPairLimit = std::numeric_limits<std::size_t>::max();
 
-/// Broad-phase interface (Embree on the CPU by default; the LBVH of contact/lbvh.h behind the same
-/// interface). An instance keeps its acceleration structures between calls; calls on one instance
+/// Broad-phase interface (the LBVH of contact/lbvh.h by default, on the CPU or the device; Embree
+/// behind the same interface). An instance keeps its acceleration structures between calls; calls on one instance
 /// must not run concurrently.
 class BroadPhase {
  public:

@@ -39,8 +39,8 @@ struct FrictionPairs {
 
 class SelfContact {
  public:
-  /// broad_phase kLbvh with on_device: the LBVH on the CUDA device (make_cuda_lbvh_broad_phase);
-  /// kAuto: that with on_device, else Embree.
+  /// broad_phase kLbvh or kAuto: the LBVH, on the CUDA device with on_device
+  /// (make_cuda_lbvh_broad_phase), else on the CPU policy; kEmbree: Embree.
   /// pair_budget: find_within_budget's bound (0: the default, see pair_budget()).
   SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass,
               BroadPhaseKind broad_phase = BroadPhaseKind::kAuto, bool on_device = false,
