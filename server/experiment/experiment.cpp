@@ -502,6 +502,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     run.stage_seconds().for_each_ms([&](const char* name, double ms) { s["stage_ms_per_step"][name] = ms / run.steps(); });
   s["preconditioner"] = sim::preconditioner_name(config.scene);
   s["self_contact"] = config.scene.self_contact;
+  s["broad_phase"] = config.scene.self_contact ? nlohmann::json(sim::broad_phase_name(config.scene)) : nlohmann::json();
   s["compression_ratio"] = config.scene.compression_ratio;
   s["contact_hessian"] =
       config.scene.contact_hessian == sim::ContactHessianKind::kGaussNewton ? "gauss-newton" : "projected";

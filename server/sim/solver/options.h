@@ -158,4 +158,10 @@ inline const char* preconditioner_name(const SceneOptions& o) {
   return effective_preconditioner(o) == PreconditionerKind::kMas ? "mas" : "block-jacobi";
 }
 
+/// "lbvh" or "embree": the self-contact broad phase these options give (kAuto resolved;
+/// summary.json).
+inline const char* broad_phase_name(const SceneOptions& o) {
+  return o.broad_phase == BroadPhaseKind::kEmbree ? "embree" : "lbvh";
+}
+
 }  // namespace gd::sim

@@ -173,6 +173,29 @@ TEST_F(CliTest, ContactHessianReachesTheSceneAndTheSummary) {
   EXPECT_NE(r.err.find("--contact-hessian"), std::string::npos) << r.err;
 }
 
+TEST_F(CliTest, BroadPhaseReachesTheSceneAndTheSummaryAndFindsTheSamePairs) {
+  const auto dir = fresh_dir("cli_broad_phase");
+  const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
+                          "--no-plots --quiet --threads 1 --out ";
+  auto summary = [&](const std::string& name) { return nlohmann::json::parse(slurp(dir / name / "summary.json")); };
+  CliRun r = gd(run + (dir / "default").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  r = gd(run + (dir / "embree").string() + " --broad-phase embree");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto a = summary("default"), b = summary("embree");
+  EXPECT_EQ(a.at("broad_phase"), "lbvh");
+  EXPECT_EQ(b.at("broad_phase"), "embree");
+  // Both report the same candidate pairs, so the runs take the same steps.
+  EXPECT_EQ(a.at("final"), b.at("final"));
+  EXPECT_EQ(a.at("pcg_per_step"), b.at("pcg_per_step"));
+  r = gd(run + (dir / "bad").string() + " --broad-phase bvh");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--broad-phase"), std::string::npos) << r.err;
+  r = gd(server_flag() + " run --garment towel --task grasp --broad-phase lbvh --out " + (dir / "remote").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--broad-phase"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, GarmentParamSizesTheGarmentLocallyAndAsAJob) {
   const auto dir = fresh_dir("cli_sizes");
   const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
