@@ -104,6 +104,22 @@ void Scene::remove_collider(int id) {
   colliders_.erase(colliders_.begin() + k);
 }
 
+std::vector<Vec3> Scene::collider_forces(const std::vector<int>& ids) {
+  std::vector<size_t> index;
+  for (const int id : ids) {
+    const auto it = std::find(collider_ids_.begin(), collider_ids_.end(), id);
+    if (it == collider_ids_.end()) throw InputError("collider_forces: no collider with id " + std::to_string(id));
+    index.push_back(static_cast<size_t>(it - collider_ids_.begin()));
+  }
+  std::vector<Vec3> out(ids.size(), Vec3::Zero());
+  if (ids.empty()) return out;
+  // The poses now (the next step sends its own again).
+  solver_->set_colliders(colliders_, time_, time_);
+  const std::vector<double> f = solver_->collider_forces();
+  for (size_t a = 0; a < index.size(); ++a) out[a] = Vec3(f[3 * index[a]], f[3 * index[a] + 1], f[3 * index[a] + 2]);
+  return out;
+}
+
 void Scene::set_external_forces(const std::vector<int>& vertices, const std::vector<Vec3>& forces) {
   if (forces.size() != vertices.size()) throw InputError("set_external_forces: one force per vertex expected");
   std::vector<double> f(3 * data_->n, 0.0);

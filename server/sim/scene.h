@@ -65,6 +65,11 @@ class Scene {
   int add_collider(Collider collider);
   /// Removes a collider; unknown ids throw InputError.
   void remove_collider(int id);
+  /// The contact force (N, world frame) the cloth exerts on each of these colliders now, with the
+  /// colliders at their poses at time(): the barrier's push summed over the free vertices,
+  /// friction not included (SolverBase::collider_forces). What a force-limited gripper finger
+  /// feels. Unknown ids throw InputError.
+  std::vector<Vec3> collider_forces(const std::vector<int>& ids);
 
   // --- kinematic (Dirichlet) vertices --------------------------------------------------
   /// Attaches vertices to a rigid motion: each follows pose(t) * pose(t_now)^-1 * x_now.

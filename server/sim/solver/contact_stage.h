@@ -125,4 +125,29 @@ double Solver<Exec>::max_grip_force() {
   });
 }
 
+/// Barrier force on each collider from the cloth (SolverBase::collider_forces): the reaction to
+/// the barrier's push on each free vertex, at the colliders' end-of-step poses.
+template <class Exec>
+std::vector<double> Solver<Exec>::collider_forces() {
+  std::vector<double> out(3 * static_cast<size_t>(n_col_), 0.0);
+  if (n_col_ == 0) return out;
+  const detail::View V = view();
+  const detail::Params P = P_;
+  const double* x = Exec::ptr(x_);
+  for (int c = 0; c < n_col_; ++c)
+    for (int k = 0; k < 3; ++k)
+      out[3 * c + k] = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+        if (V.fixed[i]) return 0.0;
+        const double* q = V.col_pose + 24 * c;
+        const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+        const Vec3 t1(q[21], q[22], q[23]);
+        Vec3 g;
+        const Real e = point_collider_energy(detail::load3(x, i), R1, t1, V.col_shape[c], 0.0, P.dhat,
+                                             P.kappa_per_mass * V.mass[i], &g, nullptr, HessianKind::kNone,
+                                             &V.col_mesh);
+        return e > 0 && std::isfinite(e) ? static_cast<double>(g[k]) : 0.0;
+      });
+  return out;
+}
+
 }  // namespace gd::sim

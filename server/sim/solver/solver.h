@@ -114,6 +114,11 @@ class SolverBase {
   /// Constant external forces (3 per vertex, N), e.g. a hanging load.
   virtual void set_external_forces(const std::vector<double>& f) = 0;
   virtual EnergyReport energies() = 0;
+  /// The contact (barrier) force each collider of the last set_colliders receives from the cloth
+  /// at the current positions, colliders at their end-of-step poses: 3 per collider, N, world
+  /// frame (the sum over free vertices of the barrier's gradient; friction not included). What
+  /// a force-limited gripper finger feels (robot mode).
+  virtual std::vector<double> collider_forces() = 0;
   /// Largest |stretch strain| (warp or weft) over all triangles.
   virtual double max_strain() = 0;
   /// Bytes of solver state held by the backend (device memory on CUDA).

@@ -287,6 +287,7 @@ class Solver final : public SolverBase {
 
   // Energies, strain and memory for reports (diagnostics.h)
   EnergyReport energies() override;
+  std::vector<double> collider_forces() override;
   double max_strain() override;
   size_t bytes() const override;
 

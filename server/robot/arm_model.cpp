@@ -1,0 +1,269 @@
+#include "robot/arm_model.h"
+
+#include <kdl/chainfksolverpos_recursive.hpp>
+#include <kdl/chainiksolverpos_lma.hpp>
+#include <kdl/chainiksolverpos_nr_jl.hpp>
+#include <kdl/chainiksolvervel_pinv.hpp>
+#include <kdl/tree.hpp>
+#include <kdl/treefksolverpos_recursive.hpp>
+#include <kdl_parser/kdl_parser.hpp>
+#include <urdf_parser/urdf_parser.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include "sim/demand.h"
+
+namespace gd::robot {
+
+using sim::InputError;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+Eigen::Isometry3d to_eigen(const KDL::Frame& f) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) T.linear()(r, c) = f.M(r, c);
+    T.translation()[r] = f.p[r];
+  }
+  return T;
+}
+
+KDL::Frame to_kdl(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d& R = T.linear();
+  return KDL::Frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)),
+                    KDL::Vector(T.translation().x(), T.translation().y(), T.translation().z()));
+}
+
+double rotation_angle(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+  return Eigen::AngleAxisd(a.transpose() * b).angle();
+}
+
+}  // namespace
+
+struct ArmModel::Impl {
+  std::string name;
+  ArmModelOptions options;
+  KDL::Tree tree;
+  KDL::Chain ik_chain;                       ///< base -> ee with the finger joint fixed at 0
+  std::vector<std::string> arm_joints;       ///< movable joints of ik_chain, in order
+  std::vector<JointLimits> arm_limits;
+  std::vector<int> arm_tree_index;           ///< each arm joint's q_nr in the tree
+  std::array<int, 2> finger_tree_index{-1, -1};
+  std::array<double, 2> finger_sign{1, -1};  ///< joint value = sign * gripper
+  std::array<std::string, 2> finger_links;
+  double gripper_max = 0;
+  std::vector<std::string> links;
+
+  KDL::JntArray tree_q(const Eigen::VectorXd& q, double gripper) const {
+    KDL::JntArray out(tree.getNrOfJoints());
+    for (size_t k = 0; k < arm_tree_index.size(); ++k) out(arm_tree_index[k]) = q[static_cast<int>(k)];
+    const double g = std::clamp(gripper, 0.0, gripper_max);
+    for (int f = 0; f < 2; ++f) out(finger_tree_index[f]) = finger_sign[f] * g;
+    return out;
+  }
+
+  void check_q(const Eigen::VectorXd& q, const char* what) const {
+    if (q.size() != static_cast<Eigen::Index>(arm_joints.size()))
+      throw InputError(std::string(what) + ": " + std::to_string(arm_joints.size()) + " arm joint values expected, got " +
+                       std::to_string(q.size()));
+    for (Eigen::Index k = 0; k < q.size(); ++k)
+      if (!std::isfinite(q[k])) throw InputError(std::string(what) + ": joint " + arm_joints[k] + " is not finite");
+  }
+
+  Eigen::Isometry3d ee(const KDL::JntArray& q) const {
+    KDL::ChainFkSolverPos_recursive fk(ik_chain);
+    KDL::Frame f;
+    DEMAND_FK(fk.JntToCart(q, f));
+    return to_eigen(f);
+  }
+
+  static void DEMAND_FK(int rc) { GD_DEMAND(rc >= 0, "KDL forward kinematics failed: " + std::to_string(rc)); }
+
+  /// Revolute joints moved by whole turns into their limits where that is possible, then clamped.
+  Eigen::VectorXd into_limits(const KDL::JntArray& q) const {
+    Eigen::VectorXd out(q.rows());
+    for (unsigned k = 0; k < q.rows(); ++k) {
+      double v = q(k);
+      const JointLimits& l = arm_limits[k];
+      while (v > l.upper && v - 2 * kPi >= l.lower) v -= 2 * kPi;
+      while (v < l.lower && v + 2 * kPi <= l.upper) v += 2 * kPi;
+      out[k] = std::clamp(v, l.lower, l.upper);
+    }
+    return out;
+  }
+};
+
+ArmModel::ArmModel(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+ArmModel::ArmModel(ArmModel&&) noexcept = default;
+ArmModel& ArmModel::operator=(ArmModel&&) noexcept = default;
+ArmModel::~ArmModel() = default;
+
+ArmModel ArmModel::load(const std::string& path, const ArmModelOptions& options) {
+  std::ifstream in(path);
+  if (!in) throw InputError("URDF " + path + ": cannot be read (give the path of the arm's .urdf file)");
+  std::stringstream text;
+  text << in.rdbuf();
+  return from_string(text.str(), path, options);
+}
+
+ArmModel ArmModel::from_string(const std::string& xml, const std::string& source, const ArmModelOptions& options) {
+  const std::string where = "URDF " + source + ": ";
+  urdf::ModelInterfaceSharedPtr model;
+  try {
+    model = urdf::parseURDF(xml);
+  } catch (const std::exception& e) {
+    throw InputError(where + "not a valid URDF (" + e.what() + ")");
+  }
+  if (!model) throw InputError(where + "not a valid URDF (urdfdom could not parse it)");
+  auto impl = std::make_unique<Impl>();
+  impl->name = model->getName();
+  impl->options = options;
+  if (!kdl_parser::treeFromUrdfModel(*model, impl->tree)) throw InputError(where + "no kinematic tree could be built");
+  const auto& segments = impl->tree.getSegments();
+  for (const auto& [link, _] : segments) impl->links.push_back(link);
+  for (const std::string& link : {options.base_link, options.ee_link})
+    if (!segments.count(link)) throw InputError(where + "no link named '" + link + "'");
+
+  // q_nr of every movable joint of the tree, by joint name.
+  std::map<std::string, int> q_index;
+  for (const auto& [link, element] : segments) {
+    const KDL::Joint& j = element.segment.getJoint();
+    if (j.getType() != KDL::Joint::None) q_index[j.getName()] = static_cast<int>(element.q_nr);
+  }
+  for (int f = 0; f < 2; ++f) {
+    const std::string& name = options.finger_joints[f];
+    const auto joint = model->getJoint(name);
+    if (!joint) throw InputError(where + "no finger joint named '" + name + "'");
+    if (joint->type != urdf::Joint::PRISMATIC || !joint->limits)
+      throw InputError(where + "finger joint '" + name + "' must be prismatic with limits");
+    impl->finger_tree_index[f] = q_index.at(name);
+    impl->finger_links[f] = joint->child_link_name;
+    const double lo = joint->limits->lower, hi = joint->limits->upper;
+    impl->finger_sign[f] = hi > 0 ? 1.0 : -1.0;
+    const double travel = hi > 0 ? hi : -lo;
+    if (!(travel > 0)) throw InputError(where + "finger joint '" + name + "' has no travel (limits " +
+                                        std::to_string(lo) + ".." + std::to_string(hi) + ")");
+    impl->gripper_max = f == 0 ? travel : std::min(impl->gripper_max, travel);
+  }
+
+  // The end-effector chain, the finger joints on it held at 0.
+  KDL::Chain chain;
+  if (!impl->tree.getChain(options.base_link, options.ee_link, chain))
+    throw InputError(where + "no chain from '" + options.base_link + "' to '" + options.ee_link + "'");
+  for (const KDL::Segment& s : chain.segments) {
+    const KDL::Joint& j = s.getJoint();
+    const bool finger = j.getName() == options.finger_joints[0] || j.getName() == options.finger_joints[1];
+    if (j.getType() == KDL::Joint::None || finger) {
+      impl->ik_chain.addSegment(KDL::Segment(s.getName(), KDL::Joint(j.getName() + "_fixed", KDL::Joint::None),
+                                             s.pose(0.0), s.getInertia()));
+      continue;
+    }
+    impl->ik_chain.addSegment(s);
+    const auto joint = model->getJoint(j.getName());
+    JointLimits l{-1e9, 1e9};
+    if (joint && joint->limits && joint->type != urdf::Joint::CONTINUOUS) l = {joint->limits->lower, joint->limits->upper};
+    impl->arm_joints.push_back(j.getName());
+    impl->arm_limits.push_back(l);
+    impl->arm_tree_index.push_back(q_index.at(j.getName()));
+  }
+  if (impl->arm_joints.empty())
+    throw InputError(where + "no movable joint between '" + options.base_link + "' and '" + options.ee_link + "'");
+  return ArmModel(std::move(impl));
+}
+
+const std::string& ArmModel::name() const { return impl_->name; }
+const ArmModelOptions& ArmModel::options() const { return impl_->options; }
+int ArmModel::arm_dofs() const { return static_cast<int>(impl_->arm_joints.size()); }
+const std::vector<std::string>& ArmModel::arm_joint_names() const { return impl_->arm_joints; }
+const std::vector<JointLimits>& ArmModel::arm_limits() const { return impl_->arm_limits; }
+double ArmModel::gripper_max() const { return impl_->gripper_max; }
+const std::array<std::string, 2>& ArmModel::finger_links() const { return impl_->finger_links; }
+std::vector<std::string> ArmModel::link_names() const { return impl_->links; }
+
+Eigen::Isometry3d ArmModel::link_pose(const std::string& link, const Eigen::VectorXd& q, double gripper) const {
+  impl_->check_q(q, "link_pose");
+  if (!impl_->tree.getSegments().count(link)) throw InputError("link_pose: the arm has no link named '" + link + "'");
+  KDL::TreeFkSolverPos_recursive fk(impl_->tree);
+  KDL::Frame base, f;
+  Impl::DEMAND_FK(fk.JntToCart(impl_->tree_q(q, gripper), base, impl_->options.base_link));
+  Impl::DEMAND_FK(fk.JntToCart(impl_->tree_q(q, gripper), f, link));
+  return to_eigen(base.Inverse() * f);
+}
+
+std::vector<Eigen::Isometry3d> ArmModel::link_poses(const Eigen::VectorXd& q, double gripper) const {
+  std::vector<Eigen::Isometry3d> out;
+  for (const std::string& link : impl_->links) out.push_back(link_pose(link, q, gripper));
+  return out;
+}
+
+Eigen::Isometry3d ArmModel::ee_pose(const Eigen::VectorXd& q) const {
+  impl_->check_q(q, "ee_pose");
+  KDL::JntArray jq(q.size());
+  for (Eigen::Index k = 0; k < q.size(); ++k) jq(k) = q[k];
+  return impl_->ee(jq);
+}
+
+IkResult ArmModel::ik(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed, double pos_tol,
+                      double rot_tol) const {
+  impl_->check_q(seed, "ik seed");
+  if (!target.matrix().allFinite()) throw InputError("ik: the target pose is not finite");
+  const Impl& m = *impl_;
+  const unsigned n = static_cast<unsigned>(m.arm_joints.size());
+  const KDL::Frame goal = to_kdl(target);
+  IkResult best;
+  best.position_error = best.rotation_error = std::numeric_limits<double>::infinity();
+  auto consider = [&](const Eigen::VectorXd& q) {
+    KDL::JntArray jq(n);
+    for (unsigned k = 0; k < n; ++k) jq(k) = q[k];
+    const Eigen::Isometry3d at = m.ee(jq);
+    const double ep = (at.translation() - target.translation()).norm();
+    const double er = rotation_angle(at.linear(), target.linear());
+    // Compare by position plus the orientation's error at a 10 cm lever.
+    if (ep + 0.1 * er < best.position_error + 0.1 * best.rotation_error) best = {q, ep, er, ep <= pos_tol && er <= rot_tol};
+  };
+  auto solve_from = [&](const Eigen::VectorXd& start) {
+    KDL::JntArray q0(n), q(n);
+    for (unsigned k = 0; k < n; ++k) q0(k) = start[k];
+    Eigen::Matrix<double, 6, 1> weights;
+    weights << 1, 1, 1, 0.1, 0.1, 0.1;  // orientation error weighted as at a 10 cm lever
+    KDL::ChainIkSolverPos_LMA lma(m.ik_chain, weights, 1e-7, 500, 1e-15);
+    lma.CartToJnt(q0, goal, q);
+    consider(m.into_limits(q));
+    if (best.ok) return;
+    // Where the unconstrained answer leaves the limits: Newton-Raphson that clamps to them.
+    KDL::JntArray lo(n), hi(n);
+    for (unsigned k = 0; k < n; ++k) lo(k) = m.arm_limits[k].lower, hi(k) = m.arm_limits[k].upper;
+    KDL::ChainFkSolverPos_recursive fk(m.ik_chain);
+    KDL::ChainIkSolverVel_pinv vel(m.ik_chain);
+    KDL::ChainIkSolverPos_NR_JL nr(m.ik_chain, lo, hi, fk, vel, 500, 1e-7);
+    nr.CartToJnt(q0, goal, q);
+    consider(m.into_limits(q));
+  };
+  solve_from(m.into_limits([&] {
+    KDL::JntArray s(n);
+    for (unsigned k = 0; k < n; ++k) s(k) = seed[k];
+    return s;
+  }()));
+  // Fresh starts when the seed leads nowhere: the middle of the limits and a few deterministic
+  // spreads around it.
+  for (int attempt = 0; attempt < 8 && !best.ok; ++attempt) {
+    Eigen::VectorXd start(n);
+    for (unsigned k = 0; k < n; ++k) {
+      const JointLimits& l = m.arm_limits[k];
+      const double lo = std::max(l.lower, -kPi), hi = std::min(l.upper, kPi);
+      const double u = std::fmod(0.5 + 0.618033988749895 * attempt * (k + 1), 1.0);  // golden-ratio spread
+      start[k] = lo + (attempt == 0 ? 0.5 : u) * (hi - lo);
+    }
+    solve_from(start);
+  }
+  return best;
+}
+
+}  // namespace gd::robot
