@@ -2,8 +2,7 @@
 
 #include <kdl/chainfksolverpos_recursive.hpp>
 #include <kdl/chainiksolverpos_lma.hpp>
-#include <kdl/chainiksolverpos_nr_jl.hpp>
-#include <kdl/chainiksolvervel_pinv.hpp>
+#include <kdl/chainjnttojacsolver.hpp>
 #include <kdl/tree.hpp>
 #include <kdl/treefksolverpos_recursive.hpp>
 #include <kdl_parser/kdl_parser.hpp>
@@ -59,6 +58,7 @@ struct ArmModel::Impl {
   std::array<double, 2> finger_sign{1, -1};  ///< joint value = sign * gripper
   std::array<std::string, 2> finger_links;
   double gripper_max = 0;
+  JointLimits finger_limits;
   std::vector<std::string> links;
 
   KDL::JntArray tree_q(const Eigen::VectorXd& q, double gripper) const {
@@ -85,6 +85,47 @@ struct ArmModel::Impl {
   }
 
   static void DEMAND_FK(int rc) { GD_DEMAND(rc >= 0, "KDL forward kinematics failed: " + std::to_string(rc)); }
+
+  /// Levenberg-Marquardt on the end effector's pose error with the joints clamped to their
+  /// limits after every step (a projected method): position error in m, orientation error (axis
+  /// times angle) weighted by `w` (m per rad). From `start`; at most `iters` iterations.
+  Eigen::VectorXd bounded_lm(const Eigen::Isometry3d& target, Eigen::VectorXd q, double w, int iters) const {
+    const unsigned n = static_cast<unsigned>(q.size());
+    KDL::ChainJntToJacSolver jac_solver(ik_chain);
+    auto error = [&](const Eigen::VectorXd& x) {
+      KDL::JntArray jq(n);
+      for (unsigned k = 0; k < n; ++k) jq(k) = x[k];
+      const Eigen::Isometry3d at = ee(jq);
+      Eigen::Matrix<double, 6, 1> e;
+      e.head<3>() = target.translation() - at.translation();
+      const Eigen::AngleAxisd aa(target.linear() * at.linear().transpose());  // world-frame rotation still to go
+      e.tail<3>() = w * aa.angle() * aa.axis();
+      return e;
+    };
+    for (unsigned k = 0; k < n; ++k) q[k] = std::clamp(q[k], arm_limits[k].lower, arm_limits[k].upper);
+    Eigen::Matrix<double, 6, 1> e = error(q);
+    double lambda = 1e-2;
+    for (int it = 0; it < iters && e.norm() > 1e-10; ++it) {
+      KDL::JntArray jq(n);
+      for (unsigned k = 0; k < n; ++k) jq(k) = q[k];
+      KDL::Jacobian J(n);
+      jac_solver.JntToJac(jq, J);
+      Eigen::MatrixXd Jw = J.data;  // rows: linear velocity, angular velocity (base frame)
+      Jw.bottomRows(3) *= w;
+      const Eigen::MatrixXd A = Jw.transpose() * Jw + lambda * Eigen::MatrixXd::Identity(n, n);
+      Eigen::VectorXd trial = q + A.ldlt().solve(Jw.transpose() * e);
+      for (unsigned k = 0; k < n; ++k) trial[k] = std::clamp(trial[k], arm_limits[k].lower, arm_limits[k].upper);
+      const Eigen::Matrix<double, 6, 1> et = error(trial);
+      if (et.norm() < e.norm()) {
+        q = trial, e = et;
+        lambda = std::max(1e-9, 0.3 * lambda);
+      } else {
+        lambda *= 10;
+        if (lambda > 1e6) break;
+      }
+    }
+    return q;
+  }
 
   /// Revolute joints moved by whole turns into their limits where that is possible, then clamped.
   Eigen::VectorXd into_limits(const KDL::JntArray& q) const {
@@ -146,6 +187,7 @@ ArmModel ArmModel::from_string(const std::string& xml, const std::string& source
     impl->finger_tree_index[f] = q_index.at(name);
     impl->finger_links[f] = joint->child_link_name;
     const double lo = joint->limits->lower, hi = joint->limits->upper;
+    if (f == 0) impl->finger_limits = {lo, hi, joint->limits->effort, joint->limits->velocity};
     impl->finger_sign[f] = hi > 0 ? 1.0 : -1.0;
     const double travel = hi > 0 ? hi : -lo;
     if (!(travel > 0)) throw InputError(where + "finger joint '" + name + "' has no travel (limits " +
@@ -168,7 +210,11 @@ ArmModel ArmModel::from_string(const std::string& xml, const std::string& source
     impl->ik_chain.addSegment(s);
     const auto joint = model->getJoint(j.getName());
     JointLimits l{-1e9, 1e9};
-    if (joint && joint->limits && joint->type != urdf::Joint::CONTINUOUS) l = {joint->limits->lower, joint->limits->upper};
+    if (joint && joint->limits) {
+      if (joint->type != urdf::Joint::CONTINUOUS) l.lower = joint->limits->lower, l.upper = joint->limits->upper;
+      l.effort = joint->limits->effort;
+      l.velocity = joint->limits->velocity;
+    }
     impl->arm_joints.push_back(j.getName());
     impl->arm_limits.push_back(l);
     impl->arm_tree_index.push_back(q_index.at(j.getName()));
@@ -184,6 +230,7 @@ int ArmModel::arm_dofs() const { return static_cast<int>(impl_->arm_joints.size(
 const std::vector<std::string>& ArmModel::arm_joint_names() const { return impl_->arm_joints; }
 const std::vector<JointLimits>& ArmModel::arm_limits() const { return impl_->arm_limits; }
 double ArmModel::gripper_max() const { return impl_->gripper_max; }
+const JointLimits& ArmModel::finger_limits() const { return impl_->finger_limits; }
 const std::array<std::string, 2>& ArmModel::finger_links() const { return impl_->finger_links; }
 std::vector<std::string> ArmModel::link_names() const { return impl_->links; }
 
@@ -237,13 +284,9 @@ IkResult ArmModel::ik(const Eigen::Isometry3d& target, const Eigen::VectorXd& se
     lma.CartToJnt(q0, goal, q);
     consider(m.into_limits(q));
     if (best.ok) return;
-    // Where the unconstrained answer leaves the limits: Newton-Raphson that clamps to them.
-    KDL::JntArray lo(n), hi(n);
-    for (unsigned k = 0; k < n; ++k) lo(k) = m.arm_limits[k].lower, hi(k) = m.arm_limits[k].upper;
-    KDL::ChainFkSolverPos_recursive fk(m.ik_chain);
-    KDL::ChainIkSolverVel_pinv vel(m.ik_chain);
-    KDL::ChainIkSolverPos_NR_JL nr(m.ik_chain, lo, hi, fk, vel, 500, 1e-7);
-    nr.CartToJnt(q0, goal, q);
+    // Where the unconstrained answer leaves the limits: Levenberg-Marquardt within them.
+    const Eigen::VectorXd bounded = m.bounded_lm(target, start, 0.1, 300);
+    for (unsigned k = 0; k < n; ++k) q(k) = bounded[k];
     consider(m.into_limits(q));
   };
   solve_from(m.into_limits([&] {
@@ -263,6 +306,40 @@ IkResult ArmModel::ik(const Eigen::Isometry3d& target, const Eigen::VectorXd& se
     }
     solve_from(start);
   }
+  return best;
+}
+
+IkResult ArmModel::ik_position_first(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed,
+                                     double max_rotation_error, double pos_tol) const {
+  const IkResult exact = ik(target, seed, pos_tol, 1e-3);
+  if (exact.ok) return exact;
+  const Impl& m = *impl_;
+  const unsigned n = static_cast<unsigned>(m.arm_joints.size());
+  IkResult best;
+  best.position_error = best.rotation_error = std::numeric_limits<double>::infinity();
+  auto consider = [&](const Eigen::VectorXd& q) {
+    const Eigen::Isometry3d at = ee_pose(q);
+    const double ep = (at.translation() - target.translation()).norm();
+    const double er = rotation_angle(at.linear(), target.linear());
+    // Reached positions first, then the smaller tilt.
+    const bool better = ep <= pos_tol ? (best.position_error > pos_tol || er < best.rotation_error)
+                                      : ep < best.position_error;
+    if (better) best = {q, ep, er, ep <= pos_tol && er <= max_rotation_error};
+  };
+  // The orientation weighted as at a 1 cm lever: position first, the tilt as small as it goes.
+  consider(m.bounded_lm(target, seed, 0.01, 500));
+  for (int attempt = 0; attempt < 8 && !best.ok; ++attempt) {
+    Eigen::VectorXd start(n);
+    for (unsigned k = 0; k < n; ++k) {
+      const JointLimits& l = m.arm_limits[k];
+      const double lo = std::max(l.lower, -kPi), hi = std::min(l.upper, kPi);
+      const double u = std::fmod(0.5 + 0.618033988749895 * attempt * (k + 1), 1.0);
+      start[k] = lo + (attempt == 0 ? 0.5 : u) * (hi - lo);
+    }
+    consider(m.bounded_lm(target, start, 0.01, 500));
+  }
+  // Polish the orientation with the position held: a heavier orientation weight from the answer.
+  if (best.position_error <= pos_tol) consider(m.bounded_lm(target, best.q, 0.1, 300));
   return best;
 }
 

@@ -48,6 +48,8 @@ struct ArmModelOptions {
 
 struct JointLimits {
   double lower = 0, upper = 0;  ///< rad or m
+  double effort = 0;            ///< N m or N (the URDF's <limit effort>); 0 when not given
+  double velocity = 0;          ///< rad/s or m/s (<limit velocity>); 0 when not given
 };
 
 /// An inverse-kinematics answer.
@@ -80,6 +82,8 @@ class ArmModel {
   const std::vector<JointLimits>& arm_limits() const;
   /// Largest gripper value: the smaller of the two finger joints' travel.
   double gripper_max() const;
+  /// The first finger joint's limits (Piper joint7: 0..0.035 m, effort 10 N, velocity 1 m/s).
+  const JointLimits& finger_limits() const;
   /// The links of the two finger joints (Piper: link7, link8).
   const std::array<std::string, 2>& finger_links() const;
   /// Every link of the URDF.
@@ -99,6 +103,13 @@ class ArmModel {
   /// found. The answer always lies within the joint limits.
   IkResult ik(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed, double pos_tol = 1e-4,
               double rot_tol = 1e-3) const;
+  /// The position exactly (within pos_tol) and the orientation as near as the joint limits allow:
+  /// ik() when the whole pose is reachable, else the least tilt found. ok when the position is
+  /// reached and the orientation is within max_rotation_error (rad). (A 6-joint arm whose wrist
+  /// cannot point straight down everywhere, like the Piper high above its table, still lifts
+  /// a garment where the task says.)
+  IkResult ik_position_first(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed, double max_rotation_error,
+                             double pos_tol = 1e-4) const;
 
  private:
   struct Impl;

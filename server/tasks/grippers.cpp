@@ -225,17 +225,4 @@ void GripperController::update_fixed(sim::Scene& scene, double t_end) {
   }
 }
 
-bool run_until(sim::Scene& scene, GripperController& controller, double t_end,
-               const std::function<void(const sim::StepStats&)>& after_step) {
-  const double dt = scene.options().dt;
-  while (scene.time() < t_end - 1e-9 * std::max(1.0, std::abs(t_end))) {
-    if (scene.failed()) return false;
-    controller.update(scene, scene.time() + dt);
-    const bool ok = scene.step();
-    if (after_step) after_step(scene.last_stats());
-    if (!ok) return false;
-  }
-  return !scene.failed();
-}
-
 }  // namespace gd::tasks

@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "sim/scene.h"
+#include "tasks/controller.h"
 #include "tasks/trajectory.h"
 
 namespace gd::tasks {
@@ -86,15 +87,7 @@ struct ArmState {
   Eigen::Isometry3d ee = Eigen::Isometry3d::Identity();  ///< end-effector pose at the step's end
 };
 
-/// A grasp or release, for logs and tests.
-struct GripperEvent {
-  double t = 0;           ///< scene time at which it happened (start of the step)
-  Arm arm = Arm::kLeft;
-  bool grasp = true;      ///< false: release
-  std::vector<int> vertices;
-};
-
-class GripperController {
+class GripperController final : public TaskController {
  public:
   /// Validates the options and that both arms have samples (InputError otherwise).
   GripperController(DualArmTrajectory traj, GripperOptions options = {});
@@ -102,16 +95,16 @@ class GripperController {
   /// Sets up the kinematic vertices of `scene` for the step that ends at scene time t_end
   /// (> scene.time()). Throws InputError for bad shoulder vertices or a t_end not after the
   /// scene's time.
-  void update(sim::Scene& scene, double t_end);
+  void update(sim::Scene& scene, double t_end) override;
 
   /// Scene time minus this is trajectory time: fling_prepare_time + fling_wait_time for a
   /// fixed-point fling, else 0. RGBench's evaluation shifts its comparison by the same amount.
-  double sim_prepare_time() const;
+  double sim_prepare_time() const override;
   /// Scene time at which the trajectory ends (its end time + sim_prepare_time()).
-  double end_time() const { return traj_.end_time() + sim_prepare_time(); }
+  double end_time() const override { return traj_.end_time() + sim_prepare_time(); }
 
   const ArmState& state(Arm a) const { return state_[static_cast<int>(a)]; }
-  const std::vector<GripperEvent>& events() const { return events_; }
+  const std::vector<GripperEvent>& events() const override { return events_; }
   const DualArmTrajectory& trajectory() const { return traj_; }
   const GripperOptions& options() const { return options_; }
 
@@ -144,10 +137,5 @@ class GripperController {
   std::vector<GripperEvent> events_;
 };
 
-/// Steps `scene` until its time reaches t_end (overshooting by less than one dt, like RGBench's
-/// step_to_time), calling controller.update before every step and `after_step` (when given) after
-/// it, also after a step that failed. Returns false if the scene failed.
-bool run_until(sim::Scene& scene, GripperController& controller, double t_end,
-               const std::function<void(const sim::StepStats&)>& after_step = {});
 
 }  // namespace gd::tasks

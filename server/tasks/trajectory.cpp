@@ -188,6 +188,10 @@ ArmSample ArmTrajectory::sample(double t) const {
     out.position = a.position + u * (b.position - a.position);
     out.orientation = a.orientation.slerp(u, b.orientation).normalized();
     out.gripper = a.gripper + u * (b.gripper - a.gripper);
+    if (!a.joints.empty() && a.joints.size() == b.joints.size()) {
+      out.joints.resize(a.joints.size());
+      for (size_t k = 0; k < a.joints.size(); ++k) out.joints[k] = a.joints[k] + u * (b.joints[k] - a.joints[k]);
+    }
   }
   out.t = t;
   return out;
@@ -420,7 +424,7 @@ std::pair<std::vector<ArmSample>, std::vector<std::string>> read_rgbench_arm(con
   std::vector<ArmSample> rows;
   std::vector<std::string> labels;
   std::map<std::string, size_t> idx;
-  bool have_header = false;
+  bool have_header = false, have_joints = false;
   for (const auto& [n, raw] : lines_of(read_text(path))) {
     const std::string line = trim(raw);
     const std::string where = fmt::format("{}:{}", path, n);
@@ -430,6 +434,8 @@ std::pair<std::vector<ArmSample>, std::vector<std::string>> read_rgbench_arm(con
       idx = header_index(fields, where);
       require_columns(idx, kRgbenchRequired, where);
       have_header = true;
+      have_joints = true;
+      for (const char* c : {"pos_1", "pos_2", "pos_3", "pos_4", "pos_5", "pos_6"}) have_joints = have_joints && idx.count(c);
       continue;
     }
     if (fields.size() != idx.size())
@@ -440,6 +446,8 @@ std::pair<std::vector<ArmSample>, std::vector<std::string>> read_rgbench_arm(con
     s.position = Vec3(get("pos_x"), get("pos_y"), get("pos_z")) + base_offset(arm);
     s.orientation = quat_from_wxyz(get("orn_w"), get("orn_x"), get("orn_y"), get("orn_z"));
     s.gripper = get("pos_gripper");
+    if (have_joints)
+      for (const char* c : {"pos_1", "pos_2", "pos_3", "pos_4", "pos_5", "pos_6"}) s.joints.push_back(get(c));
     rows.push_back(s);
     labels.push_back(where);
   }
@@ -482,7 +490,9 @@ void write_rgbench_joints(const std::string& dir, const DualArmTrajectory& traj)
     for (const ArmSample& p : arm.samples()) {
       const Vec3 x = p.position - base_offset(a);
       // Absolute Unix times need ~16 significant digits for microseconds: print them exactly.
-      s += fmt::format("{},0,0,0,0,0,0,{},{},{},{},{},{},{},{}\n", num(traj.master_start_time + p.t), num(p.gripper),
+      std::string joints;
+      for (size_t k = 0; k < 6; ++k) joints += (k < p.joints.size() && p.joints.size() == 6 ? num(p.joints[k]) : "0") + ",";
+      s += fmt::format("{},{}{},{},{},{},{},{},{},{}\n", num(traj.master_start_time + p.t), joints, num(p.gripper),
                        num(x.x()), num(x.y()), num(x.z()), num(p.orientation.w()), num(p.orientation.x()),
                        num(p.orientation.y()), num(p.orientation.z()));
     }

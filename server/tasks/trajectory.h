@@ -32,6 +32,9 @@ struct ArmSample {
   Vec3 position = Vec3::Zero();   ///< world frame, m
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< world frame, unit
   double gripper = kGripperOpen;  ///< opening, m: 0 = closed, 0.035 = open (RGBench's range)
+  /// The arm's joint angles (rad) when the source recorded them (RGBench's pos_1..pos_6), else
+  /// empty. Robot mode drives the arm from them; without them it solves inverse kinematics.
+  std::vector<double> joints;
 };
 
 /// Checks one sample: finite time, position, orientation and gripper, unit quaternion (norm
@@ -39,7 +42,8 @@ struct ArmSample {
 void check_sample(const ArmSample& s, const std::string& where);
 
 /// A time-sorted list of samples of one arm, interpolated like RGBench's pseudo mode: linear
-/// position, SLERP orientation (shortest arc), linear gripper; clamped to the first/last sample
+/// position, SLERP orientation (shortest arc), linear gripper and joints (where both samples have
+/// them); clamped to the first/last sample
 /// outside the covered range.
 class ArmTrajectory {
  public:
@@ -108,7 +112,8 @@ inline constexpr const char* kRgbenchJointsHeader =
     "time,pos_1,pos_2,pos_3,pos_4,pos_5,pos_6,pos_gripper,pos_x,pos_y,pos_z,orn_w,orn_x,orn_y,orn_z";
 
 /// Reads RGBench's joints CSV pair. Columns are found by header name (time, pos_gripper, pos_x,
-/// pos_y, pos_z, orn_w, orn_x, orn_y, orn_z are required; the joint angles are not used). Positions
+/// pos_y, pos_z, orn_w, orn_x, orn_y, orn_z are required; pos_1..pos_6, when all present, become
+/// each sample's joints, which robot mode drives). Positions
 /// are in each arm's base frame and become world positions by adding base_offset(arm) (the base
 /// frames are not rotated); quaternions are w-first; `pos_gripper` is the opening in m.
 /// master_start_time = the smaller of the two files' first times; the returned times are relative
@@ -118,8 +123,9 @@ DualArmTrajectory read_rgbench_joints(const std::string& left_csv, const std::st
 DualArmTrajectory read_rgbench_joints_dir(const std::string& dir);
 /// Writes both files into `dir` (created if missing) with kRgbenchJointsHeader: absolute time =
 /// master_start_time + t, positions back in each arm's base frame, w-first quaternions,
-/// pos_gripper = gripper. There is no inverse kinematics here: pos_1..pos_6 are written as 0, so
-/// the files drive RGBench's pose-mode (fixed-point) replay but not its joint-mode robot replay.
+/// pos_gripper = gripper, pos_1..pos_6 = the samples' joints (robot mode's inverse kinematics
+/// fills them in, tasks/robot_arms.h) or 0 where a sample has none: then the files drive
+/// RGBench's pose-mode (fixed-point) replay but not its joint-mode robot replay.
 /// Reading them back returns times relative to the earliest first sample (the same absolute times).
 void write_rgbench_joints(const std::string& dir, const DualArmTrajectory& traj);
 

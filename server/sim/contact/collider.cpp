@@ -278,6 +278,12 @@ void Collider::set_friction(Real mu) {
   mu_ = mu;
 }
 
+void Collider::set_stiffness_scale(Real scale) {
+  if (!finite(scale) || !(scale > 0))
+    throw InputError("Collider::set_stiffness_scale: the scale must be finite and > 0, got " + fmt(scale));
+  kappa_scale_ = scale;
+}
+
 // ------------------------------------------------------------------------------------------------
 // Queries
 // ------------------------------------------------------------------------------------------------

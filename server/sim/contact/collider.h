@@ -444,6 +444,12 @@ class Collider {
   /// Coulomb friction coefficient (>= 0, finite; InputError otherwise). Default 0.
   void set_friction(Real mu);
   Real friction() const { return mu_; }
+  /// Multiplies the barrier stiffness of cloth vertices against this collider (finite, > 0;
+  /// InputError otherwise). Default 1: a vertex's own weight is balanced at half the contact
+  /// distance. A gripper pad that must squeeze cloth with newtons of force needs far more
+  /// (tasks/robot_arms.h: the grip force over the weight of the cloth under a pad).
+  void set_stiffness_scale(Real scale);
+  Real stiffness_scale() const { return kappa_scale_; }
 
   /// Signed distance, closest point and normal of a world point at time t (checked_pose).
   ColliderQuery query(const Vec3& x_world, double t) const;
@@ -479,6 +485,7 @@ class Collider {
   std::shared_ptr<const MeshData> mesh_;
   PoseFunction pose_;
   Real mu_ = 0;
+  Real kappa_scale_ = 1;
 };
 
 /// Packed shapes and mesh triangles of several colliders, e.g. for upload to a device: shapes[i]

@@ -143,7 +143,7 @@ std::vector<double> Solver<Exec>::collider_forces() {
         const Vec3 t1(q[21], q[22], q[23]);
         Vec3 g;
         const Real e = point_collider_energy(detail::load3(x, i), R1, t1, V.col_shape[c], 0.0, P.dhat,
-                                             P.kappa_per_mass * V.mass[i], &g, nullptr, HessianKind::kNone,
+                                             P.kappa_per_mass * V.mass[i] * V.col_kappa[c], &g, nullptr, HessianKind::kNone,
                                              &V.col_mesh);
         return e > 0 && std::isfinite(e) ? static_cast<double>(g[k]) : 0.0;
       });

@@ -88,6 +88,7 @@ struct View {
   const ColliderShape* col_shape;
   const double* col_pose;
   const double* col_mu;
+  const double* col_kappa;  ///< barrier stiffness scale per collider (Collider::stiffness_scale)
   ColliderMeshView col_mesh;
   // self-contact: candidate pairs (line search, CCD), active pairs (Hessian), lagged friction
   PairView cand, act;
@@ -163,7 +164,7 @@ GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Ve
       const Vec3 t0(q[9], q[10], q[11]);
       const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
       const Vec3 t1(q[21], q[22], q[23]);
-      const Real kappa = P.kappa_per_mass * m;
+      const Real kappa = P.kappa_per_mass * m * V.col_kappa[c];
       Mat3 Hc;
       e += point_collider_energy(x, R1, t1, V.col_shape[c], 0.0, P.dhat, kappa, g ? &gk : nullptr, H ? &Hc : nullptr,
                                  HessianKind::kProjected, &V.col_mesh);

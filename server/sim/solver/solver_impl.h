@@ -183,7 +183,7 @@ class Solver final : public SolverBase {
     n_col_ = static_cast<int>(colliders.size());
     if (n_col_ == 0) return;
     const PackedColliders packed = pack_colliders(colliders);
-    std::vector<double> poses, mu;
+    std::vector<double> poses, mu, kappa;
     for (const Collider& c : colliders) {
       for (const double t : {t0, t1}) {
         const Eigen::Isometry3d p = c.checked_pose(t);
@@ -192,12 +192,14 @@ class Solver final : public SolverBase {
         for (int r = 0; r < 3; ++r) poses.push_back(p.translation()[r]);
       }
       mu.push_back(c.friction());
+      kappa.push_back(c.stiffness_scale());
     }
     Exec::upload(col_shape_, packed.shapes);
     Exec::upload(col_vertices_, packed.vertices);
     Exec::upload(col_tris_, packed.triangles);
     Exec::upload(col_pose_, poses);
     Exec::upload(col_mu_, mu);
+    Exec::upload(col_kappa_, kappa);
   }
 
   // The stages, declared here and defined one file each (included at the end of this file). They
@@ -319,6 +321,7 @@ class Solver final : public SolverBase {
     V.col_shape = Exec::ptr(col_shape_);
     V.col_pose = Exec::ptr(col_pose_);
     V.col_mu = Exec::ptr(col_mu_);
+    V.col_kappa = Exec::ptr(col_kappa_);
     V.col_mesh = ColliderMeshView{Exec::ptr(col_vertices_), Exec::ptr(col_tris_)};
     V.cand = cand_.view();
     V.act = act_.view();
@@ -387,7 +390,7 @@ class Solver final : public SolverBase {
   Vec<ColliderShape> col_shape_;
   Vec<Vec3> col_vertices_;
   Vec<Eigen::Vector3i> col_tris_;
-  Vec<double> col_pose_, col_mu_;
+  Vec<double> col_pose_, col_mu_, col_kappa_;
   std::vector<double> host_x_, host_xt_, host_dx_;
   /// A pair list on the backend (candidates for the line search and CCD, active pairs for the Hessian).
   struct DevicePairs {

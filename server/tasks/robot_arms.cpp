@@ -1,0 +1,244 @@
+#include "tasks/robot_arms.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "sim/contact/collider.h"
+#include "sim/demand.h"
+#include "sim/log.h"
+
+namespace gd::tasks {
+
+using sim::InputError;
+
+namespace {
+
+constexpr double kMaxFingerSpeed = 0.1;        ///< m/s: cap on the URDF's finger velocity limit
+constexpr double kIkPositionTolerance = 1e-3;  ///< m: how near inverse kinematics must put the tool
+
+Eigen::Isometry3d base_pose(Arm a) {
+  Eigen::Isometry3d b = Eigen::Isometry3d::Identity();
+  b.translation() = base_offset(a);
+  return b;
+}
+
+Eigen::VectorXd to_vector(const std::vector<double>& q) { return Eigen::Map<const Eigen::VectorXd>(q.data(), q.size()); }
+
+}  // namespace
+
+void RobotOptions::validate() const {
+  if (urdf.empty()) throw InputError("robot mode needs the arms' URDF (--urdf PATH, e.g. RGBench's piper_with_gripper.urdf)");
+  auto check = [](double v, const char* name) {
+    if (!std::isfinite(v)) throw InputError(fmt::format("robot option {} must be finite", name));
+  };
+  check(finger_friction, "finger_friction");
+  check(grip_force, "grip_force");
+  check(finger_speed, "finger_speed");
+  check(table_clearance, "table_clearance");
+  check(max_tilt, "max_tilt");
+  if (max_tilt < 0) throw InputError("robot option max_tilt must be >= 0 rad");
+  if (grip_force == 0) throw InputError("robot option grip_force must be > 0 N (or < 0 for the URDF's effort limit)");
+  if (finger_speed == 0) throw InputError("robot option finger_speed must be > 0 m/s (or < 0 for the URDF's limit)");
+  if (!tool_to_ee.allFinite() || (tool_to_ee.transpose() * tool_to_ee - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
+      tool_to_ee.determinant() < 0)
+    throw InputError("robot option tool_to_ee must be a rotation matrix");
+  if (!arm.pad.half_extents.allFinite() || arm.pad.half_extents.minCoeff() <= 0 || !arm.pad.center.allFinite())
+    throw InputError("robot finger pad: half extents must be finite and > 0, the centre finite");
+}
+
+/// Each pad's pose at the start and end of the coming step (shared with the colliders).
+struct RobotController::PadPoses {
+  double t0 = 0, t1 = 0;
+  std::array<std::array<Eigen::Isometry3d, 2>, 4> pose;  ///< [arm * 2 + finger][start, end]
+
+  Eigen::Isometry3d at(int pad, double t) const {
+    const Eigen::Isometry3d& a = pose[pad][0];
+    const Eigen::Isometry3d& b = pose[pad][1];
+    const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
+    Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+    out.linear() = Eigen::Quaterniond(a.linear()).slerp(u, Eigen::Quaterniond(b.linear())).normalized().toRotationMatrix();
+    out.translation() = (1 - u) * a.translation() + u * b.translation();
+    return out;
+  }
+};
+
+RobotController::RobotController(DualArmTrajectory traj, RobotOptions options)
+    : traj_(std::move(traj)), options_(std::move(options)), poses_(std::make_shared<PadPoses>()) {
+  options_.validate();
+  model_ = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(options_.urdf, options_.arm));
+  const robot::ArmModel& m = *model_;
+  const int dofs = m.arm_dofs();
+  grip_force_ = options_.grip_force > 0 ? options_.grip_force : m.finger_limits().effort;
+  if (!(grip_force_ > 0))
+    throw InputError(fmt::format("URDF {}: finger joint '{}' gives no effort limit; set the grip force", options_.urdf,
+                                 options_.arm.finger_joints[0]));
+  finger_speed_ = options_.finger_speed > 0 ? options_.finger_speed
+                                            : std::min(kMaxFingerSpeed, m.finger_limits().velocity > 0
+                                                                            ? m.finger_limits().velocity
+                                                                            : kMaxFingerSpeed);
+  // Joints for every sample: the recorded ones, or inverse kinematics along the trajectory.
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    const ArmTrajectory& arm = traj_.arm(a);
+    if (arm.empty()) throw InputError(fmt::format("robot mode: the {} arm has no trajectory samples", arm_name(a)));
+    std::vector<ArmSample> samples = arm.samples();
+    Eigen::VectorXd seed = Eigen::VectorXd::Zero(dofs);
+    for (int k = 0; k < dofs; ++k) {
+      const robot::JointLimits& l = m.arm_limits()[k];
+      seed[k] = std::clamp(0.0, l.lower, l.upper);
+    }
+    for (size_t i = 0; i < samples.size(); ++i) {
+      ArmSample& s = samples[i];
+      if (!s.joints.empty()) {
+        if (static_cast<int>(s.joints.size()) != dofs)
+          throw InputError(fmt::format("robot mode: the {} arm's sample at t={:.4f} s has {} joint values, the URDF's "
+                                       "arm has {}",
+                                       arm_name(a), s.t, s.joints.size(), dofs));
+        seed = to_vector(s.joints);
+        continue;
+      }
+      Eigen::Isometry3d ee = base_pose(a).inverse() * make_pose(s.position, s.orientation);
+      ee.linear() = ee.linear() * options_.tool_to_ee;
+      const robot::IkResult r = m.ik_position_first(ee, seed, options_.max_tilt, kIkPositionTolerance);
+      if (!r.ok)
+        throw InputError(fmt::format("robot mode: the {} arm cannot reach its pose at t={:.3f} s (world position "
+                                     "{:.3f}, {:.3f}, {:.3f}): {:.1f} mm and {:.2f} deg away at best; move the task "
+                                     "within reach (e.g. a lower lift height)",
+                                     arm_name(a), s.t, s.position.x(), s.position.y(), s.position.z(),
+                                     1e3 * r.position_error, r.rotation_error * 180 / 3.14159265358979323846));
+      s.joints.assign(r.q.data(), r.q.data() + dofs);
+      seed = r.q;
+      ++ik_solved_;
+      ik_max_tilt_ = std::max(ik_max_tilt_, r.rotation_error);
+    }
+    traj_.arm(a) = ArmTrajectory(std::move(samples), fmt::format("{} arm", arm_name(a)));
+  }
+  if (ik_solved_ > 0)
+    gd::log().info("robot mode: inverse kinematics for {} trajectory samples (orientation missed by up to {:.1f} deg)",
+                   ik_solved_, ik_max_tilt_ * 180 / 3.14159265358979323846);
+}
+
+std::array<Eigen::Isometry3d, 2> RobotController::finger_poses(Arm a, const std::vector<double>& joints,
+                                                                double gripper) const {
+  const Eigen::VectorXd q = to_vector(joints);
+  std::array<Eigen::Isometry3d, 2> out;
+  for (int f = 0; f < 2; ++f) out[f] = base_pose(a) * model_->link_pose(model_->finger_links()[f], q, gripper);
+  return out;
+}
+
+void RobotController::attach(sim::Scene& scene) {
+  const double t = scene.time();
+  const double mu = options_.finger_friction >= 0 ? options_.finger_friction : scene.material().friction;
+  const robot::FingerPad& pad = options_.arm.pad;
+  poses_->t0 = poses_->t1 = t;
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    RobotArmState& st = state_[static_cast<int>(a)];
+    const ArmSample s = traj_.arm(a).sample(t);
+    st.joints = s.joints;
+    st.gripper_command = std::clamp(s.gripper, 0.0, model_->gripper_max());
+    st.gripper = st.gripper_command;
+    const auto fp = finger_poses(a, st.joints, st.gripper);
+    for (int f = 0; f < 2; ++f) {
+      const int k = 2 * static_cast<int>(a) + f;
+      // The pad's box sits off its link frame's origin.
+      Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+      offset.translation() = pad.center;
+      poses_->pose[k] = {fp[f] * offset, fp[f] * offset};
+      sim::Collider c = sim::Collider::box(pad.half_extents);
+      std::shared_ptr<PadPoses> poses = poses_;
+      c.set_pose([poses, k](double time) { return poses->at(k, time); });
+      c.set_friction(mu);
+      // The barrier's stiffness as calibrated for the table balances a vertex's weight at half
+      // the contact distance; a pad must carry the grip force there instead, spread over the
+      // cloth under its face: the grip force over the weight of that much cloth.
+      const double face = 4 * pad.half_extents.x() * pad.half_extents.y();
+      c.set_stiffness_scale(std::max(1.0, grip_force_ / (scene.material().density * face * 9.81)));
+      st.colliders[f] = scene.add_collider(std::move(c));
+    }
+  }
+  attached_ = true;
+}
+
+void RobotController::update(sim::Scene& scene, double t_end) {
+  const double t0 = scene.time();
+  if (!(t_end > t0)) throw InputError(fmt::format("robot mode: step end {} is not after the scene time {}", t_end, t0));
+  if (!attached_) attach(scene);
+  const sim::SceneOptions& so = scene.options();
+  const double clearance = options_.table_clearance >= 0
+                               ? options_.table_clearance
+                               : (so.contact_distance > 0 ? so.contact_distance
+                                                          : std::max(scene.material().thickness, 1e-3));
+  const robot::FingerPad& pad = options_.arm.pad;
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+  offset.translation() = pad.center;
+  const double dt = t_end - t0;
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    const int ai = static_cast<int>(a);
+    RobotArmState& st = state_[ai];
+    const ArmSample s = traj_.arm(a).sample(t_end);
+    // The cloth's push on the pads now, along each pad's opening direction (its link's z).
+    const std::vector<Vec3> forces = scene.collider_forces({st.colliders[0], st.colliders[1]});
+    double squeeze = 0;
+    for (int f = 0; f < 2; ++f) squeeze += 0.5 * forces[f].dot(poses_->pose[2 * ai + f][1].linear().col(2));
+    st.squeeze = squeeze;
+    // A position-controlled, force-limited finger joint.
+    const double command = std::clamp(s.gripper, 0.0, model_->gripper_max());
+    double g = st.gripper;
+    // The squeeze's stiffness against the opening, from the last two measurements (a secant).
+    if (st.gripper != prev_[ai].gripper && squeeze > 0) {
+      const double k = (squeeze - prev_[ai].squeeze) / (prev_[ai].gripper - st.gripper);
+      if (k > 0) prev_[ai].stiffness = k;
+    }
+    prev_[ai].gripper = st.gripper;
+    prev_[ai].squeeze = squeeze;
+    if (command < g) {
+      // Closing: full speed until the squeeze builds up; then steps of half the way to the limit
+      // by the secant stiffness (the barrier's force rises from 0 to the limit within the contact
+      // distance, so fixed steps would swing past it), or 5% of the contact distance while the
+      // stiffness is unknown. Above the limit the fingers give way the same way.
+      const double error = grip_force_ - std::max(0.0, squeeze);
+      double step = finger_speed_ * dt;
+      if (prev_[ai].stiffness > 0 && squeeze > 0) {
+        step = std::min(step, 0.5 * std::abs(error) / prev_[ai].stiffness);
+      } else if (squeeze > 0.1 * grip_force_) {
+        step = std::min(step, 0.05 * clearance);
+      }
+      g = error >= 0 ? std::max(command, g - step) : std::min(model_->gripper_max(), g + step);
+    } else {
+      g = std::min(command, g + finger_speed_ * dt);
+    }
+    // Never so near that the pads' faces meet with cloth between them (no room left for it).
+    if (squeeze > 0) g = std::max(g, 0.25 * clearance);
+    const bool closing = command < 0.5 * model_->gripper_max();  // a grasp or release event
+    if (closing != closing_[ai]) {
+      events_.push_back({t0, a, closing, {}});
+      closing_[ai] = closing;
+    }
+    st.gripper_command = command;
+    st.gripper = g;
+    st.joints = s.joints;
+    // Pads at the step's end; the whole hand lifted where a pad would go below the table.
+    std::array<Eigen::Isometry3d, 2> end = finger_poses(a, st.joints, g);
+    double lowest = std::numeric_limits<double>::infinity();
+    for (int f = 0; f < 2; ++f) {
+      end[f] = end[f] * offset;
+      for (int c = 0; c < 8; ++c) {
+        const Vec3 corner((c & 1 ? 1 : -1) * pad.half_extents.x(), (c & 2 ? 1 : -1) * pad.half_extents.y(),
+                          (c & 4 ? 1 : -1) * pad.half_extents.z());
+        lowest = std::min(lowest, (end[f] * corner).z());
+      }
+    }
+    st.table_lift = so.table ? std::max(0.0, so.table_height + clearance - lowest) : 0.0;
+    for (int f = 0; f < 2; ++f) {
+      end[f].translation().z() += st.table_lift;
+      auto& p = poses_->pose[2 * ai + f];
+      p[0] = p[1];
+      p[1] = end[f];
+    }
+  }
+  poses_->t0 = t0;
+  poses_->t1 = t_end;
+}
+
+}  // namespace gd::tasks

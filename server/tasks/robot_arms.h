@@ -1,0 +1,124 @@
+#pragma once
+/// \file
+/// Robot mode (docs/robot.md): two arms from a URDF (RGBench's AgileX Piper by default) follow a
+/// trajectory, and the cloth is held only by their gripper fingers' contact and friction. No
+/// vertex is pinned.
+///
+/// * Arms: fixed bases at tasks::base_offset (left y = +0.25, right y = -0.25, not rotated). The
+///   arm joints follow the trajectory's joint angles (RGBench's pos_1..pos_6, interpolated
+///   linearly as RGBench does); samples without joints (our generated tasks, pose files) are
+///   turned into joints by inverse kinematics along the trajectory, each sample seeded with the
+///   previous answer; where the exact pose is out of reach the position is kept and the
+///   orientation tilted as little as the joint limits allow (up to max_tilt). Their poses are of
+///   the TOOL frame of the generators (tool z = approach,
+///   tool x = the direction the fingers close along); the end effector (Piper: link7) is the
+///   tool frame turned by RobotOptions::tool_to_ee.
+/// * Fingers: a box pad per finger (robot::ArmModelOptions::pad), a kinematic collider posed by
+///   forward kinematics every step, with Coulomb friction against the cloth. Between the poses
+///   at a step's start and end a pad moves by linear interpolation of its position and SLERP
+///   of its orientation.
+/// * Gripper: a position-controlled, force-limited prismatic joint. The commanded opening comes
+///   from the trajectory; while closing, the fingers move at most `finger_speed` and, once the
+///   cloth pushes back (the mean of the two pads' barrier forces along their opening directions,
+///   Scene::collider_forces), step half the way to `grip_force` by the squeeze's measured
+///   stiffness; above it they give way. So the fingers stop on the cloth with that squeeze, as a
+///   real gripper's force limit does; with cloth between them they keep a quarter of the
+///   contact distance apart.
+///   The pads' barrier is stiffer than the table's (sim::Collider::set_stiffness_scale: the grip
+///   force over the weight of the cloth a pad's face covers), so the squeeze is carried at about
+///   half the contact distance, as the table carries the cloth's weight.
+/// * Table: a pad never goes below the table top plus `table_clearance`; a hand that would is
+///   lifted as a whole (a real gripper stops on the table, it does not enter it).
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "robot/arm_model.h"
+#include "tasks/controller.h"
+#include "tasks/trajectory.h"
+
+namespace gd::tasks {
+
+struct RobotOptions {
+  std::string urdf;                 ///< path of the arms' URDF (required)
+  robot::ArmModelOptions arm;       ///< links, finger joints and pads of the URDF
+  /// Friction coefficient of the finger pads against the cloth; < 0: the garment material's own.
+  double finger_friction = -1;
+  /// N: squeeze at which a closing gripper stops; < 0: the finger joint's effort limit in the
+  /// URDF (Piper: 10 N).
+  double grip_force = -1;
+  /// m/s: fastest finger motion; < 0: the finger joint's velocity limit in the URDF, capped at
+  /// 0.1 m/s.
+  double finger_speed = -1;
+  /// m: lowest pad point above the table top; < 0: the scene's contact distance.
+  double table_clearance = -1;
+  /// rad: how far an IK target's orientation may be missed where the arm cannot reach it exactly
+  /// (the position is always reached within 1 mm); the Piper cannot point straight down high
+  /// above the table.
+  double max_tilt = 1.6;
+  /// Rotation from the trajectory's tool frame to the end-effector link (IK targets only). Piper
+  /// default: link7 y = tool z (approach), link7 z = tool x (closing direction).
+  Eigen::Matrix3d tool_to_ee = (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished();
+
+  /// Throws InputError naming a bad value.
+  void validate() const;
+};
+
+/// What one arm does at the latest update.
+struct RobotArmState {
+  std::vector<double> joints;       ///< arm joints at the step's end, rad
+  double gripper = 0;               ///< finger opening at the step's end, m (each finger)
+  double gripper_command = 0;       ///< what the trajectory asks, m
+  double squeeze = 0;               ///< N: the cloth's mean push on the two pads at the step's start
+  double table_lift = 0;            ///< m the hand was raised to stay off the table
+  std::array<int, 2> colliders{-1, -1};  ///< the pads' scene collider ids
+};
+
+class RobotController final : public TaskController {
+ public:
+  /// Loads the URDF, solves inverse kinematics for samples without joints and validates
+  /// everything. Throws InputError: options, a sample with the wrong number of joints, a pose the
+  /// arm cannot reach (naming the arm, the time and by how far).
+  RobotController(DualArmTrajectory traj, RobotOptions options);
+
+  void update(sim::Scene& scene, double t_end) override;
+  double end_time() const override { return traj_.end_time(); }
+  const std::vector<GripperEvent>& events() const override { return events_; }
+
+  const RobotArmState& state(Arm a) const { return state_[static_cast<int>(a)]; }
+  /// The trajectory with every sample's joints filled in (written as RGBench joints CSVs, it
+  /// drives RGBench's own robot mode).
+  const DualArmTrajectory& trajectory() const { return traj_; }
+  const robot::ArmModel& arm_model() const { return *model_; }
+  const RobotOptions& options() const { return options_; }
+  /// Samples whose pose needed inverse kinematics.
+  int ik_solved() const { return ik_solved_; }
+  /// Largest orientation error (rad) inverse kinematics had to accept.
+  double ik_max_tilt() const { return ik_max_tilt_; }
+  /// World poses of an arm's two finger links for the given joints and opening.
+  std::array<Eigen::Isometry3d, 2> finger_poses(Arm a, const std::vector<double>& joints, double gripper) const;
+
+ private:
+  struct PadPoses;
+  void attach(sim::Scene& scene);
+
+  DualArmTrajectory traj_;
+  RobotOptions options_;
+  std::shared_ptr<const robot::ArmModel> model_;
+  std::array<RobotArmState, 2> state_;
+  std::shared_ptr<PadPoses> poses_;  ///< shared with the colliders' pose functions
+  double grip_force_ = 0, finger_speed_ = 0;
+  int ik_solved_ = 0;
+  double ik_max_tilt_ = 0;
+  bool attached_ = false;
+  std::array<bool, 2> closing_{false, false};
+  struct Previous {
+    double gripper = -1, squeeze = 0, stiffness = 0;  ///< the last update's opening and squeeze, N/m
+  };
+  std::array<Previous, 2> prev_;
+  std::vector<GripperEvent> events_;
+};
+
+}  // namespace gd::tasks

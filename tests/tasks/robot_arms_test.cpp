@@ -1,0 +1,147 @@
+// Robot mode: Piper arms from their URDF hold cloth only by their finger pads' contact and
+// friction. A strip hangs from pins; the left gripper closes on it (force-limited), the pins are
+// released and the arm lifts: with friction the strip goes up with the hand, without it the
+// strip slides out and falls.
+#include "tasks/robot_arms.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+
+#include "tasks/task_test_util.h"
+#include "sim/demand.h"
+
+namespace gd::tasks {
+namespace {
+
+using testing::make_scene;
+using testing::task_options;
+
+std::string piper_urdf() {
+  std::filesystem::path shared;
+  if (const char* s = std::getenv("GD_SHARED_DIR"); s && *s) shared = s;
+  const auto p = shared / "data" / "rgbench" / "piper_with_gripper.urdf";
+  return !shared.empty() && std::filesystem::exists(p) ? p.string() : "";
+}
+
+constexpr double kGripX = 0.25, kGripY = 0.25, kTipZ = 0.05;  // left hand's fingertips, world
+
+/// The left hand: top down over the strip (moved by `offset`), open, closing at t = 0.1 s,
+/// lifting 8 cm from 0.6 s to 1.0 s. The right arm waits open, out of the way.
+DualArmTrajectory lift_trajectory(const Vec3& offset = Vec3::Zero()) {
+  std::vector<ArmSample> left, right;
+  for (const double t : {0.0, 0.1, 0.6, 1.0, 1.4}) {
+    ArmSample s;
+    s.t = t;
+    s.orientation = top_down_orientation();
+    s.gripper = t < 0.1 ? kGripperOpen : 0.0;
+    s.position = Vec3(kGripX, kGripY, kTipZ + (t >= 1.0 ? 0.08 : 0.0)) + offset;
+    left.push_back(s);
+    ArmSample r = s;
+    r.gripper = kGripperOpen;
+    r.position = Vec3(0.2, -0.25, 0.3);
+    right.push_back(r);
+  }
+  DualArmTrajectory traj;
+  traj.left = ArmTrajectory(left, "left");
+  traj.right = ArmTrajectory(right, "right");
+  return traj;
+}
+
+struct Lifted {
+  double rise = 0;          ///< m: the strip's mean height gain
+  double squeeze = 0;       ///< N: the pads' squeeze when the pins let go
+  double gripper = 0;       ///< m: finger opening then
+  bool failed = false;
+};
+
+/// A 4 x 12 cm strip hanging in the plane x = kGripX (its top row pinned at z = 0.11), gripped
+/// by the left hand, pins released at t = 0.5 s, then lifted.
+Lifted lift_strip(double finger_friction, const Vec3& hand_offset = Vec3::Zero()) {
+  sim::Mesh m = sim::make_rect(0.04, 0.12, 0.005);
+  for (Vec3& p : m.x) p = Vec3(kGripX, kGripY - 0.02 + p.x(), 0.11 - p.y());
+  sim::SceneOptions o = task_options();
+  o.dt = 0.005;
+  o.table = false;
+  auto scene = make_scene(m, o);
+  std::vector<int> top;
+  for (int i = 0; i < scene->vertex_count(); ++i)
+    if (m.x[i].z() > 0.11 - 1e-9) top.push_back(i);
+  const int pins = scene->pin(top);
+  RobotOptions ro;
+  ro.urdf = piper_urdf();
+  ro.finger_friction = finger_friction;
+  RobotController c(lift_trajectory(hand_offset), ro);
+  double z0 = 0;
+  for (const Vec3& p : scene->positions()) z0 += p.z() / scene->vertex_count();
+  Lifted out;
+  if (!run_until(*scene, c, 0.5)) return {0, 0, 0, true};
+  out.squeeze = c.state(Arm::kLeft).squeeze;
+  out.gripper = c.state(Arm::kLeft).gripper;
+  scene->release(pins);
+  EXPECT_TRUE(scene->kinematic_vertices().empty());  // nothing pinned: the fingers hold it
+  if (!run_until(*scene, c, 1.4)) return {0, 0, 0, true};
+  double z1 = 0;
+  for (const Vec3& p : scene->positions()) z1 += p.z() / scene->vertex_count();
+  out.rise = z1 - z0;
+  return out;
+}
+
+TEST(RobotArms, FingersHoldAStripByFrictionAndLiftIt) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  // The strip off the fingers' midplane by up to 3 mm, the hand 5 mm higher or lower.
+  for (const Vec3& offset : {Vec3(0, 0, 0), Vec3(0.003, 0, 0), Vec3(-0.003, 0, 0.005), Vec3(0, 0.005, -0.005)}) {
+    SCOPED_TRACE(::testing::Message() << "hand offset " << offset.transpose());
+    const Lifted held = lift_strip(0.8, offset);
+    ASSERT_FALSE(held.failed);
+    // The fingers stopped on the cloth with the URDF's 10 N, not closed through it.
+    EXPECT_NEAR(held.squeeze, 10.0, 1.0);
+    EXPECT_GT(held.gripper, 0.0);
+    EXPECT_NEAR(held.rise, 0.08, 0.01);  // it went up with the hand
+    std::printf("offset (%g, %g, %g): squeeze %.2f N at a %.2f mm opening, rise %.1f mm\n", offset.x(), offset.y(),
+                offset.z(), held.squeeze, 1e3 * held.gripper, 1e3 * held.rise);
+  }
+  const Lifted slipped = lift_strip(0.0);
+  ASSERT_FALSE(slipped.failed);
+  std::printf("without friction: rise %.1f mm\n", 1e3 * slipped.rise);
+  EXPECT_LT(slipped.rise, -0.03);  // without friction it slid out and fell
+}
+
+TEST(RobotArms, GeneratedPosesBecomeJointsWithinReachAndUnreachableOnesAreRefused) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  RobotOptions ro;
+  ro.urdf = piper_urdf();
+  RobotController c(lift_trajectory(), ro);
+  EXPECT_EQ(c.ik_solved(), 10);
+  for (Arm a : {Arm::kLeft, Arm::kRight})
+    for (const ArmSample& s : c.trajectory().arm(a).samples()) {
+      ASSERT_EQ(s.joints.size(), 6u);
+      // The fingertips' midpoint (the end effector with the fingers closed) is where the pose asked.
+      Eigen::Isometry3d base = Eigen::Isometry3d::Identity();
+      base.translation() = base_offset(a);
+      const Eigen::Isometry3d ee =
+          base * c.arm_model().ee_pose(Eigen::Map<const Eigen::VectorXd>(s.joints.data(), 6));
+      EXPECT_LT((ee.translation() - s.position).norm(), 1e-3);
+      // Pointing down (the approach axis, link7 y, along world -z) within the tilt it reports.
+      EXPECT_GT(-ee.linear().col(1).z(), std::cos(c.ik_max_tilt()) - 1e-6);
+    }
+  DualArmTrajectory far = lift_trajectory();
+  std::vector<ArmSample> s = far.left.samples();
+  s[2].position = Vec3(1.5, 0.25, 0.3);
+  far.left = ArmTrajectory(s, "left");
+  try {
+    RobotController bad(far, ro);
+    ADD_FAILURE() << "an unreachable pose was accepted";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("left arm cannot reach its pose at t=0.600"), std::string::npos) << e.what();
+  }
+  // Exactly top down where the Piper's wrist allows it: low, in front of its base.
+  EXPECT_LT(c.ik_max_tilt(), 1.0);
+  RobotOptions none;
+  EXPECT_THROW(RobotController(lift_trajectory(), none), sim::InputError);  // no URDF given
+}
+
+}  // namespace
+}  // namespace gd::tasks
