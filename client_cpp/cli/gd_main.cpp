@@ -1,7 +1,7 @@
 /// \file
 /// gd: the GarmentDynamics command line.
 ///
-///   gd run --garment G --material M --task grasp|fold|fling [--mode pseudo|fixed_point]
+///   gd run --garment G --material M --task grasp|fold|fling [--mode pseudo|fixed_point|robot --urdf F]
 ///          [--vertices N] [--capture DIR] [--trajectory FILE] --out DIR [...]
 ///       one experiment, locally, with a progress bar (server/experiment/experiment.h lists the
 ///       files it writes); prints a short summary.
@@ -141,7 +141,19 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   run->add_option("--material", cfg.material, "fabric from the material library")->capture_default_str();
   run->add_option("--task", cfg.task, "grasp | fold | fling")->capture_default_str();
-  run->add_option("--mode", cfg.mode, "pseudo (jaw-radius grasp) | fixed_point (RGBench's)")->capture_default_str();
+  run->add_option("--mode", cfg.mode,
+                  "pseudo (jaw-radius grasp) | fixed_point (RGBench's) | robot (URDF arms holding the cloth by "
+                  "finger contact and friction; needs --urdf)")
+      ->capture_default_str();
+  run->add_option("--urdf", cfg.robot.urdf,
+                  "robot mode: the arms' URDF (RGBench's piper_with_gripper.urdf); a capture's pos_1..pos_6 drive "
+                  "its joints, other trajectories go through inverse kinematics");
+  run->add_option("--grip-force", cfg.robot.grip_force,
+                  "robot mode: squeeze at which the closing fingers stop, N (< 0: the URDF's finger effort limit)")
+      ->capture_default_str();
+  run->add_option("--finger-friction", cfg.robot.finger_friction,
+                  "robot mode: friction of the finger pads on the cloth (< 0: the material's)")
+      ->capture_default_str();
   run->add_option("--vertices", cfg.vertices, "target vertex count of a generated garment")->capture_default_str();
   std::vector<std::string> garment_params;
   run->add_option("--garment-param", garment_params,
@@ -272,7 +284,8 @@ int main(int argc, char** argv) {
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--no-plots", "--mesh-every",
-                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
+                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf",
+                                     "--grip-force", "--finger-friction"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

@@ -90,7 +90,7 @@ std::string shared_dir() {
 /// time series. advance() is the only place that steps the scene (through tasks::run_until).
 class Run {
  public:
-  Run(std::unique_ptr<sim::Scene> scene, tasks::GripperController controller, double frame_interval,
+  Run(std::unique_ptr<sim::Scene> scene, std::unique_ptr<tasks::TaskController> controller, double frame_interval,
       const ProgressFn& progress, double end_time)
       : scene_(std::move(scene)),
         controller_(std::move(controller)),
@@ -111,7 +111,7 @@ class Run {
 
   /// Steps until the scene time reaches t (overshoot < 1 dt); false once the scene has failed.
   bool advance(double t) {
-    return tasks::run_until(*scene_, controller_, t, [this](const sim::StepStats& s) {
+    return tasks::run_until(*scene_, *controller_, t, [this](const sim::StepStats& s) {
       ++steps_;
       intersecting_max_ = std::max(intersecting_max_, s.intersecting_pairs);
       contacts_max_ = std::max(contacts_max_, s.contacts);
@@ -127,7 +127,7 @@ class Run {
   }
 
   sim::Scene& scene() { return *scene_; }
-  const tasks::GripperController& controller() const { return controller_; }
+  const tasks::TaskController& controller() const { return *controller_; }
   int steps() const { return steps_; }
   int intersecting_max() const { return intersecting_max_; }
   int contacts_max() const { return contacts_max_; }
@@ -163,7 +163,7 @@ class Run {
   }
 
   std::unique_ptr<sim::Scene> scene_;
-  tasks::GripperController controller_;
+  std::unique_ptr<tasks::TaskController> controller_;
   double frame_interval_;
   const sim::Mesh* mesh_ = nullptr;  // set by write_meshes
   std::string mesh_dir_;
@@ -198,8 +198,9 @@ garments::GarmentParams garment_sizes(const ExperimentConfig& c) {
 
 void ExperimentConfig::validate() const {
   tasks::task_kind_from_name(task);  // throws with the known names
-  if (mode != "pseudo" && mode != "fixed_point")
-    throw InputError(fmt::format("unknown mode '{}'; use pseudo or fixed_point", mode));
+  if (mode != "pseudo" && mode != "fixed_point" && mode != "robot")
+    throw InputError(fmt::format("unknown mode '{}'; use pseudo, fixed_point or robot", mode));
+  if (mode == "robot") robot.validate();  // the URDF first of all
   if (out_dir.empty()) throw InputError("no output directory given (--out DIR)");
   if (garment.empty()) throw InputError("no garment given: a garment type or an .obj path");
   if (!(frame_interval > 0) || !std::isfinite(frame_interval))
@@ -362,12 +363,22 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     if (go.shoulder_vertices[0] < 0) go.shoulder_vertices[0] = garment.landmarks.left_shoulder_vertex;
     if (go.shoulder_vertices[1] < 0) go.shoulder_vertices[1] = garment.landmarks.right_shoulder_vertex;
   }
-  tasks::GripperController controller(traj, go);
-  const double prepare = controller.sim_prepare_time();
+  std::unique_ptr<tasks::TaskController> controller;
+  const tasks::RobotController* robot = nullptr;
+  if (config.mode == "robot") {
+    auto r = std::make_unique<tasks::RobotController>(traj, config.robot);
+    robot = r.get();
+    // The arms' joints (recorded or solved) as RGBench's joints CSVs: its own robot mode replays them.
+    tasks::write_rgbench_joints(out + "/joints", r->trajectory());
+    controller = std::move(r);
+  } else {
+    controller = std::make_unique<tasks::GripperController>(traj, go);
+  }
+  const double prepare = controller->sim_prepare_time();
 
   // Schedule: with a capture, RGBench's per-real-frame loop; otherwise the trajectory + settling.
   std::vector<metrics::ScheduledFrame> schedule;
-  double end_time = controller.end_time() + config.settle_after;
+  double end_time = controller->end_time() + config.settle_after;
   if (capture) {
     schedule = metrics::evaluation_schedule(*capture, traj.master_start_time, prepare);
     if (schedule.empty())
@@ -528,6 +539,18 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   for (const tasks::GripperEvent& e : run.controller().events())
     ev.push_back({{"t", e.t}, {"arm", tasks::arm_name(e.arm)}, {"grasp", e.grasp}, {"vertices", e.vertices.size()}});
   s["grasp_events"] = ev;
+  if (robot) {
+    nlohmann::json arms = nlohmann::json::object();
+    for (tasks::Arm a : {tasks::Arm::kLeft, tasks::Arm::kRight}) {
+      const tasks::RobotArmState& st = robot->state(a);
+      arms[tasks::arm_name(a)] = {{"gripper_final", st.gripper}, {"squeeze_final_n", st.squeeze},
+                                   {"table_lift_final", st.table_lift}};
+    }
+    s["robot"] = {{"urdf", config.robot.urdf},
+                  {"ik_samples", robot->ik_solved()},
+                  {"ik_max_tilt_deg", robot->ik_max_tilt() * 180 / 3.14159265358979323846},
+                  {"arms", arms}};
+  }
   {
     std::ofstream f(out + "/summary.json");
     if (!f) throw InputError(fmt::format("cannot write '{}/summary.json'", out));

@@ -30,6 +30,7 @@
 #include "sim/solver/solver.h"
 #include "tasks/generators.h"
 #include "tasks/grippers.h"
+#include "tasks/robot_arms.h"
 
 namespace gd::experiment {
 
@@ -41,7 +42,8 @@ struct ExperimentConfig {
   /// RGBench's fitted cloth_params map onto them, docs/materials.md).
   std::map<std::string, double> material_params;
   std::string task = "fold";             ///< grasp | fold | fling
-  std::string mode = "pseudo";           ///< pseudo (jaw-radius grasp) | fixed_point (RGBench's)
+  /// pseudo (jaw-radius grasp) | fixed_point (RGBench's) | robot (URDF arms, finger contact)
+  std::string mode = "pseudo";
   int vertices = 2000;                   ///< target vertex count of a generated garment
   /// Sizes of a generated garment by GarmentParams field name (e.g. {"hood_length", 0.25});
   /// absent ones take the type's defaults (docs/garments.md).
@@ -55,6 +57,7 @@ struct ExperimentConfig {
   sim::SceneOptions scene = default_scene_options();
   tasks::TaskParams task_params;
   tasks::GripperOptions grippers;        ///< mode/action/grab_time/shoulders are filled in from the above
+  tasks::RobotOptions robot;             ///< robot mode: the URDF (required) and the gripper's settings
   /// Fixed-point fling pins [left, right]; -1: the garment's shoulder landmark vertices.
   std::array<int, 2> shoulder_vertices{-1, -1};
   double settle_after = 1.0;             ///< s simulated after the trajectory ends (no capture)

@@ -16,7 +16,13 @@ using sim::InputError;
 namespace {
 
 constexpr double kMaxFingerSpeed = 0.1;        ///< m/s: cap on the URDF's finger velocity limit
-constexpr double kIkPositionTolerance = 1e-3;  ///< m: how near inverse kinematics must put the tool
+constexpr double kIkPositionTolerance = 1e-3;
+/// Default lowest pad point above the table, in contact distances. Lying cloth rests at half the
+/// contact distance: pads whose bottom is within ~0.3 of it catch the cloth with their faces'
+/// lower edges and bunch it up between them (0.6-0.8 grasp in tests/tasks/robot_arms_test.cpp);
+/// higher, the cloth slips under them; at 0.5 or lower a pad landing on the cloth leaves it no
+/// room above the table.
+constexpr double kTableClearance = 0.7;  ///< m: how near inverse kinematics must put the tool
 
 Eigen::Isometry3d base_pose(Arm a) {
   Eigen::Isometry3d b = Eigen::Isometry3d::Identity();
@@ -165,10 +171,8 @@ void RobotController::update(sim::Scene& scene, double t_end) {
   if (!(t_end > t0)) throw InputError(fmt::format("robot mode: step end {} is not after the scene time {}", t_end, t0));
   if (!attached_) attach(scene);
   const sim::SceneOptions& so = scene.options();
-  const double clearance = options_.table_clearance >= 0
-                               ? options_.table_clearance
-                               : (so.contact_distance > 0 ? so.contact_distance
-                                                          : std::max(scene.material().thickness, 1e-3));
+  const double dhat = so.contact_distance > 0 ? so.contact_distance : std::max(scene.material().thickness, 1e-3);
+  const double clearance = options_.table_clearance >= 0 ? options_.table_clearance : kTableClearance * dhat;
   const robot::FingerPad& pad = options_.arm.pad;
   Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
   offset.translation() = pad.center;
@@ -193,23 +197,21 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     prev_[ai].gripper = st.gripper;
     prev_[ai].squeeze = squeeze;
     if (command < g) {
-      // Closing: full speed until the squeeze builds up; then steps of half the way to the limit
+      // Closing: full speed until the squeeze passes 10% of the limit (below it, a pad pressing on
+      // cloth from above or pushing it aside says nothing of the grip); then steps of half the way to the limit
       // by the secant stiffness (the barrier's force rises from 0 to the limit within the contact
       // distance, so fixed steps would swing past it), or 5% of the contact distance while the
       // stiffness is unknown. Above the limit the fingers give way the same way.
       const double error = grip_force_ - std::max(0.0, squeeze);
       double step = finger_speed_ * dt;
-      if (prev_[ai].stiffness > 0 && squeeze > 0) {
-        step = std::min(step, 0.5 * std::abs(error) / prev_[ai].stiffness);
-      } else if (squeeze > 0.1 * grip_force_) {
-        step = std::min(step, 0.05 * clearance);
-      }
+      if (squeeze > 0.1 * grip_force_)
+        step = std::min(step, prev_[ai].stiffness > 0 ? 0.5 * std::abs(error) / prev_[ai].stiffness : 0.05 * dhat);
       g = error >= 0 ? std::max(command, g - step) : std::min(model_->gripper_max(), g + step);
     } else {
       g = std::min(command, g + finger_speed_ * dt);
     }
     // Never so near that the pads' faces meet with cloth between them (no room left for it).
-    if (squeeze > 0) g = std::max(g, 0.25 * clearance);
+    if (squeeze > 0) g = std::max(g, 0.25 * dhat);
     const bool closing = command < 0.5 * model_->gripper_max();  // a grasp or release event
     if (closing != closing_[ai]) {
       events_.push_back({t0, a, closing, {}});

@@ -52,12 +52,13 @@ struct RobotOptions {
   /// m/s: fastest finger motion; < 0: the finger joint's velocity limit in the URDF, capped at
   /// 0.1 m/s.
   double finger_speed = -1;
-  /// m: lowest pad point above the table top; < 0: the scene's contact distance.
+  /// m: lowest pad point above the table top; < 0: 0.7 contact distances (a little above where
+  /// lying cloth rests, so closing pads catch it with their faces' lower edges).
   double table_clearance = -1;
   /// rad: how far an IK target's orientation may be missed where the arm cannot reach it exactly
   /// (the position is always reached within 1 mm); the Piper cannot point straight down high
   /// above the table.
-  double max_tilt = 1.6;
+  double max_tilt = 2.1;
   /// Rotation from the trajectory's tool frame to the end-effector link (IK targets only). Piper
   /// default: link7 y = tool z (approach), link7 z = tool x (closing direction).
   Eigen::Matrix3d tool_to_ee = (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished();

@@ -109,6 +109,62 @@ TEST(RobotArms, FingersHoldAStripByFrictionAndLiftIt) {
   EXPECT_LT(slipped.rise, -0.03);  // without friction it slid out and fell
 }
 
+/// A 12 x 12 cm cloth lying on the table; the left hand comes down on it (aimed at the table
+/// top: the hand stops just above it), closes, and lifts 5 cm. Returns the cloth's highest point
+/// after the lift and the squeeze.
+std::pair<double, double> pick_from_table(double finger_friction, const Vec3& offset) {
+  sim::Mesh m = sim::make_rect(0.12, 0.12, 0.005);
+  for (Vec3& p : m.x) p = Vec3(0.19 + p.x(), 0.19 + p.y(), 0.001);
+  sim::SceneOptions o = task_options();
+  o.dt = 0.005;
+  auto scene = make_scene(m, o);
+  scene->step(20);  // settle on the table
+  std::vector<ArmSample> left, right;
+  for (const double t : {0.0, 0.3, 0.5, 1.2, 1.7}) {
+    ArmSample s;
+    s.t = t;
+    s.orientation = top_down_orientation();
+    s.gripper = t < 0.5 ? kGripperOpen : 0.0;
+    s.position = Vec3(0.25, 0.25, t >= 0.3 && t < 1.5 ? 0.0 : 0.05) + offset;
+    left.push_back(s);
+    ArmSample r = s;
+    r.gripper = kGripperOpen;
+    r.position = Vec3(0.2, -0.25, 0.3);
+    right.push_back(r);
+  }
+  DualArmTrajectory traj;
+  traj.left = ArmTrajectory(left, "left");
+  traj.right = ArmTrajectory(right, "right");
+  RobotOptions ro;
+  ro.urdf = piper_urdf();
+  ro.finger_friction = finger_friction;
+  RobotController c(traj, ro);
+  double lifted = 0;
+  if (!run_until(*scene, c, 1.9, [&](const sim::StepStats&) { lifted = std::max(lifted, c.state(Arm::kLeft).table_lift); }))
+    return {NAN, NAN};
+  EXPECT_GT(lifted, 0.0);  // the hand was held off the table
+  EXPECT_TRUE(scene->kinematic_vertices().empty());
+  return {testing::max_z(scene->positions()), c.state(Arm::kLeft).squeeze};
+}
+
+// Closing pads catch lying cloth with their lower edges, bunch it up between them and hold it:
+// the cloth goes up with the hand (the pads' tips end 5 cm above the table). Grasp point moved
+// by up to 5 mm; without friction the cloth stays down.
+TEST(RobotArms, FingersPickClothOffTheTable) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  for (const Vec3& offset : {Vec3(0, 0, 0), Vec3(0.005, 0, 0), Vec3(-0.003, -0.005, 0)}) {
+    SCOPED_TRACE(::testing::Message() << "hand offset " << offset.transpose());
+    const auto [top, squeeze] = pick_from_table(0.8, offset);
+    std::printf("offset (%g, %g, %g): cloth top %.1f mm, squeeze %.2f N\n", offset.x(), offset.y(), offset.z(),
+                1e3 * top, squeeze);
+    EXPECT_GT(top, 0.04);  // held: the pads' tips end 5 cm up; lying cloth is at 0.5 mm
+    EXPECT_NEAR(squeeze, 10.0, 2.0);
+  }
+  const auto [top, squeeze] = pick_from_table(0.0, Vec3::Zero());
+  std::printf("without friction: cloth top %.1f mm, squeeze %.2f N\n", 1e3 * top, squeeze);
+  EXPECT_LT(top, 0.03);
+}
+
 TEST(RobotArms, GeneratedPosesBecomeJointsWithinReachAndUnreachableOnesAreRefused) {
   if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
   RobotOptions ro;
