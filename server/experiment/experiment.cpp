@@ -86,6 +86,10 @@ std::string shared_dir() {
 #endif
 }
 
+/// Robot mode's default TaskParams::grasp_depth, m: the fingertips aim below the grasp point, at
+/// the table, which stops them.
+constexpr double kRobotGraspDepth = 0.005;
+
 /// The simulation of one experiment: scene, controller, bookkeeping of statistics and the
 /// time series. advance() is the only place that steps the scene (through tasks::run_until).
 class Run {
@@ -347,7 +351,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     traj_source = "capture joints";
   } else {
     settled = settle_before_planning(mesh, material, config.scene, config.task_params.start_delay, place, &garment);
-    traj = tasks::make_task(config.task, garment, place, config.task_params);
+    tasks::TaskParams tp = config.task_params;
+    if (tp.grasp_depth < 0) tp.grasp_depth = config.mode == "robot" ? kRobotGraspDepth : 0.0;
+    traj = tasks::make_task(config.task, garment, place, tp);
     traj_source = "generated " + config.task;
   }
   tasks::write_trajectory_csv(out + "/trajectory.csv", traj);

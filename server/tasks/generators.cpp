@@ -29,6 +29,7 @@ void TaskParams::validate() const {
   positive(approach_duration, "approach_duration");
   positive(close_duration, "close_duration");
   finite(grasp_inset, "grasp_inset");
+  finite(grasp_depth, "grasp_depth");
   finite(lift_height, "lift_height");
   positive(lift_duration, "lift_duration");
   nonneg(hold_duration, "hold_duration");
@@ -65,6 +66,7 @@ constexpr TaskParamField kTaskParamFields[] = {
     {"approach_duration", &TaskParams::approach_duration},
     {"close_duration", &TaskParams::close_duration},
     {"grasp_inset", &TaskParams::grasp_inset},
+    {"grasp_depth", &TaskParams::grasp_depth},
     {"lift_height", &TaskParams::lift_height},
     {"lift_duration", &TaskParams::lift_duration},
     {"hold_duration", &TaskParams::hold_duration},
@@ -232,13 +234,14 @@ Setup setup(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskPa
   s.width = g.width;
   s.forward = T.linear() * Vec3::UnitX();
   s.grasp_local = {lm.left_shoulder + p.grasp_inset * Vec3::UnitX(), lm.right_shoulder + p.grasp_inset * Vec3::UnitX()};
-  for (int a = 0; a < 2; ++a) s.grasp[a] = T * s.grasp_local[a];
+  const Vec3 down = -std::max(0.0, p.grasp_depth) * Vec3::UnitZ();
+  for (int a = 0; a < 2; ++a) s.grasp[a] = T * s.grasp_local[a] + down;
   s.shoulder_distance = (s.grasp[0] - s.grasp[1]).norm();
   // The hem: its landmarks when set (beyond the shoulders), else the garment's length.
   const double hem = 0.5 * (lm.left_hem.x() + lm.right_hem.x());
   s.hem_x = hem > 0.5 * (lm.left_shoulder.x() + lm.right_shoulder.x()) ? hem : g.length;
   s.hem_local = {lm.left_hem - p.grasp_inset * Vec3::UnitX(), lm.right_hem - p.grasp_inset * Vec3::UnitX()};
-  for (int a = 0; a < 2; ++a) s.hem_grasp[a] = T * s.hem_local[a];
+  for (int a = 0; a < 2; ++a) s.hem_grasp[a] = T * s.hem_local[a] + down;
   if (lm.has_hood) {
     if (!lm.left_hood.allFinite() || !lm.right_hood.allFinite() || !std::isfinite(lm.hood_fold_x))
       throw InputError("task generator: the garment's hood landmarks must be finite");
@@ -246,7 +249,7 @@ Setup setup(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskPa
       throw InputError(fmt::format("task generator: the hood's fold line (x={}) must lie beyond its face corners", lm.hood_fold_x));
     s.hood = true;
     s.hood_local = {lm.left_hood, lm.right_hood};
-    for (int a = 0; a < 2; ++a) s.hood_grasp[a] = T * s.hood_local[a];
+    for (int a = 0; a < 2; ++a) s.hood_grasp[a] = T * s.hood_local[a] + down;
     s.hood_fold_x = lm.hood_fold_x;
   }
   return s;

@@ -43,6 +43,10 @@ struct TaskParams {
   double close_duration = 0.6;        ///< s for the gripper to close (or open)
   /// m added to each grasp point along garment +x (inwards from the collar edge); 0: the landmark.
   double grasp_inset = 0.0;
+  /// m the grippers reach below each grasp point (world -z). Negative: automatic, 0 for the
+  /// pseudo modes; robot mode (experiment) takes 5 mm, so the fingers go down to the table, whose
+  /// clearance stops them (tasks/robot_arms.h), as a real gripper's fingertips touch it.
+  double grasp_depth = -1;
 
   // Grasp
   double lift_height = -1;            ///< m above the grasp point; < 0: garment length + 0.1

@@ -453,6 +453,13 @@ std::pair<std::vector<ArmSample>, std::vector<std::string>> read_rgbench_arm(con
   }
   if (!have_header) throw InputError(fmt::format("{}: empty file (expected the header {})", path, kRgbenchJointsHeader));
   if (rows.empty()) throw InputError(fmt::format("{}: no samples after the header", path));
+  // Files written without kinematics (write_rgbench_joints for samples without joints) hold
+  // zeros in every pos_1..pos_6: no joints were recorded; a real arm never stays at exactly 0.
+  const bool all_zero = std::all_of(rows.begin(), rows.end(), [](const ArmSample& s) {
+    return std::all_of(s.joints.begin(), s.joints.end(), [](double q) { return q == 0.0; });
+  });
+  if (all_zero)
+    for (ArmSample& s : rows) s.joints.clear();
   return {rows, labels};
 }
 

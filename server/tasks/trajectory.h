@@ -112,8 +112,9 @@ inline constexpr const char* kRgbenchJointsHeader =
     "time,pos_1,pos_2,pos_3,pos_4,pos_5,pos_6,pos_gripper,pos_x,pos_y,pos_z,orn_w,orn_x,orn_y,orn_z";
 
 /// Reads RGBench's joints CSV pair. Columns are found by header name (time, pos_gripper, pos_x,
-/// pos_y, pos_z, orn_w, orn_x, orn_y, orn_z are required; pos_1..pos_6, when all present, become
-/// each sample's joints, which robot mode drives). Positions
+/// pos_y, pos_z, orn_w, orn_x, orn_y, orn_z are required; pos_1..pos_6, when all present and not
+/// all zero throughout the file (what write_rgbench_joints writes without joints), become each
+/// sample's joints, which robot mode drives). Positions
 /// are in each arm's base frame and become world positions by adding base_offset(arm) (the base
 /// frames are not rotated); quaternions are w-first; `pos_gripper` is the opening in m.
 /// master_start_time = the smaller of the two files' first times; the returned times are relative

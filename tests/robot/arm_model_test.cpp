@@ -178,5 +178,28 @@ TEST(ArmModel, PiperInverseKinematicsRoundTripsWithinTheLimits) {
   EXPECT_EQ(reached, trials);  // every pose came from joints within the limits
 }
 
+// The Piper's wrist cannot point straight down 26 cm above its base: the exact pose is out of
+// reach, position-first IK reaches the point and tilts as little as it can (31 degrees here).
+TEST(ArmModel, PiperPositionFirstReachesThePointWithTheLeastTilt) {
+  const std::string path = piper_urdf();
+  if (path.empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  const ArmModel arm = ArmModel::load(path);
+  Eigen::Isometry3d down = Eigen::Isometry3d::Identity();
+  down.linear().col(0) = Eigen::Vector3d(0, -1, 0);  // link7 y (approach) down, z (closing) along x
+  down.linear().col(1) = Eigen::Vector3d(0, 0, -1);
+  down.linear().col(2) = Eigen::Vector3d(1, 0, 0);
+  const Eigen::VectorXd seed = Eigen::VectorXd::Zero(6);
+  down.translation() = Eigen::Vector3d(0.25, 0, 0.05);  // low: exactly reachable
+  EXPECT_TRUE(arm.ik(down, seed).ok);
+  down.translation() = Eigen::Vector3d(0.25, 0, 0.26);
+  EXPECT_FALSE(arm.ik(down, seed).ok);
+  const IkResult r = arm.ik_position_first(down, seed, 1.0, 1e-3);
+  EXPECT_TRUE(r.ok);
+  EXPECT_LT(r.position_error, 1e-3);
+  EXPECT_GT(r.rotation_error, 0.3);  // what the wrist's limits force
+  EXPECT_LT(r.rotation_error, 0.7);
+  EXPECT_FALSE(arm.ik_position_first(down, seed, 0.2, 1e-3).ok);  // more tilt than allowed
+}
+
 }  // namespace
 }  // namespace gd::robot

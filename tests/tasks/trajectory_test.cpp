@@ -227,7 +227,7 @@ TEST(TrajectoryJson, RoundTripsAndRejectsMalformedInput) {
 
 TEST(RgbenchJoints, ReadsEndPosesIntoTheWorldFrameOnTheMasterTimeBase) {
   const fs::path d = scratch("rgb_read");
-  // Two rows per arm as RGBench's csv_data.py writes them (joint columns are not used).
+  // Two rows per arm as RGBench's csv_data.py writes them.
   write(d / kRgbenchLeftJointsCsv,
         std::string(kRgbenchJointsHeader) +
             "\n1753696464.5,0.1,0.2,0.3,0.4,0.5,0.6,0.035,0.10,0.00,0.20,0.7071067811865476,0,0,0.7071067811865476\n"
@@ -255,6 +255,10 @@ TEST(RgbenchJoints, ReadsEndPosesIntoTheWorldFrameOnTheMasterTimeBase) {
   EXPECT_NEAR(t.right.samples()[0].orientation.w(), 0.0, 1e-12);
   EXPECT_DOUBLE_EQ(t.left.samples()[0].gripper, 0.035);
   EXPECT_DOUBLE_EQ(t.right.samples()[1].gripper, 0.02);
+  // pos_1..pos_6 are the joints robot mode drives; a file of zeros throughout recorded none.
+  EXPECT_EQ(t.left.samples()[1].joints, (std::vector<double>{0.1, 0.2, 0.3, 0.4, 0.5, 0.6}));
+  EXPECT_NEAR(t.left.sample(0.75).joints[2], 0.3, 1e-12);  // interpolated
+  EXPECT_TRUE(t.right.samples()[0].joints.empty());
   fs::remove_all(d);
 }
 
@@ -278,6 +282,20 @@ TEST(RgbenchJoints, WriteThenReadRoundTrips) {
   EXPECT_NEAR(f[11], t.right.samples()[0].orientation.w(), 1e-15);  // orn_w first
   // Absolute Unix times keep about 1e-7 s through the round trip.
   expect_same(t, read_rgbench_joints_dir((d / "joints").string()), 1e-6);
+  EXPECT_TRUE(read_rgbench_joints_dir((d / "joints").string()).left.samples()[0].joints.empty());
+  // With joints (robot mode's inverse kinematics fills them in) they come back.
+  DualArmTrajectory with = t;
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    std::vector<ArmSample> s = with.arm(a).samples();
+    for (size_t i = 0; i < s.size(); ++i) s[i].joints = {0.1 * i, 1.5, -0.8, 0.0, 0.9, -0.25};
+    with.arm(a) = ArmTrajectory(s);
+  }
+  write_rgbench_joints((d / "joints2").string(), with);
+  const DualArmTrajectory back = read_rgbench_joints_dir((d / "joints2").string());
+  for (Arm a : {Arm::kLeft, Arm::kRight})
+    for (size_t i = 0; i < back.arm(a).size(); ++i)
+      for (size_t k = 0; k < 6; ++k)
+        EXPECT_NEAR(back.arm(a).samples()[i].joints[k], with.arm(a).samples()[i].joints[k], 1e-12);
   fs::remove_all(d);
 }
 
