@@ -150,4 +150,49 @@ std::vector<double> Solver<Exec>::collider_forces() {
   return out;
 }
 
+template <class Exec>
+std::string Solver<Exec>::infinite_terms() {
+  const detail::View V = view();
+  const detail::Params P = P_;
+  const double* x = Exec::ptr(x_);
+  std::string out;
+  for (int c = 0; c < n_col_; ++c) {
+    const double inside = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+      if (V.fixed[i]) return 0.0;
+      const double* q = V.col_pose + 24 * c;
+      const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+      const Vec3 t1(q[21], q[22], q[23]);
+      const Real e = point_collider_energy(detail::load3(x, i), R1, t1, V.col_shape[c], 0.0, P.dhat, 1.0, nullptr,
+                                           nullptr, HessianKind::kNone, &V.col_mesh);
+      return std::isfinite(e) ? 0.0 : 1.0;
+    });
+    if (inside > 0) out += fmt::format("{} vertices inside collider {}; ", inside, c);
+  }
+  if (P_.table) {
+    const double below = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+      const Real e = plane_barrier_energy(detail::load3(x, i), P.table_n, P.table_offset, P.dhat, 1.0, nullptr, nullptr);
+      return V.fixed[i] || std::isfinite(e) ? 0.0 : 1.0;
+    });
+    if (below > 0) out += fmt::format("{} vertices at or below the table; ", below);
+  }
+  if (self_) {
+    Exec::download(host_x_, x_);
+    out += fmt::format("closest self-contact pair {:.3g} m", self_->min_active_distance(host_x_));
+  }
+  return out.empty() ? "no barrier (a non-finite position or element)" : out;
+}
+
+template <class Exec>
+bool Solver<Exec>::inside_a_collider(const std::vector<double>& x) const {
+  for (const Collider& c : *colliders_) {
+    const Eigen::Isometry3d pose = c.checked_pose(col_t1_);
+    for (int i = 0; i < n_; ++i) {
+      if (kin_fixed_host_[i]) continue;
+      const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+      if (c.query(p, pose).distance <= 0) return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace gd::sim

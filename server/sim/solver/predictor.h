@@ -95,9 +95,15 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
   });
   if (n_col_ > 0) {
     // A collider may move into the cloth during the step: start Newton from a guess with
-    // every free vertex at least dhat/2 outside each collider's end pose.
+    // every free vertex at least dhat/2 outside each collider's end pose. Where two colliders
+    // squeeze cloth (gripper pads) moving a vertex out of one can move it into the other: then
+    // the projections repeat with half the gap, up to three times.
     Exec::download(host_x_, x_);
-    for (const Collider& c : *colliders_) c.project_out(&host_x_, kin_fixed_host_, col_t1_, 0.5 * P_.dhat);
+    double gap = 0.5 * P_.dhat;
+    for (int round = 0; round < 4; ++round, gap *= 0.5) {
+      for (const Collider& c : *colliders_) c.project_out(&host_x_, kin_fixed_host_, col_t1_, gap);
+      if (colliders_->size() < 2 || !inside_a_collider(host_x_)) break;
+    }
     Exec::upload(x_, host_x_);
   }
   if (self_) {

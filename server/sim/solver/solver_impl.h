@@ -118,6 +118,7 @@ class Solver final : public SolverBase {
       double e0 = 0;
       timed(T.assembly, [&] { e0 = assemble(); });                  // L, gradient and PSD Hessian at x
       if (!std::isfinite(e0)) {                                     // e.g. a target that tears the cloth apart
+        gd::log().warn("newton {}: the energy at the iterate is not finite: {}", k, infinite_terms());
         st.finite = false;
         break;
       }
@@ -290,6 +291,11 @@ class Solver final : public SolverBase {
   // Energies, strain and memory for reports (diagnostics.h)
   EnergyReport energies() override;
   std::vector<double> collider_forces() override;
+  /// Which barriers are infinite at x_ (a diagnostic for a failed step): vertices inside each
+  /// collider's end pose or below the table, and the closest self-contact pair.
+  std::string infinite_terms();
+  /// Whether a free vertex of x (host, 3 per vertex) lies on or inside a collider's end pose.
+  bool inside_a_collider(const std::vector<double>& x) const;
   double max_strain() override;
   size_t bytes() const override;
 
