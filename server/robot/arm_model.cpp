@@ -326,8 +326,8 @@ IkResult ArmModel::ik_position_first(const Eigen::Isometry3d& target, const Eige
                                       : ep < best.position_error;
     if (better) best = {q, ep, er, ep <= pos_tol && er <= max_rotation_error};
   };
-  // The orientation weighted as at a 1 cm lever: position first, the tilt as small as it goes.
-  consider(m.bounded_lm(target, seed, 0.01, 500));
+  // The orientation weighted as at a 1 mm lever: the position first.
+  consider(m.bounded_lm(target, seed, 1e-3, 500));
   for (int attempt = 0; attempt < 8 && !best.ok; ++attempt) {
     Eigen::VectorXd start(n);
     for (unsigned k = 0; k < n; ++k) {
@@ -336,10 +336,12 @@ IkResult ArmModel::ik_position_first(const Eigen::Isometry3d& target, const Eige
       const double u = std::fmod(0.5 + 0.618033988749895 * attempt * (k + 1), 1.0);
       start[k] = lo + (attempt == 0 ? 0.5 : u) * (hi - lo);
     }
-    consider(m.bounded_lm(target, start, 0.01, 500));
+    consider(m.bounded_lm(target, start, 1e-3, 500));
   }
-  // Polish the orientation with the position held: a heavier orientation weight from the answer.
-  if (best.position_error <= pos_tol) consider(m.bounded_lm(target, best.q, 0.1, 300));
+  // Then less tilt, the orientation weighed more and more, each answer kept only while the
+  // position stays reached.
+  for (const double w : {3e-3, 1e-2, 3e-2, 1e-1})
+    if (best.position_error <= pos_tol) consider(m.bounded_lm(target, best.q, w, 300));
   return best;
 }
 

@@ -113,6 +113,10 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   if (spec.task.empty()) return Status::InvalidArgument("no task given; use grasp, fold or fling");
   cfg->task = spec.task;
   cfg->mode = spec.mode.empty() ? "pseudo" : spec.mode;
+  if (cfg->mode == "robot")
+    return Status::InvalidArgument(
+        "robot mode runs in a local `gd run --mode robot --urdf PATH` only so far (docs/robot.md); jobs take pseudo "
+        "or fixed_point");
   const int vertices = spec.vertices == 0 ? 2000 : spec.vertices;
   if (vertices < 0) return Status::InvalidArgument(fmt::format("vertices must be > 0 (got {})", spec.vertices));
   if (vertices > options_.max_vertices)

@@ -318,6 +318,10 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
                                                  "(ask for fewer, or start the server with a larger --max-vertices)",
                                                  vertices, options_.max_vertices));
   const std::string mode = spec.mode.empty() ? "pseudo" : spec.mode;
+  if (mode == "robot")
+    return Status::InvalidArgument(
+        "robot mode runs in a local `gd run --mode robot --urdf PATH` only so far (docs/robot.md); scenes take pseudo "
+        "or fixed_point");
   if (mode != "pseudo" && mode != "fixed_point")
     return Status::InvalidArgument(fmt::format("unknown mode '{}'; use pseudo or fixed_point", mode));
   if (spec.mesh_path.empty()) {

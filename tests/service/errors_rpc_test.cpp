@@ -106,6 +106,7 @@ TEST(ErrorsRpc, EveryBadRequestGetsItsCodeAndTheServerKeepsServing) {
       {"unknown garment", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_garment("kilt"); return create(s, r); }},
       {"unknown material", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_material("kevlar"); return create(s, r); }},
       {"unknown mode", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_mode("magic"); return create(s, r); }},
+      {"robot mode (gd run only)", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.set_mode("robot"); return create(s, r); }},
       {"NaN dt", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_settings()->set_dt(kNaN); return create(s, r); }},
       {"dt too small to advance", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_settings()->set_dt(1e-300); return create(s, r); }},
       {"jaw radius of the whole garment", C::INVALID_ARGUMENT, [](auto& s) { auto r = towel(); r.mutable_settings()->set_jaw_radius(1e300); return create(s, r); }},

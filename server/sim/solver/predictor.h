@@ -93,19 +93,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     }
     detail::store3(x, i, xt + step);
   });
-  if (n_col_ > 0) {
-    // A collider may move into the cloth during the step: start Newton from a guess with
-    // every free vertex at least dhat/2 outside each collider's end pose. Where two colliders
-    // squeeze cloth (gripper pads) moving a vertex out of one can move it into the other: then
-    // the projections repeat with half the gap, up to three times.
-    Exec::download(host_x_, x_);
-    double gap = 0.5 * P_.dhat;
-    for (int round = 0; round < 4; ++round, gap *= 0.5) {
-      for (const Collider& c : *colliders_) c.project_out(&host_x_, kin_fixed_host_, col_t1_, gap);
-      if (colliders_->size() < 2 || !inside_a_collider(host_x_)) break;
-    }
-    Exec::upload(x_, host_x_);
-  }
+  if (n_col_ > 0) project_out_of_colliders();  // a collider may have moved into the cloth
   if (self_) {
     // One broad phase on the predictor's motion x_t -> x: its candidates hold every pair within
     // dhat at x_t too (a swept box contains the box at x_t), so the contacts at the start of
@@ -123,6 +111,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     copy(x_t_, x_);
     const double alpha = std::min(self_ccd_bound(), table_ccd_bound());
     axpy(alpha < 1.0 ? 0.9 * alpha : 1.0, dx_, x_);
+    if (alpha < 1.0 && n_col_ > 0) project_out_of_colliders();  // the scaled motion may stop short inside one
   }
 }
 
@@ -158,6 +147,21 @@ void Solver<Exec>::end_step() {
   const double* xt = Exec::ptr(x_t_);
   double* v = Exec::ptr(v_);
   Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { v[k] = (x[k] - xt[k]) * inv_h; });
+}
+
+/// A collider may move into the cloth during the step: Newton starts from a guess with every
+/// free vertex at least dhat/2 outside each collider's end pose. Where two colliders squeeze
+/// cloth (gripper pads) moving a vertex out of one can move it into the other: then the
+/// projections repeat with half the gap, up to three times.
+template <class Exec>
+void Solver<Exec>::project_out_of_colliders() {
+  Exec::download(host_x_, x_);
+  double gap = 0.5 * P_.dhat;
+  for (int round = 0; round < 4; ++round, gap *= 0.5) {
+    for (const Collider& c : *colliders_) c.project_out(&host_x_, kin_fixed_host_, col_t1_, gap);
+    if (colliders_->size() < 2 || !inside_a_collider(host_x_)) break;
+  }
+  Exec::upload(x_, host_x_);
 }
 
 }  // namespace gd::sim

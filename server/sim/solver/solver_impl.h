@@ -296,6 +296,7 @@ class Solver final : public SolverBase {
   std::string infinite_terms();
   /// Whether a free vertex of x (host, 3 per vertex) lies on or inside a collider's end pose.
   bool inside_a_collider(const std::vector<double>& x) const;
+  void project_out_of_colliders();  ///< predictor.h
   double max_strain() override;
   size_t bytes() const override;
 

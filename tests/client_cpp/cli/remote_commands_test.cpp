@@ -3,6 +3,7 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -194,6 +195,41 @@ TEST_F(CliTest, BroadPhaseReachesTheSceneAndTheSummaryAndFindsTheSamePairs) {
   r = gd(server_flag() + " run --garment towel --task grasp --broad-phase lbvh --out " + (dir / "remote").string());
   EXPECT_EQ(r.rc, 2) << r.err;
   EXPECT_NE(r.err.find("--broad-phase"), std::string::npos) << r.err;
+}
+
+// Robot mode: the URDF arms run a generated grasp locally (their solved joints written as
+// RGBench joints CSVs); without --urdf, and through a server, it is refused with what to do.
+TEST_F(CliTest, RobotModeRunsLocallyWithItsJointsAndIsRefusedWithoutAUrdfOrThroughAServer) {
+  const char* shared = std::getenv("GD_SHARED_DIR");
+  const std::string urdf = shared ? std::string(shared) + "/data/rgbench/piper_with_gripper.urdf" : "";
+  if (urdf.empty() || !std::ifstream(urdf)) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  const auto dir = fresh_dir("cli_robot");
+  const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
+                          "--task-param lift_height=0.3 --no-plots --quiet --threads 1 --mode robot";
+  CliRun r = gd(run + " --urdf " + urdf + " --out " + (dir / "local").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto s = nlohmann::json::parse(slurp(dir / "local" / "summary.json"));
+  EXPECT_EQ(s.at("mode"), "robot");
+  EXPECT_GT(s.at("robot").at("ik_samples").get<int>(), 100);
+  EXPECT_LT(s.at("robot").at("ik_max_tilt_deg").get<double>(), 120.0);
+  // The left arm's joints CSV: RGBench's header, six joint angles that are not all zero.
+  std::ifstream joints(dir / "local" / "joints" / "left_arm_joint_states_and_end_pose.csv");
+  std::string header, row;
+  std::getline(joints, header);
+  std::getline(joints, row);
+  EXPECT_EQ(header.rfind("time,pos_1,pos_2,pos_3,pos_4,pos_5,pos_6,pos_gripper", 0), 0u) << header;
+  std::stringstream cells(row);
+  std::vector<double> f;
+  for (std::string c; std::getline(cells, c, ',');) f.push_back(std::stod(c));
+  ASSERT_EQ(f.size(), 15u);
+  EXPECT_GT(std::abs(f[2]) + std::abs(f[3]), 0.1);  // joint2 and joint3 bend the arm down to the table
+  r = gd(run + " --out " + (dir / "no_urdf").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--urdf"), std::string::npos) << r.err;
+  r = gd(server_flag() + " run --garment towel --task grasp --mode robot --urdf " + urdf + " --out " +
+         (dir / "remote").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--urdf"), std::string::npos) << r.err;
 }
 
 TEST_F(CliTest, GarmentParamSizesTheGarmentLocallyAndAsAJob) {
