@@ -338,6 +338,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   }
   tasks::DualArmTrajectory traj;
   std::string traj_source;
+  // The generated task's parameters, "auto" ones resolved (summary.json records these).
+  tasks::TaskParams planned = config.task_params;
+  if (planned.grasp_depth < 0) planned.grasp_depth = config.mode == "robot" ? kRobotGraspDepth : 0.0;
   std::optional<Settled> settled;  // generated tasks: the garment settled before planning
   if (!config.trajectory_file.empty()) {
     traj = tasks::read_trajectory(config.trajectory_file);
@@ -351,9 +354,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     traj_source = "capture joints";
   } else {
     settled = settle_before_planning(mesh, material, config.scene, config.task_params.start_delay, place, &garment);
-    tasks::TaskParams tp = config.task_params;
-    if (tp.grasp_depth < 0) tp.grasp_depth = config.mode == "robot" ? kRobotGraspDepth : 0.0;
-    traj = tasks::make_task(config.task, garment, place, tp);
+    traj = tasks::make_task(config.task, garment, place, planned);
     traj_source = "generated " + config.task;
   }
   tasks::write_trajectory_csv(out + "/trajectory.csv", traj);
@@ -501,7 +502,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   // The generated task's parameters (defaults included); none for a trajectory file or capture.
   s["task_params"] = nlohmann::json::object();
   if (config.trajectory_file.empty() && !capture)
-    for (const auto& [name, value] : tasks::task_param_values(config.task_params)) s["task_params"][name] = value;
+    for (const auto& [name, value] : tasks::task_param_values(planned)) s["task_params"][name] = value;
   s["vertices"] = sc.vertex_count();
   s["triangles"] = mesh.tris.size();
   s["steps"] = run.steps();

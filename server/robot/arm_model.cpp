@@ -80,11 +80,11 @@ struct ArmModel::Impl {
   Eigen::Isometry3d ee(const KDL::JntArray& q) const {
     KDL::ChainFkSolverPos_recursive fk(ik_chain);
     KDL::Frame f;
-    DEMAND_FK(fk.JntToCart(q, f));
+    check_fk(fk.JntToCart(q, f));
     return to_eigen(f);
   }
 
-  static void DEMAND_FK(int rc) { GD_DEMAND(rc >= 0, "KDL forward kinematics failed: " + std::to_string(rc)); }
+  static void check_fk(int rc) { GD_DEMAND(rc >= 0, "KDL forward kinematics failed: " + std::to_string(rc)); }
 
   /// Levenberg-Marquardt on the end effector's pose error with the joints clamped to their
   /// limits after every step (a projected method): position error in m, orientation error (axis
@@ -239,8 +239,8 @@ Eigen::Isometry3d ArmModel::link_pose(const std::string& link, const Eigen::Vect
   if (!impl_->tree.getSegments().count(link)) throw InputError("link_pose: the arm has no link named '" + link + "'");
   KDL::TreeFkSolverPos_recursive fk(impl_->tree);
   KDL::Frame base, f;
-  Impl::DEMAND_FK(fk.JntToCart(impl_->tree_q(q, gripper), base, impl_->options.base_link));
-  Impl::DEMAND_FK(fk.JntToCart(impl_->tree_q(q, gripper), f, link));
+  Impl::check_fk(fk.JntToCart(impl_->tree_q(q, gripper), base, impl_->options.base_link));
+  Impl::check_fk(fk.JntToCart(impl_->tree_q(q, gripper), f, link));
   return to_eigen(base.Inverse() * f);
 }
 

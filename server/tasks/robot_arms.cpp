@@ -16,13 +16,14 @@ using sim::InputError;
 namespace {
 
 constexpr double kMaxFingerSpeed = 0.1;        ///< m/s: cap on the URDF's finger velocity limit
-constexpr double kIkPositionTolerance = 1e-3;
+constexpr double kIkPositionTolerance = 1e-3;  ///< m: how near inverse kinematics must put the tool
+constexpr double kIkJumpWarning = 0.5;         ///< rad between neighbouring samples that gets a warning
 /// Default lowest pad point above the table, in contact distances. Lying cloth rests at half the
 /// contact distance: pads whose bottom is within ~0.3 of it catch the cloth with their faces'
 /// lower edges and bunch it up between them (0.6-0.8 grasp in tests/tasks/robot_arms_test.cpp);
 /// higher, the cloth slips under them; at 0.5 or lower a pad landing on the cloth leaves it no
 /// room above the table.
-constexpr double kTableClearance = 0.7;  ///< m: how near inverse kinematics must put the tool
+constexpr double kTableClearance = 0.7;
 
 Eigen::Isometry3d base_pose(Arm a) {
   Eigen::Isometry3d b = Eigen::Isometry3d::Identity();
@@ -114,7 +115,12 @@ RobotController::RobotController(DualArmTrajectory traj, RobotOptions options)
                                      arm_name(a), s.t, s.position.x(), s.position.y(), s.position.z(),
                                      1e3 * r.position_error, r.rotation_error * 180 / 3.14159265358979323846));
       s.joints.assign(r.q.data(), r.q.data() + dofs);
-      seed = r.q;
+      // A jump between neighbouring samples (another branch of the inverse kinematics) would
+      // sweep the pads through the cloth within one step.
+      if (i > 0 && (r.q - seed).cwiseAbs().maxCoeff() > kIkJumpWarning)
+        gd::log().warn("robot mode: the {} arm's joints jump by {:.2f} rad between t={:.3f} and {:.3f} s (inverse "
+                       "kinematics changed branch); sample the trajectory more finely",
+                       arm_name(a), (r.q - seed).cwiseAbs().maxCoeff(), samples[i - 1].t, s.t);
       ++ik_solved_;
       ik_max_tilt_ = std::max(ik_max_tilt_, r.rotation_error);
     }

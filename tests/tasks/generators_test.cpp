@@ -205,7 +205,7 @@ TEST(Generators, TaskParamsSetByNameChangeTheTask) {
   set_task_param(p, "fold_duration", p.fold_duration + 2.0);
   EXPECT_NEAR(make_fold(g, default_garment_pose(), p).end_time(), full + 2.0, 1e-9);
   // Every listed name is a field: setting each to 7 leaves a different struct each time.
-  ASSERT_EQ(task_param_names().size(), 26u);
+  ASSERT_EQ(task_param_names().size(), 27u);
   for (const std::string& name : task_param_names()) {
     TaskParams q;
     set_task_param(q, name, 7.0);
@@ -223,7 +223,7 @@ TEST(Generators, TaskParamsSetByNameChangeTheTask) {
   for (size_t k = 0; k < values.size(); ++k) EXPECT_EQ(values[k].first, task_param_names()[k]);
   EXPECT_EQ(std::find(values.begin(), values.end(), std::make_pair(std::string("fold_duration"), p.fold_duration)) -
                 values.begin(),
-            18);
+            19);  // the 20th name
   try {
     set_task_param(p, "fold_speed", 1.0);
     FAIL() << "no error";

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <initializer_list>
 
 #include "tasks/task_test_util.h"
 #include "sim/demand.h"
@@ -28,26 +29,35 @@ std::string piper_urdf() {
 
 constexpr double kGripX = 0.25, kGripY = 0.25, kTipZ = 0.05;  // left hand's fingertips, world
 
-/// The left hand: top down over the strip (moved by `offset`), open, closing at t = 0.1 s,
-/// lifting 8 cm from 0.6 s to 1.0 s. The right arm waits open, out of the way.
-DualArmTrajectory lift_trajectory(const Vec3& offset = Vec3::Zero()) {
+/// Both arms' trajectories at these times: the left hand top down at left_at(t) with opening
+/// left_gripper(t); the right arm waits open, out of the way.
+template <class At, class Gripper>
+DualArmTrajectory two_arms(std::initializer_list<double> times, At left_at, Gripper left_gripper) {
   std::vector<ArmSample> left, right;
-  for (const double t : {0.0, 0.1, 0.6, 1.0, 1.4}) {
+  for (const double t : times) {
     ArmSample s;
     s.t = t;
     s.orientation = top_down_orientation();
-    s.gripper = t < 0.1 ? kGripperOpen : 0.0;
-    s.position = Vec3(kGripX, kGripY, kTipZ + (t >= 1.0 ? 0.08 : 0.0)) + offset;
+    s.gripper = left_gripper(t);
+    s.position = left_at(t);
     left.push_back(s);
-    ArmSample r = s;
-    r.gripper = kGripperOpen;
-    r.position = Vec3(0.2, -0.25, 0.3);
-    right.push_back(r);
+    s.gripper = kGripperOpen;
+    s.position = Vec3(0.2, -0.25, 0.3);
+    right.push_back(s);
   }
   DualArmTrajectory traj;
   traj.left = ArmTrajectory(left, "left");
   traj.right = ArmTrajectory(right, "right");
   return traj;
+}
+
+/// The left hand: top down over the strip (moved by `offset`), open, closing at t = 0.1 s,
+/// lifting 8 cm from 0.6 s to 1.0 s.
+DualArmTrajectory lift_trajectory(const Vec3& offset = Vec3::Zero()) {
+  return two_arms(
+      {0.0, 0.1, 0.6, 1.0, 1.4},
+      [&](double t) -> Vec3 { return Vec3(kGripX, kGripY, kTipZ + (t >= 1.0 ? 0.08 : 0.0)) + offset; },
+      [](double t) { return t < 0.1 ? kGripperOpen : 0.0; });
 }
 
 struct Lifted {
@@ -119,22 +129,9 @@ std::pair<double, double> pick_from_table(double finger_friction, const Vec3& of
   o.dt = 0.005;
   auto scene = make_scene(m, o);
   scene->step(20);  // settle on the table
-  std::vector<ArmSample> left, right;
-  for (const double t : {0.0, 0.3, 0.5, 1.2, 1.7}) {
-    ArmSample s;
-    s.t = t;
-    s.orientation = top_down_orientation();
-    s.gripper = t < 0.5 ? kGripperOpen : 0.0;
-    s.position = Vec3(0.25, 0.25, t >= 0.3 && t < 1.5 ? 0.0 : 0.05) + offset;
-    left.push_back(s);
-    ArmSample r = s;
-    r.gripper = kGripperOpen;
-    r.position = Vec3(0.2, -0.25, 0.3);
-    right.push_back(r);
-  }
-  DualArmTrajectory traj;
-  traj.left = ArmTrajectory(left, "left");
-  traj.right = ArmTrajectory(right, "right");
+  const DualArmTrajectory traj = two_arms(
+      {0.0, 0.3, 0.5, 1.2, 1.7}, [&](double t) -> Vec3 { return Vec3(0.25, 0.25, t >= 0.3 && t < 1.5 ? 0.0 : 0.05) + offset; },
+      [](double t) { return t < 0.5 ? kGripperOpen : 0.0; });
   RobotOptions ro;
   ro.urdf = piper_urdf();
   ro.finger_friction = finger_friction;

@@ -212,6 +212,7 @@ TEST_F(CliTest, RobotModeRunsLocallyWithItsJointsAndIsRefusedWithoutAUrdfOrThrou
   EXPECT_EQ(s.at("mode"), "robot");
   EXPECT_GT(s.at("robot").at("ik_samples").get<int>(), 100);
   EXPECT_LT(s.at("robot").at("ik_max_tilt_deg").get<double>(), 120.0);
+  EXPECT_DOUBLE_EQ(s.at("task_params").at("grasp_depth").get<double>(), 0.005);  // down to the table
   // The left arm's joints CSV: RGBench's header, six joint angles that are not all zero.
   std::ifstream joints(dir / "local" / "joints" / "left_arm_joint_states_and_end_pose.csv");
   std::string header, row;
@@ -299,7 +300,8 @@ TEST_F(CliTest, TaskParamChangesTheGeneratedTaskLocallyAndAsAJob) {
     const auto tp = nlohmann::json::parse(slurp(dir / name / "summary.json")).at("task_params");
     EXPECT_DOUBLE_EQ(tp.at("hold_duration").get<double>(), 5.0) << name;
     EXPECT_DOUBLE_EQ(tp.at("time_scale").get<double>(), 0.5) << name;
-    EXPECT_EQ(tp.size(), 26u) << name;
+    EXPECT_EQ(tp.size(), 27u) << name;
+    EXPECT_DOUBLE_EQ(tp.at("grasp_depth").get<double>(), 0.0) << name;  // "auto": 0 in pseudo mode
   }
   // An unknown name, or a bad value, locally and on the server: 2, naming it.
   r = gd(run + (dir / "bad1").string() + " --task-param hold_time=5");
