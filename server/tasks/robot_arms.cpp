@@ -121,6 +121,7 @@ RobotController::RobotController(DualArmTrajectory traj, RobotOptions options)
         gd::log().warn("robot mode: the {} arm's joints jump by {:.2f} rad between t={:.3f} and {:.3f} s (inverse "
                        "kinematics changed branch); sample the trajectory more finely",
                        arm_name(a), (r.q - seed).cwiseAbs().maxCoeff(), samples[i - 1].t, s.t);
+      seed = r.q;  // the next sample starts from this answer
       ++ik_solved_;
       ik_max_tilt_ = std::max(ik_max_tilt_, r.rotation_error);
     }

@@ -9,7 +9,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <initializer_list>
 
 #include "tasks/task_test_util.h"
 #include "sim/demand.h"
@@ -32,7 +31,7 @@ constexpr double kGripX = 0.25, kGripY = 0.25, kTipZ = 0.05;  // left hand's fin
 /// Both arms' trajectories at these times: the left hand top down at left_at(t) with opening
 /// left_gripper(t); the right arm waits open, out of the way.
 template <class At, class Gripper>
-DualArmTrajectory two_arms(std::initializer_list<double> times, At left_at, Gripper left_gripper) {
+DualArmTrajectory two_arms(const std::vector<double>& times, At left_at, Gripper left_gripper) {
   std::vector<ArmSample> left, right;
   for (const double t : times) {
     ArmSample s;
@@ -180,6 +179,20 @@ TEST(RobotArms, GeneratedPosesBecomeJointsWithinReachAndUnreachableOnesAreRefuse
       // Pointing down (the approach axis, link7 y, along world -z) within the tilt it reports.
       EXPECT_GT(-ee.linear().col(1).z(), std::cos(c.ik_max_tilt()) - 1e-6);
     }
+  // Each sample's answer is seeded by the previous one: the joints move continuously (no jump to
+  // another branch of the inverse kinematics) as the hand goes down to a T-shirt's shoulder and
+  // up 45 cm, tilting as it must, in samples 2-5 cm apart.
+  std::vector<double> times;
+  for (int k = 0; k <= 14; ++k) times.push_back(0.1 * k);
+  auto height = [](double t) { return t <= 0.4 ? 0.08 - 0.2 * t : 0.45 * (t - 0.4); };
+  const DualArmTrajectory path = two_arms(
+      times, [&](double t) -> Vec3 { return Vec3(0.163, 0.178, height(t)); }, [](double) { return kGripperOpen; });
+  RobotController along(path, ro);
+  double largest = 0;
+  const auto& js = along.trajectory().left.samples();
+  for (size_t k = 1; k < js.size(); ++k)
+    for (size_t j = 0; j < 6; ++j) largest = std::max(largest, std::abs(js[k].joints[j] - js[k - 1].joints[j]));
+  EXPECT_LT(largest, 0.5);
   DualArmTrajectory far = lift_trajectory();
   std::vector<ArmSample> s = far.left.samples();
   s[2].position = Vec3(1.5, 0.25, 0.3);
