@@ -166,7 +166,7 @@ void RobotController::attach(sim::Scene& scene) {
       // the contact distance; a pad must carry the grip force there instead, spread over the
       // cloth under its face: the grip force over the weight of that much cloth.
       const double face = 4 * pad.half_extents.x() * pad.half_extents.y();
-      c.set_stiffness_scale(std::max(1.0, grip_force_ / (scene.material().density * face * 9.81)));
+      c.set_stiffness_scale(std::max(1.0, grip_force_ / (scene.material().density * face * sim::kGravity)));
       st.colliders[f] = scene.add_collider(std::move(c));
     }
   }
@@ -178,20 +178,22 @@ void RobotController::update(sim::Scene& scene, double t_end) {
   if (!(t_end > t0)) throw InputError(fmt::format("robot mode: step end {} is not after the scene time {}", t_end, t0));
   if (!attached_) attach(scene);
   const sim::SceneOptions& so = scene.options();
-  const double dhat = so.contact_distance > 0 ? so.contact_distance : std::max(scene.material().thickness, 1e-3);
+  const double dhat = sim::effective_contact_distance(so, scene.material().thickness);
   const double clearance = options_.table_clearance >= 0 ? options_.table_clearance : kTableClearance * dhat;
   const robot::FingerPad& pad = options_.arm.pad;
   Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
   offset.translation() = pad.center;
   const double dt = t_end - t0;
+  // The cloth's push on the four pads now, in one pass over the cloth.
+  const std::vector<Vec3> forces = scene.collider_forces(
+      {state_[0].colliders[0], state_[0].colliders[1], state_[1].colliders[0], state_[1].colliders[1]});
   for (Arm a : {Arm::kLeft, Arm::kRight}) {
     const int ai = static_cast<int>(a);
     RobotArmState& st = state_[ai];
     const ArmSample s = traj_.arm(a).sample(t_end);
-    // The cloth's push on the pads now, along each pad's opening direction (its link's z).
-    const std::vector<Vec3> forces = scene.collider_forces({st.colliders[0], st.colliders[1]});
+    // The mean push on the two pads along each pad's opening direction (its link's z).
     double squeeze = 0;
-    for (int f = 0; f < 2; ++f) squeeze += 0.5 * forces[f].dot(poses_->pose[2 * ai + f][1].linear().col(2));
+    for (int f = 0; f < 2; ++f) squeeze += 0.5 * forces[2 * ai + f].dot(poses_->pose[2 * ai + f][1].linear().col(2));
     st.squeeze = squeeze;
     // A position-controlled, force-limited finger joint.
     const double command = std::clamp(s.gripper, 0.0, model_->gripper_max());

@@ -164,4 +164,10 @@ inline const char* broad_phase_name(const SceneOptions& o) {
   return o.broad_phase == BroadPhaseKind::kEmbree ? "embree" : "lbvh";
 }
 
+/// The barrier activation distance a scene uses: options.contact_distance, or else the cloth's
+/// thickness, at least 1 mm.
+inline Real effective_contact_distance(const SceneOptions& o, Real thickness) {
+  return o.contact_distance > 0 ? o.contact_distance : (thickness > Real(1e-3) ? thickness : Real(1e-3));
+}
+
 }  // namespace gd::sim

@@ -73,7 +73,7 @@ class Solver final : public SolverBase {
     P_.table = opt.table;
     P_.table_n = Vec3::UnitZ();
     P_.table_offset = opt.table_height;
-    P_.dhat = opt.contact_distance > 0 ? opt.contact_distance : std::max<Real>(d.thickness, 1e-3);
+    P_.dhat = effective_contact_distance(opt, d.thickness);
     // Barrier stiffness per kilogram: a vertex's own weight is balanced at d = dhat/2.
     P_.kappa_per_mass = kGravity / (P_.dhat * 1.1931471805599454);
     P_.table_mu = opt.table_friction;
