@@ -29,6 +29,8 @@
 #include <cstdio>
 #include <exception>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -143,7 +145,7 @@ int main(int argc, char** argv) {
   run->add_option("--task", cfg.task, "grasp | fold | fling")->capture_default_str();
   run->add_option("--mode", cfg.mode,
                   "pseudo (jaw-radius grasp) | fixed_point (RGBench's) | robot (URDF arms holding the cloth by "
-                  "finger contact and friction; needs --urdf)")
+                  "finger contact and friction; needs --urdf, or with --server the server's --robot-urdf)")
       ->capture_default_str();
   run->add_option("--urdf", cfg.robot.urdf,
                   "robot mode: the arms' URDF (RGBench's piper_with_gripper.urdf); a capture's pos_1..pos_6 drive "
@@ -284,8 +286,7 @@ int main(int argc, char** argv) {
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--no-plots", "--mesh-every",
-                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf",
-                                     "--grip-force", "--finger-friction"})
+                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;
@@ -294,6 +295,13 @@ int main(int argc, char** argv) {
       r.job.material = cfg.material;
       r.job.task = cfg.task;
       r.job.mode = cfg.mode;
+      if (!cfg.robot.urdf.empty()) {  // robot mode: the local URDF's text goes with the job
+        std::ifstream f(cfg.robot.urdf, std::ios::binary);
+        if (!f) throw gd::sim::InputError("--urdf: cannot read '" + cfg.robot.urdf + "'");
+        r.job.robot.urdf.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+      }
+      if (run->count("--grip-force") > 0) r.job.robot.grip_force = cfg.robot.grip_force;
+      if (run->count("--finger-friction") > 0) r.job.robot.finger_friction = cfg.robot.finger_friction;
       r.job.vertices = cfg.vertices;
       r.job.garment_params = cfg.garment_params;
       r.job.task_params = task_param_values;

@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <sstream>
 #include <nlohmann/json.hpp>
@@ -176,7 +178,9 @@ RemoteCommands::RemoteCommands(CLI::App& app) {
   create_->add_option("--vertices", spec_.vertices, "target vertex count")->capture_default_str();
   create_->add_option("--count", spec_.count, "identical scenes to create")->capture_default_str();
   create_->add_option("--seed", spec_.seed, "initial randomisation seed (0: none)")->capture_default_str();
-  create_->add_option("--mode", spec_.mode, "pseudo | fixed_point")->capture_default_str();
+  create_->add_option("--mode", spec_.mode, "pseudo | fixed_point | robot")->capture_default_str();
+  create_->add_option("--urdf", urdf_, "robot mode: the arms' URDF file, sent to the server (default: the server's "
+                                       "--robot-urdf)");
   create_->add_option("--dt", dt_, "time step, s (default: the server's)");
   create_->add_option("--yaw-deg", spec_.yaw_deg, "seeded yaw randomisation, degrees");
   create_->add_option("--offset", spec_.offset_m, "seeded x/y offset randomisation, m");
@@ -262,6 +266,11 @@ int RemoteCommands::do_create(Client& c) {
     throw sim::InputError("create: give exactly one of --garment TYPE or --mesh ID");
   if (create_->count("--dt") > 0) spec_.settings.dt = dt_;
   if (no_self_contact_) spec_.settings.self_contact = false;
+  if (!urdf_.empty()) {
+    std::ifstream f(urdf_, std::ios::binary);
+    if (!f) throw sim::InputError("--urdf: cannot read '" + urdf_ + "'");
+    spec_.robot.urdf.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  }
   for (const std::string& kv : garment_params_) spec_.garment_params.insert(parse_name_value(kv, "--garment-param"));
   for (const std::string& kv : material_params_)
     spec_.material_params.insert(parse_name_value(kv, "--material-param"));

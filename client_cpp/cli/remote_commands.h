@@ -75,6 +75,7 @@ class RemoteCommands {
   std::vector<std::string> material_params_;  ///< --material-param NAME=VALUE
   bool no_self_contact_ = false;
   double dt_ = 0;
+  std::string urdf_;
   std::vector<std::string> ids_;
   int substeps_ = 1;
   std::string step_out_;

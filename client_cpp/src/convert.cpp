@@ -63,6 +63,23 @@ std::vector<int32_t> decode_int_array(const pb::Array& a, int cols, const char* 
   return decode_array<int32_t>(a, "int32", cols, rpc, what);
 }
 
+namespace {
+
+void to_proto(const RobotSettings& in, pb::RobotSettings* out) {
+  out->set_urdf(in.urdf);
+  if (in.grip_force) out->set_grip_force(*in.grip_force);
+  if (in.finger_friction) out->set_finger_friction(*in.finger_friction);
+  for (double q : in.left_initial_joints) out->add_left_initial_joints(q);
+  for (double q : in.right_initial_joints) out->add_right_initial_joints(q);
+}
+
+bool empty(const RobotSettings& r) {
+  return r.urdf.empty() && !r.grip_force && !r.finger_friction && r.left_initial_joints.empty() &&
+         r.right_initial_joints.empty();
+}
+
+}  // namespace
+
 void to_proto(const SceneSpec& in, pb::CreateScenesRequest* out) {
   if (!in.garment.empty() && !in.mesh_id.empty())
     throw ClientError(StatusCode::kInvalidArgument, "give a garment or a mesh_id, not both", "CreateScenes");
@@ -84,6 +101,7 @@ void to_proto(const SceneSpec& in, pb::CreateScenesRequest* out) {
   }
   out->mutable_garment_params()->insert(in.garment_params.begin(), in.garment_params.end());
   out->mutable_material_params()->insert(in.material_params.begin(), in.material_params.end());
+  if (!empty(in.robot)) to_proto(in.robot, out->mutable_robot());
 }
 
 void to_proto(const SceneAction& in, pb::SceneAction* out, const char* rpc) {
@@ -101,6 +119,7 @@ void to_proto(const SceneAction& in, pb::SceneAction* out, const char* rpc) {
     p->mutable_orientation()->set_z(a.pose.orientation[3]);
     c->set_gripper(a.gripper);
     if (a.time) c->set_time(*a.time);
+    for (double q : a.joints) c->add_joints(q);
   }
   if (!in.target_indices.empty() || !in.target_positions.empty()) {
     if (in.target_positions.size() != 3 * in.target_indices.size())
@@ -136,6 +155,7 @@ void to_proto(const JobSpec& in, pb::SubmitJobRequest* out) {
   out->mutable_garment_params()->insert(in.garment_params.begin(), in.garment_params.end());
   out->mutable_task_params()->insert(in.task_params.begin(), in.task_params.end());
   out->mutable_material_params()->insert(in.material_params.begin(), in.material_params.end());
+  if (!empty(in.robot)) to_proto(in.robot, out->mutable_robot());
 }
 
 SceneState from_proto(const pb::SceneState& in, const char* rpc) {
@@ -147,7 +167,16 @@ SceneState from_proto(const pb::SceneState& in, const char* rpc) {
   s.steps = in.steps();
   s.positions = decode_float_array(in.positions(), 3, rpc, "positions");
   s.velocities = decode_float_array(in.velocities(), 3, rpc, "velocities");
-  for (const auto& a : in.arms()) s.arms.push_back({static_cast<Arm>(a.arm()), a.closed(), a.held_vertices()});
+  for (const auto& a : in.arms()) {
+    ArmState st;
+    st.arm = static_cast<Arm>(a.arm());
+    st.closed = a.closed();
+    st.held_vertices = a.held_vertices();
+    st.joints.assign(a.joints().begin(), a.joints().end());
+    st.gripper = a.gripper();
+    st.squeeze = a.squeeze();
+    s.arms.push_back(std::move(st));
+  }
   s.stats.newton_iterations = in.stats().newton_iterations();
   s.stats.pcg_iterations = in.stats().pcg_iterations();
   s.stats.active_contacts = in.stats().active_contacts();
@@ -165,6 +194,10 @@ SceneInfo from_proto(const pb::SceneInfo& in, const char* rpc) {
   s.mode = in.mode();
   s.left_shoulder_vertex = in.left_shoulder_vertex();
   s.right_shoulder_vertex = in.right_shoulder_vertex();
+  s.joint_names.assign(in.joint_names().begin(), in.joint_names().end());
+  s.joint_lower.assign(in.joint_lower().begin(), in.joint_lower().end());
+  s.joint_upper.assign(in.joint_upper().begin(), in.joint_upper().end());
+  s.gripper_max = in.gripper_max();
   return s;
 }
 

@@ -7,8 +7,11 @@ An action is None (the scene carries on: arms hold their last command) or a dict
                 "orientation": (w, x, y, z),      # optional, unit quaternion, w first; default identity
                 "gripper": 0.035,                 # optional opening in m, 0 = closed .. 0.035 = open;
                                                   # default 0.035 (open); grasps below 0.01
-                "time": 0.5},                     # optional scene time of this sample, s; default:
+                "time": 0.5,                      # optional scene time of this sample, s; default:
                                                   # the end of the call's steps
+                "joints": (q1, ..., q6)},         # robot mode: the arm's joint angles (rad, in
+                                                  # scene_info()["joint_names"] order); position is
+                                                  # then optional and unused
       "right": {...},                             # same as "left"
       "targets": (indices, positions),            # optional: int (K,) vertex indices and (K, 3) positions
                                                   # reached kinematically over the step, then held
@@ -23,7 +26,17 @@ orientation); samples past the call's end are kept for later calls, so a whole t
 sent with the first call.
 "targets" may also be a dict {"indices": ..., "positions": ...}. A ready-made
 `garmentdynamics.v1.garmentdynamics_pb2.SceneAction` is passed through (its scene_id is set).
+
+Robot mode (create_scenes(mode="robot")): an arm's "joints" drive it directly (linearly
+interpolated between samples); without them its pose is reached by the server's inverse
+kinematics (of the tool frame: z the approach, x the direction the fingers close along;
+INVALID_ARGUMENT when out of reach). "gripper" is then the finger opening the force-limited
+fingers close toward (0 .. scene_info()["gripper_max"]). Other modes refuse joints
+(INVALID_ARGUMENT). `joint_array_to_action` turns a (2, J + 1) array of joint targets and
+gripper openings into an action.
 """
+
+from typing import Optional
 
 import numpy as np
 
@@ -42,16 +55,33 @@ def _vec(v, n, what):
     return arr
 
 
+def _joints(v, arm) -> np.ndarray:
+    """An arm's joint angles: a non-empty 1-D sequence of finite numbers."""
+    try:
+        arr = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"the {arm} arm's joints must be numbers (rad), got {v!r}") from None
+    if arr.ndim != 1 or arr.size == 0:
+        raise ValueError(f"the {arm} arm's joints must be a flat sequence of its joint angles (rad, in "
+                         f"scene_info()['joint_names'] order), got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"the {arm} arm's joints must be finite, got {arr.tolist()}")
+    return arr
+
+
 def arm_command(arm: str, cmd) -> "pb.ArmCommand":
     """One arm's command from a dict or an (8,) array (see the module docstring)."""
+    joints = None
     if isinstance(cmd, dict):
-        unknown = set(cmd) - {"position", "orientation", "gripper", "time"}
+        unknown = set(cmd) - {"position", "orientation", "gripper", "time", "joints"}
         if unknown:
             raise ValueError(f"unknown keys {sorted(unknown)} in the {arm} arm's command; "
-                             "use position, orientation, gripper, time")
-        if "position" not in cmd:
-            raise ValueError(f"the {arm} arm's command needs a position")
-        pos = _vec(cmd["position"], 3, f"{arm}.position")
+                             "use position, orientation, gripper, time, joints")
+        if cmd.get("joints") is not None:
+            joints = _joints(cmd["joints"], arm)
+        if "position" not in cmd and joints is None:
+            raise ValueError(f"the {arm} arm's command needs a position (or, in robot mode, joints)")
+        pos = _vec(cmd["position"], 3, f"{arm}.position") if "position" in cmd else np.zeros(3)
         quat = _vec(cmd.get("orientation", (1.0, 0.0, 0.0, 0.0)), 4, f"{arm}.orientation")
         gripper = float(cmd.get("gripper", GRIPPER_OPEN))
         time = cmd.get("time")
@@ -64,6 +94,8 @@ def arm_command(arm: str, cmd) -> "pb.ArmCommand":
     out = pb.ArmCommand(arm=_ARMS[arm], pose=pose, gripper=gripper)
     if time is not None:
         out.time = float(time)
+    if joints is not None:
+        out.joints.extend(joints.tolist())
     return out
 
 
@@ -114,3 +146,19 @@ def arm_array_to_action(a) -> dict:
         q = q / n if np.isfinite(n) and n > 1e-9 else np.array([1.0, 0.0, 0.0, 0.0])
         out[arm] = {"position": a[i, :3], "orientation": q, "gripper": float(a[i, 7])}
     return out
+
+
+def joint_array_to_action(a, joints: Optional[int] = None) -> dict:
+    """A (2, J + 1) array [left, right] x (joint angles J in rad, gripper opening 1 in m) -> the
+    action dict of robot mode. joints: J when known (len(scene_info()["joint_names"])); the
+    array is then checked against it (a flat array of 2 (J + 1) numbers is reshaped)."""
+    a = np.asarray(a, dtype=np.float64)
+    if joints is not None and a.ndim == 1 and a.size == 2 * (joints + 1):
+        a = a.reshape(2, joints + 1)
+    if a.ndim != 2 or a.shape[0] != 2 or a.shape[1] < 2:
+        raise ValueError("joint actions must be a (2, J + 1) array: rows [left, right], the J joint angles (rad) "
+                         f"then the gripper opening (m); got shape {a.shape}")
+    if joints is not None and a.shape[1] != joints + 1:
+        raise ValueError(f"joint actions must be (2, {joints + 1}): the arms have {joints} joints, then the gripper; "
+                         f"got shape {a.shape}")
+    return {arm: {"joints": a[i, :-1], "gripper": float(a[i, -1])} for i, arm in enumerate(("left", "right"))}

@@ -8,11 +8,18 @@
         job = c.submit_job(garment="towel", task="grasp", vertices=200)
         report = c.wait_report(job)               # dict: job, summary (parsed summary.json), files
 
+Robot mode (two AgileX Piper arms from a URDF, the cloth held by the fingers' contact; docs/robot.md):
+
+        ids = c.create_scenes(garment="towel", vertices=400, mode="robot", urdf="piper_with_gripper.urdf")
+        info = c.scene_info(ids[0])               # joint_names, joint_lower, joint_upper, gripper_max
+        c.step(ids, [{"left": {"joints": q, "gripper": 0.0}}], substeps=10)
+        c.get_state(ids)[0].arms["left"]          # closed, joints, gripper (opening now), squeeze (N)
+
 Every call has a deadline (`timeout`, seconds; streams use `stream_timeout`). Errors of the server
 surface unchanged as grpc.RpcError: `err.code()` is the server's status code (NOT_FOUND,
 INVALID_ARGUMENT, RESOURCE_EXHAUSTED, FAILED_PRECONDITION, ...) and `err.details()` its message.
-Bad arguments detected before a call is made (wrong shapes, unknown keys) raise ValueError or
-TypeError.
+Bad arguments detected before a call is made (wrong shapes, unknown keys, non-finite joints, a
+joint count that does not match the scene's arms) raise ValueError or TypeError.
 
 Servers with tokens and TLS (gd-server --auth-token-file, --tls-cert/--tls-key, --tls-client-ca):
 
@@ -60,7 +67,10 @@ class SceneState:
     steps: int                      # steps since the last reset
     positions: Optional[np.ndarray]  # (N, 3) float32, None when omitted
     velocities: Optional[np.ndarray]  # (N, 3) float32, None unless asked for
-    arms: Dict[str, dict] = field(default_factory=dict)   # "left"/"right" -> {closed, held_vertices}
+    # "left"/"right" -> {closed, held_vertices}; robot mode also joints ((J,) float64, rad, in
+    # scene_info()["joint_names"] order), gripper (the fingers' opening now, m; may stop short of
+    # the command on cloth) and squeeze (N, the cloth's push on the fingers: the grip).
+    arms: Dict[str, dict] = field(default_factory=dict)
     stats: dict = field(default_factory=dict)             # newton/pcg iterations, contacts, wall_ms
     # Frames of a subscribing stream (steps=0) only: frames the server dropped so far because this
     # client read slower than its scenes stepped (oldest first; at most --max-queued-frames-mb queued).
@@ -77,10 +87,16 @@ class SceneState:
             time=s.time, steps=s.steps,
             positions=from_array(s.positions) if s.HasField("positions") and s.positions.data else None,
             velocities=from_array(s.velocities) if s.HasField("velocities") and s.velocities.data else None,
-            arms={_ARM_NAME.get(a.arm, str(a.arm)): {"closed": a.closed, "held_vertices": a.held_vertices}
-                  for a in s.arms},
+            arms={_ARM_NAME.get(a.arm, str(a.arm)): _arm_state(a) for a in s.arms},
             stats={"newton_iterations": s.stats.newton_iterations, "pcg_iterations": s.stats.pcg_iterations,
                    "active_contacts": s.stats.active_contacts, "wall_ms": s.stats.wall_ms})
+
+
+def _arm_state(a: "pb.ArmState") -> dict:
+    out = {"closed": a.closed, "held_vertices": a.held_vertices}
+    if len(a.joints):  # robot mode
+        out.update(joints=np.array(a.joints, dtype=np.float64), gripper=a.gripper, squeeze=a.squeeze)
+    return out
 
 
 def job_to_dict(j: "pb.JobInfo") -> dict:
@@ -95,7 +111,55 @@ def _scene_info_to_dict(info: "pb.SceneInfo") -> dict:
     return {"vertex_count": info.vertex_count, "triangles": from_array(info.triangles),
             "rest_positions": from_array(info.rest_positions), "dt": info.dt, "backend": info.backend,
             "mode": info.mode, "left_shoulder_vertex": info.left_shoulder_vertex,
-            "right_shoulder_vertex": info.right_shoulder_vertex}
+            "right_shoulder_vertex": info.right_shoulder_vertex,
+            "joint_names": list(info.joint_names),
+            "joint_lower": np.array(info.joint_lower, dtype=np.float64),
+            "joint_upper": np.array(info.joint_upper, dtype=np.float64),
+            "gripper_max": info.gripper_max}
+
+
+MAX_URDF_BYTES = 1 << 20  # the largest URDF a request may carry (RobotSettings.urdf)
+
+
+def read_urdf(urdf: Union[str, bytes, "os.PathLike[str]"]) -> bytes:
+    """A URDF's bytes from its path (str or os.PathLike), its text (a str starting with "<") or
+    its bytes. ValueError for a path that is no file, or a URDF over MAX_URDF_BYTES."""
+    if isinstance(urdf, (bytes, bytearray)):
+        data = bytes(urdf)
+    elif isinstance(urdf, str) and urdf.lstrip("\ufeff \t\r\n").startswith("<"):
+        data = urdf.encode()
+    elif isinstance(urdf, (str, os.PathLike)):
+        path = Path(os.fspath(urdf)).expanduser()
+        if not path.is_file():
+            raise ValueError(f"urdf: no file {str(path)!r} (give the URDF's path, its text or its bytes)")
+        data = path.read_bytes()
+    else:
+        raise TypeError(f"urdf must be a path, the URDF's text or bytes, got {type(urdf).__name__}")
+    if len(data) > MAX_URDF_BYTES:
+        raise ValueError(f"urdf: {len(data)} bytes, over the {MAX_URDF_BYTES} a request may carry (send the URDF "
+                         "without inlined meshes, or start the server with --robot-urdf PATH)")
+    return data
+
+
+def _robot_settings(mode: str, urdf, grip_force: Optional[float],
+                    finger_friction: Optional[float]) -> Optional["pb.RobotSettings"]:
+    """RobotSettings of a robot-mode request (None in the other modes, which take none)."""
+    given = [name for name, v in (("urdf", urdf), ("grip_force", grip_force), ("finger_friction", finger_friction))
+             if v is not None]
+    if mode != "robot":
+        if given:
+            raise ValueError(f"{', '.join(given)}: robot settings are for mode='robot' (mode is {mode!r})")
+        return None
+    out = pb.RobotSettings()
+    if urdf is not None:
+        out.urdf = read_urdf(urdf)
+    for name, value in (("grip_force", grip_force), ("finger_friction", finger_friction)):
+        if value is not None:
+            value = float(value)
+            if not np.isfinite(value):
+                raise ValueError(f"{name} must be finite, got {value}")
+            setattr(out, name, value)
+    return out
 
 
 def _ids(ids: Union[str, Sequence[str]]) -> List[str]:
@@ -260,7 +324,10 @@ class Client:
                       jaw_radius: Optional[float] = None, grab_time: Optional[float] = None,
                       yaw_deg: float = 0.0, offset_m: float = 0.0,
                       garment_params: Optional[Dict[str, float]] = None,
-                      material_params: Optional[Dict[str, float]] = None) -> List[str]:
+                      material_params: Optional[Dict[str, float]] = None,
+                      urdf: Union[None, str, bytes, "os.PathLike[str]"] = None, grip_force: Optional[float] = None,
+                      finger_friction: Optional[float] = None,
+                      initial_joints: Optional[Dict[str, Sequence[float]]] = None) -> List[str]:
         """Creates `count` identical scenes and returns their ids.
 
         Args:
@@ -270,8 +337,9 @@ class Client:
             vertices: target vertex count of a generated garment.
             count: number of scenes.
             seed: initial randomisation of the pose on the table (0 = none; see yaw_deg, offset_m).
-            mode: "pseudo" (our grasp: vertices within the jaw radius follow a closed gripper) or
-                "fixed_point" (RGBench's semantics).
+            mode: "pseudo" (our grasp: vertices within the jaw radius follow a closed gripper),
+                "fixed_point" (RGBench's semantics) or "robot" (two URDF arms, RGBench's Piper,
+                whose fingers hold the cloth by contact and friction; docs/robot.md).
             dt, self_contact, jaw_radius, grab_time: scene settings (None = server default).
             yaw_deg, offset_m: randomisation ranges: yaw uniform in [-yaw_deg, yaw_deg] about z,
                 offset uniform in [-offset_m, offset_m] along x and y (seeds other than 0).
@@ -280,9 +348,20 @@ class Client:
             material_params: parameters of `material` replaced, by the material file's names in
                 catalogue units, e.g. {"stretch_g_s2": 230000, "bending_g_mm2_s2_rad": 1000,
                 "areal_density_g_m2": 220, "poisson": 0.35} (docs/materials.md).
+            urdf, grip_force, finger_friction: robot mode only. urdf: the arms' URDF as a path, its
+                text or its bytes (at most 1 MiB; the meshes it names are not read); None: the
+                server's own (gd-server --robot-urdf), and a server without one answers
+                FAILED_PRECONDITION. grip_force: N at which closing fingers stop (default the
+                URDF's finger effort limit); finger_friction: the fingers' Coulomb coefficient on
+                the cloth (default the material's).
+            initial_joints: robot mode only: {"left": joints, "right": joints} (either may be
+                left out), each arm's joints at t = 0 and after every reset, e.g. a recording's
+                first row.
 
-        What the scenes share (triangles, rest positions, dt, ...) is available from
-        scene_info(id) afterwards.
+        What the scenes share (triangles, rest positions, dt, ...; in robot mode the arms' joint
+        names and limits) is available from scene_info(id) afterwards. Robot-mode scenes start
+        with each arm at `initial_joints`, else with its tool 0.25 m in front of its base and
+        0.25 m up (inverse kinematics), the gripper open.
         """
         if (garment is None) == (mesh_id is None):
             raise ValueError("give exactly one of garment= and mesh_id=")
@@ -300,6 +379,22 @@ class Client:
                                      randomization=pb.Randomization(yaw_deg=yaw_deg, offset_m=offset_m),
                                      garment_params={str(k): float(v) for k, v in (garment_params or {}).items()},
                                      material_params={str(k): float(v) for k, v in (material_params or {}).items()})
+        robot = _robot_settings(mode, urdf, grip_force, finger_friction)
+        if initial_joints is not None:
+            if mode != "robot":
+                raise ValueError(f"initial_joints: robot settings are for mode='robot' (mode is {mode!r})")
+            unknown = set(initial_joints) - {"left", "right"}
+            if unknown:
+                raise ValueError(f"initial_joints takes the arms 'left' and 'right', not {sorted(unknown)}")
+            for arm, field in (("left", "left_initial_joints"), ("right", "right_initial_joints")):
+                if initial_joints.get(arm) is not None:
+                    q = np.asarray(initial_joints[arm], dtype=np.float64).reshape(-1)
+                    if not np.isfinite(q).all():
+                        raise ValueError(f"initial_joints[{arm!r}] must be finite")
+                    getattr(robot, field).extend(q.tolist())
+        if robot is not None:
+            req.robot.SetInParent()  # present even when empty: the server's own URDF
+            req.robot.MergeFrom(robot)
         if garment is not None:
             req.garment = garment
         else:
@@ -312,8 +407,11 @@ class Client:
 
     def scene_info(self, scene_id: str) -> dict:
         """What the scenes of one create_scenes call share: vertex_count, triangles (T, 3) int32,
-        rest_positions (N, 3) float32 (world frame, seed 0), dt, backend, mode, and the shoulder
-        landmark vertices (-1 when unknown). Only for scenes created by this client."""
+        rest_positions (N, 3) float32 (world frame, seed 0), dt, backend, mode, the shoulder
+        landmark vertices (-1 when unknown) and, in robot mode, each arm's joint_names (the order
+        of an arm command's "joints"), joint_lower and joint_upper ((J,) float64, rad or m) and
+        gripper_max (the largest finger opening, m; empty and 0 in the other modes). Only for
+        scenes created by this client."""
         try:
             return self._scene_info[scene_id]
         except KeyError:
@@ -352,8 +450,21 @@ class Client:
             for sid, a in zip(ids, actions):
                 if a is not None:
                     req.actions.append(scene_action(sid, a))
+                    self._check_joints(req.actions[-1])
         resp = self._stub.StepScenes(req, timeout=self.timeout)
         return [SceneState.from_proto(s) for s in resp.states]
+
+    def _check_joints(self, action: "pb.SceneAction") -> None:
+        """A robot-mode scene's arm commands give as many joints as its arms have (scenes this
+        client created; the server checks the others, and refuses joints in the other modes)."""
+        info = self._scene_info.get(action.scene_id)
+        names = info["joint_names"] if info else []
+        if not names:
+            return
+        for c in action.arms:
+            if len(c.joints) and len(c.joints) != len(names):
+                raise ValueError(f"scene {action.scene_id!r}: the {_ARM_NAME.get(c.arm, c.arm)} arm's command gives "
+                                 f"{len(c.joints)} joints; its arms have {len(names)} ({', '.join(names)})")
 
     def step(self, ids, actions: Optional[Sequence] = None, substeps: int = 1) -> np.ndarray:
         """Advances the scenes `substeps` steps each, in one call, and returns their vertex
@@ -369,7 +480,10 @@ class Client:
 
         Every key is optional; an arm may also be an (8,) array (position, quaternion wxyz,
         gripper). gripper is the opening in m (0 closed .. 0.035 open, default open); the
-        gripper grasps when it falls below 0.01. See garmentdynamics.actions.
+        gripper grasps when it falls below 0.01. In robot mode an arm may give "joints" (its
+        joint angles in scene_info(id)["joint_names"] order, rad) instead of the pose, and the
+        fingers close toward the gripper opening until they squeeze the cloth with the grip
+        force. See garmentdynamics.actions.
         """
         return _stack(self.step_states(ids, actions, substeps))
 
@@ -419,7 +533,9 @@ class Client:
                    settle: Optional[float] = None, self_contact: Optional[bool] = None, icp: bool = False,
                    label: str = "", garment_params: Optional[Dict[str, float]] = None,
                    task_params: Optional[Dict[str, float]] = None,
-                   material_params: Optional[Dict[str, float]] = None) -> str:
+                   material_params: Optional[Dict[str, float]] = None,
+                   urdf: Union[None, str, bytes, "os.PathLike[str]"] = None, grip_force: Optional[float] = None,
+                   finger_friction: Optional[float] = None) -> str:
         """Submits a whole rollout (garment + task) to run on the server; returns the job id.
 
         trajectory: a path to our trajectory CSV/JSON file (docs/tasks.md), or its text/bytes;
@@ -427,7 +543,9 @@ class Client:
         capture directory under the server's capture root. garment_params: sizes of a generated
         garment by name, as in create_scenes. task_params: parameters of the generated task by
         name, e.g. {"fold_duration": 5.0} (docs/tasks.md). material_params: parameters of the
-        material replaced, as in create_scenes. The other arguments mirror `gd run`.
+        material replaced, as in create_scenes. mode "robot": the arms of urdf (a path, its text
+        or bytes; None: the server's --robot-urdf) with grip_force and finger_friction, as in
+        create_scenes. The other arguments mirror `gd run`.
         """
         if (garment is None) == (mesh_id is None):
             raise ValueError("give exactly one of garment= and mesh_id=")
@@ -436,6 +554,10 @@ class Client:
                                   garment_params={str(k): float(v) for k, v in (garment_params or {}).items()},
                                   task_params={str(k): float(v) for k, v in (task_params or {}).items()},
                                   material_params={str(k): float(v) for k, v in (material_params or {}).items()})
+        robot = _robot_settings(mode, urdf, grip_force, finger_friction)
+        if robot is not None:
+            req.robot.SetInParent()  # present even when empty: the server's own URDF
+            req.robot.MergeFrom(robot)
         if garment is not None:
             req.garment = garment
         else:

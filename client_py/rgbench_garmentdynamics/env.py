@@ -8,9 +8,9 @@ get_sim_vertices() (N, 3) world frame, get_current_sim_time().
 
 What it reads from cfg (an omegaconf DictConfig or a plain dict), as RGBench's fixed-point envs do:
 
-    sim_model.type            "fixed_point" (RGBench's pseudo mode); "robot" is refused until robot
-                              mode (the Piper arms from their joint angles) exists
-    action.type               grasp | fold | fling
+    sim_model.type            "fixed_point" (RGBench's pseudo mode) or "robot" (the Piper arms driven
+                              by their recorded joint angles, the cloth held by the fingers)
+    action.type               grasp | fold | fling (fling: fixed_point only, as RGBench's harness)
     action.fling_prepare_time, action.fling_wait_time   (defaults 2.0 and 3.0, as RGBench's code)
     evaluate.start_calculate_time   grasp/fold grab time (else env.grasp.grasp_time)
     env.grab_points           {mode: auto | manual, indices: [l, r]} (default auto)
@@ -24,6 +24,9 @@ What it reads from cfg (an omegaconf DictConfig or a plain dict), as RGBench's f
     cloth_params.{stretch, bending, density, friction, poisson}   RGBench's fitted fabric (see
                               cloth_material_params), over the material's values
     data.robot_joints.{left,right}_arm_csv_path, data.sim_start_time
+    env.model_path            robot mode: the arms' URDF when it names a .urdf file (RGBench's
+                              PyBullet key; other simulators' model files are not URDFs and are
+                              ignored)
 
 and its own optional block env.garment_dynamics:
 
@@ -42,6 +45,13 @@ and its own optional block env.garment_dynamics:
     cloth_params  false: the library material alone, RGBench's cloth_params ignored (default true)
     dt            s per step (default env.timestep, else env.sim_timestep, else 0.002)
     self_contact  default: the server's (on)
+    urdf          robot mode: the arms' URDF file (RGBench's assets/Urdf/piper_description/
+                  piper_with_gripper.urdf; an absolute path), sent to the server with the scene;
+                  over env.model_path. Neither: the server's own (gd-server --robot-urdf PATH),
+                  and a clear error when it has none
+    grip_force, finger_friction   robot mode: N at which the closing fingers stop (default the
+                  URDF's finger effort limit, the Piper's 10 N) and their friction coefficient on
+                  the cloth (default the material's)
 
 Semantics (rgbench-format.md section 3):
 - fixed_point grasp/fold, auto pins: the scene runs in the server's fixed-point mode with
@@ -50,6 +60,18 @@ Semantics (rgbench-format.md section 3):
 - fixed_point grasp/fold with manual pins, and fling: the pinned vertices are driven as kinematic
   targets (fling: linear approach from their initial position to the first trajectory position
   during fling_prepare_time, hold for fling_wait_time, then follow the trajectory).
+- robot: the scene runs in the server's robot mode (docs/robot.md): two Piper arms from the
+  URDF at bases (0, +0.25, 0) left and (0, -0.25, 0) right (placed by the server: the CSVs'
+  joint angles are each arm's own), the cloth held only by the fingers' contact and friction.
+  The joints CSVs are read in RGBench's joint mode (pos_1..pos_6 = joint1..joint6 in rad,
+  pos_gripper = the finger opening in m, 0 closed .. 0.035 open; trajectory.load_joint_csv) and
+  each arm's whole recording goes to the server with the first call as timed joint samples
+  (interpolated linearly between samples, as RGBench's PyBullet robot mode does); the gripper
+  is a force-limited position joint closing toward pos_gripper (clipped to [0, gripper_max]).
+  The arms start at their first recorded joints (CreateScenes' RobotSettings initial joints; an
+  arm without a CSV starts at the server's home pose), gripper open. No vertex is pinned, so grab times
+  and grab points are not used. The arms' states after each call (joints, finger opening,
+  squeeze in N) are in `arm_states`.
 Times: sim time 0 is master_start_time (the earliest first sample of the two arms); trajectory
 time = sim time (minus prepare + wait for fling). step_to_time steps while sim time < target, so
 it overshoots by less than one dt, like RGBench's environments.
@@ -63,12 +85,13 @@ import weakref
 from pathlib import Path
 from typing import Any, Optional
 
+import grpc
 import numpy as np
 
 from garmentdynamics import Client
 from garmentdynamics.actions import GRIPPER_OPEN
 
-from .trajectory import load_pose_csv
+from .trajectory import load_joint_csv, load_pose_csv
 
 try:  # subclass RGBench's interface when RGBench is installed; duck-typed otherwise
     from rgbench.envs.base import BaseEnvWrapper as _Base  # type: ignore
@@ -145,6 +168,21 @@ def load_init_pose(path: Path) -> list:
     return pose
 
 
+def robot_urdf(cfg: Any) -> Optional[Path]:
+    """Robot mode's URDF file from the config: env.garment_dynamics.urdf, else RGBench's
+    env.model_path when it names a .urdf file; None when neither does (the server's own)."""
+    key, value = "env.garment_dynamics.urdf", cfg_get(cfg, "env.garment_dynamics.urdf")
+    if value is None or value == "":
+        key, value = "env.model_path", cfg_get(cfg, "env.model_path")
+        if value is None or not str(value).lower().endswith(".urdf"):
+            return None
+    path = Path(str(value)).expanduser()
+    if not path.is_file():
+        raise ValueError(f"{key}: no URDF file at {str(path)!r} (robot mode's arms; give an absolute path, as Hydra "
+                         "may change the working directory)")
+    return path
+
+
 def _release(client: Client, scene_id: Optional[str], own_client: bool) -> None:
     """Destroys the env's scene and, when the env made the client, closes it (stops a spawned
     server). Run once, by close() or when the env is garbage-collected without it (RGBench's
@@ -204,23 +242,25 @@ class GarmentDynamicsEnv(_Base):
         self.cfg = cfg
         gd = cfg_get(cfg, "env.garment_dynamics", {}) or {}
         self.sim_type = str(cfg_get(cfg, "sim_model.type", "fixed_point"))
-        if self.sim_type == "robot":
-            raise ValueError("sim_model.type robot (the Piper arms driven by their joint angles, the cloth held by "
-                             "finger contact) is not supported by GarmentDynamics yet; use sim_model.type "
-                             "fixed_point (RGBench's pseudo mode)")
-        if self.sim_type != "fixed_point":
-            raise ValueError(f"sim_model.type must be fixed_point (robot mode is not supported yet), got {self.sim_type!r}")
+        if self.sim_type not in ("fixed_point", "robot"):
+            raise ValueError(f"sim_model.type must be fixed_point or robot, got {self.sim_type!r}")
+        self.robot = self.sim_type == "robot"
         self.action_type = str(cfg_get(cfg, "action.type", "grasp"))
         if self.action_type not in ("grasp", "fold", "fling"):
             raise ValueError(f"action.type must be grasp, fold or fling, got {self.action_type!r}")
+        if self.robot and self.action_type == "fling":
+            raise ValueError("action.type fling runs in sim_model.type fixed_point only (its approach and hold "
+                             "phases drive the shoulder vertices; RGBench's run_benchmark.py refuses fling in robot "
+                             "mode too)")
 
-        # --- arm trajectories (world frame) --------------------------------------------------
+        # --- arm trajectories: world-frame end poses (fixed_point), joint angles (robot) -------
         start_offset = float(cfg_get(cfg, "data.sim_start_time", 0.0))
+        load = load_joint_csv if self.robot else load_pose_csv
         self.tracks = {}
         for arm in ("left", "right"):
             p = cfg_get(cfg, f"data.robot_joints.{arm}_arm_csv_path")
             if p:
-                self.tracks[arm] = load_pose_csv(p, arm, start_offset)
+                self.tracks[arm] = load(p, arm, start_offset)
         if not self.tracks:
             raise ValueError("no arm trajectory: set data.robot_joints.left_arm_csv_path and/or right_arm_csv_path")
         self.master_start_time = min(t.start for t in self.tracks.values())
@@ -261,7 +301,8 @@ class GarmentDynamicsEnv(_Base):
         self._finalizer = weakref.finalize(self, _release, client, self.scene_id, self._own_client)
         self._vertices: Optional[np.ndarray] = None
         self._failed = False
-        self._sent_ahead = False  # server pin mode: the arms' whole trajectories went with the first call
+        self.arm_states: dict = {}  # the arms' states after the last call (robot mode: joints, gripper, squeeze)
+        self._sent_ahead = False  # server pins / robot: the arms' whole trajectories went with the first call
         self._seconds_per_step = 0.0  # measured, to keep one call within the client's deadline
 
     @staticmethod
@@ -281,10 +322,18 @@ class GarmentDynamicsEnv(_Base):
         options.update(client_kwargs)
         return options
 
+    @property
+    def _ahead(self) -> bool:
+        """Whether the arms' whole trajectories go with the first call (server pins, robot mode)
+        rather than per-step kinematic targets."""
+        return self.pin_mode in ("server", "robot")
+
     def _create_scene(self, gd) -> None:
         self.pin_mode = "server"  # the server's fixed-point pins (grasp/fold, auto)
         self.pins = []
-        if self.action_type == "fling":
+        if self.robot:
+            self.pin_mode = "robot"  # no pins: the fingers hold the cloth
+        elif self.action_type == "fling":
             self.pin_mode = "targets"
             self.pins = [int(i) for i in (cfg_get(self.cfg, "cloth_params.shoulder_index") or [])]
             if len(self.pins) != 2:
@@ -295,7 +344,7 @@ class GarmentDynamicsEnv(_Base):
             if len(self.pins) != 2:
                 raise ValueError("grab_points.mode manual needs grab_points.indices = [left, right]")
         # fixed_point scenes of the server pin at grab_time; target-driven ones need no server pins
-        mode = "fixed_point" if self.pin_mode == "server" else "pseudo"
+        mode = "robot" if self.robot else "fixed_point" if self.pin_mode == "server" else "pseudo"
         grab_time = self.grab_time if self.pin_mode == "server" and math.isfinite(self.grab_time) else None
         if self.pin_mode == "server" and grab_time is None:
             grab_time = 1e9  # never
@@ -312,6 +361,17 @@ class GarmentDynamicsEnv(_Base):
             log.info("material %s with RGBench's cloth_params: %s", material, self.material_params)
         common = dict(material=material, material_params=self.material_params, mode=mode, dt=float(dt),
                       self_contact=gd.get("self_contact"), grab_time=grab_time)
+        self.urdf = None
+        if self.robot:
+            self.urdf = robot_urdf(self.cfg)
+            for key in ("grip_force", "finger_friction"):
+                if gd.get(key) is not None:
+                    common[key] = float(gd.get(key))
+            common["urdf"] = self.urdf
+            # The arms start where the recording starts (as RGBench resets its robot to the first
+            # joints), not at the server's home pose: no sweep through the cloth in the first step.
+            common["initial_joints"] = {arm: track.at(self._traj_time(0.0))[0] for arm, track in self.tracks.items()}
+            log.info("robot mode: the arms of %s", self.urdf or "the server's --robot-urdf")
         model_path = cfg_get(self.cfg, "cloth.model_path")
         if model_path:
             init_pose = cfg_get(self.cfg, "cloth.init_pose", DEFAULT_INIT_POSE)
@@ -324,12 +384,22 @@ class GarmentDynamicsEnv(_Base):
                                 list(init_pose))
             obj = _posed_obj(Path(str(model_path)), list(init_pose))
             mesh_id = self.client.upload_mesh(obj, name=Path(str(model_path)).stem)
-            ids = self.client.create_scenes(mesh_id=mesh_id, **common)
+            source = dict(mesh_id=mesh_id)
         else:
-            ids = self.client.create_scenes(garment=str(gd.get("garment", "tshirt")),
-                                            vertices=int(gd.get("vertices", 2000)), **common)
+            source = dict(garment=str(gd.get("garment", "tshirt")), vertices=int(gd.get("vertices", 2000)))
+        try:
+            ids = self.client.create_scenes(**source, **common)
+        except grpc.RpcError as err:
+            if self.robot and self.urdf is None and err.code() == grpc.StatusCode.FAILED_PRECONDITION:
+                raise ValueError(
+                    "sim_model.type robot needs the arms' URDF (RGBench's assets/Urdf/piper_description/"
+                    "piper_with_gripper.urdf) and the server has none: set env.garment_dynamics.urdf (or RGBench's "
+                    "env.model_path) to the file's absolute path, or start the gd-server with --robot-urdf PATH "
+                    f"(the server said: {err.details()})") from err
+            raise
         self.scene_id = ids[0]
         info = self.client.scene_info(self.scene_id)
+        self.info = info
         self.dt = float(info["dt"])
         self.initial_vertices = info["rest_positions"].astype(np.float64)
         n = len(self.initial_vertices)
@@ -361,12 +431,12 @@ class GarmentDynamicsEnv(_Base):
 
     def step_to_time(self, target_time: float) -> None:
         """Steps while sim time < target_time (so it ends less than one dt past it). Stops early,
-        with a warning, if the scene failed. With the server's pins (fixed_point Grasp/Fold) the
-        steps up to target_time go in one call (substeps), the arms' trajectories having been sent
-        ahead; with kinematic vertex targets (Fling, manual grab points), which reach their
-        positions over one step, one call per step."""
+        with a warning, if the scene failed. With the server's pins (fixed_point Grasp/Fold) and in
+        robot mode the steps up to target_time go in one call (substeps), the arms' trajectories
+        having been sent ahead; with kinematic vertex targets (Fling, manual grab points), which
+        reach their positions over one step, one call per step."""
         while self.sim_time < target_time - 1e-9 and not self._failed:
-            if self.pin_mode != "server":
+            if not self._ahead:
                 self._advance(1)
                 continue
             k, t = 0, self.sim_time
@@ -387,7 +457,7 @@ class GarmentDynamicsEnv(_Base):
         """substeps steps of dt in one StepScenes call."""
         if self._failed:
             return {"sim_time": self.sim_time, "failed": True, "failure": self._failure}
-        if self.pin_mode == "server":
+        if self._ahead:
             action = None if self._sent_ahead else self._trajectories_ahead()
         else:
             action = self._action(self.sim_time + self.dt * substeps)
@@ -395,8 +465,9 @@ class GarmentDynamicsEnv(_Base):
         state = self.client.step_states([self.scene_id], [action], substeps=substeps, omit_positions=True)[0]
         pace = (time.monotonic() - t0) / substeps
         self._seconds_per_step = pace if self._seconds_per_step <= 0 else max(pace, 0.5 * (self._seconds_per_step + pace))
-        self._sent_ahead = self._sent_ahead or self.pin_mode == "server"
+        self._sent_ahead = self._sent_ahead or self._ahead
         self.sim_time = state.time
+        self.arm_states = state.arms
         self._vertices = None
         if state.failed:
             self._failed, self._failure = True, state.failure
@@ -420,15 +491,29 @@ class GarmentDynamicsEnv(_Base):
         return self.master_start_time + t - self.prepare_time - self.wait_time
 
     def _trajectories_ahead(self) -> dict:
-        """Server pin mode: each arm's whole trajectory as timed samples (scene time), sent with the
-        first call and kept by the server: the sample at the first step's end, then every CSV
-        sample after it (the server interpolates between samples as PoseTrack.at does, so every
-        step ends where a per-step command would have put it)."""
+        """Server pin mode and robot mode: each arm's whole trajectory as timed samples (scene
+        time), sent with the first call and kept by the server: the sample at the first step's
+        end, then every CSV sample after it (the server interpolates between samples as
+        PoseTrack.at and JointTrack.at do, so every step ends where a per-step command would have
+        put it). Pin mode sends end poses with the gripper open (RGBench's fixed-point envs ignore
+        it), robot mode joint angles with the recorded gripper opening."""
         action = {}
         t_first = self.dt
+        grip_max = float(self.info.get("gripper_max") or GRIPPER_OPEN)
+
+        def sample(track, k, t):
+            """The command of CSV sample k (None: interpolated at scene time t)."""
+            if self.robot:
+                q, g = track.at(self._traj_time(t)) if k is None else (track.joints[k], track.gripper[k])
+                return {"joints": q, "gripper": float(np.clip(g, 0.0, grip_max)), "time": float(t)}
+            if k is None:
+                pos, quat, _ = track.at(self._traj_time(t))
+            else:
+                pos, quat = track.positions[k], track.quats[k]
+            return {"position": pos, "orientation": quat, "gripper": GRIPPER_OPEN, "time": float(t)}
+
         for arm, track in self.tracks.items():
-            pos, quat, _ = track.at(self._traj_time(t_first))
-            samples = [{"position": pos, "orientation": quat, "gripper": GRIPPER_OPEN, "time": t_first}]
+            samples = [sample(track, None, t_first)]
             sim_times = np.asarray(track.times, dtype=np.float64) - self._traj_time(0.0)
             last = t_first
             for k, t in enumerate(sim_times):
@@ -436,8 +521,7 @@ class GarmentDynamicsEnv(_Base):
                     continue  # a later sample at the same time wins (as in PoseTrack.at)
                 if t <= last + 1e-9:
                     continue
-                samples.append({"position": track.positions[k], "orientation": track.quats[k],
-                                "gripper": GRIPPER_OPEN, "time": float(t)})
+                samples.append(sample(track, k, t))
                 last = t
             action[arm] = samples
         return action

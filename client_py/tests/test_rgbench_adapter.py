@@ -198,10 +198,9 @@ def test_bad_config_is_refused_with_a_message(tmp_path):
     paths = write_csvs(tmp_path)
     with pytest.raises(ValueError, match="sim_model.type"):
         GarmentDynamicsEnv(cfg=make_cfg(paths, sim_type="magic"))
-    # robot mode (the Piper joints) does not exist yet: refused, not replaced by something else
-    for action in ("grasp", "fling"):
-        with pytest.raises(ValueError, match="robot.*not supported.*fixed_point"):
-            GarmentDynamicsEnv(cfg=make_cfg(paths, action=action, sim_type="robot"))
+    # robot mode runs grasp and fold (test_rgbench_robot.py); fling is fixed_point only
+    with pytest.raises(ValueError, match="fling runs in sim_model.type fixed_point only"):
+        GarmentDynamicsEnv(cfg=make_cfg(paths, action="fling", sim_type="robot"))
 
 
 def test_time_step_comes_from_rgbench_keys_when_ours_is_unset(client, tmp_path):

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <sstream>
 
 #include "sim/demand.h"
@@ -47,6 +48,10 @@ double rotation_angle(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
 }  // namespace
 
 struct ArmModel::Impl {
+  /// KDL's joints cache their last pose in mutable members (KDL::Joint::pose), so concurrent
+  /// kinematics on one tree or chain race (scenes of a server share a model): every public entry
+  /// point that runs KDL holds this lock (recursive: ik_position_first calls ik and ee_pose).
+  mutable std::recursive_mutex kdl_mu;
   std::string name;
   ArmModelOptions options;
   KDL::Tree tree;
@@ -235,6 +240,7 @@ const std::array<std::string, 2>& ArmModel::finger_links() const { return impl_-
 std::vector<std::string> ArmModel::link_names() const { return impl_->links; }
 
 Eigen::Isometry3d ArmModel::link_pose(const std::string& link, const Eigen::VectorXd& q, double gripper) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->kdl_mu);
   impl_->check_q(q, "link_pose");
   if (!impl_->tree.getSegments().count(link)) throw InputError("link_pose: the arm has no link named '" + link + "'");
   KDL::TreeFkSolverPos_recursive fk(impl_->tree);
@@ -251,6 +257,7 @@ std::vector<Eigen::Isometry3d> ArmModel::link_poses(const Eigen::VectorXd& q, do
 }
 
 Eigen::Isometry3d ArmModel::ee_pose(const Eigen::VectorXd& q) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->kdl_mu);
   impl_->check_q(q, "ee_pose");
   KDL::JntArray jq(q.size());
   for (Eigen::Index k = 0; k < q.size(); ++k) jq(k) = q[k];
@@ -259,6 +266,7 @@ Eigen::Isometry3d ArmModel::ee_pose(const Eigen::VectorXd& q) const {
 
 IkResult ArmModel::ik(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed, double pos_tol,
                       double rot_tol) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->kdl_mu);
   impl_->check_q(seed, "ik seed");
   if (!target.matrix().allFinite()) throw InputError("ik: the target pose is not finite");
   const Impl& m = *impl_;
@@ -311,6 +319,7 @@ IkResult ArmModel::ik(const Eigen::Isometry3d& target, const Eigen::VectorXd& se
 
 IkResult ArmModel::ik_position_first(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed,
                                      double max_rotation_error, double pos_tol) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->kdl_mu);
   const IkResult exact = ik(target, seed, pos_tol, 1e-3);
   if (exact.ok) return exact;
   const Impl& m = *impl_;

@@ -17,7 +17,8 @@
 ///   auto ik = arm.ik(ee, seed);                                         // ik.ok, ik.q
 ///
 /// Poses are in the arm's own base frame (the URDF's root); an arm placed in a world puts its
-/// base pose in front. An ArmModel is immutable after load and safe to share between threads.
+/// base pose in front. An ArmModel is immutable after load and safe to share between threads (its
+/// kinematics run under a lock: KDL's joints cache their last pose).
 
 #include <Eigen/Geometry>
 #include <array>

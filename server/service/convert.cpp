@@ -92,6 +92,14 @@ void encode_triangles(const std::vector<Eigen::Vector3i>& t, pb::Array* out) {
   }
 }
 
+void to_robot_spec(const pb::RobotSettings& r, RobotSpec* out) {
+  out->urdf_xml = r.urdf();
+  if (r.has_grip_force()) out->grip_force = r.grip_force();
+  if (r.has_finger_friction()) out->finger_friction = r.finger_friction();
+  out->initial_joints[0].assign(r.left_initial_joints().begin(), r.left_initial_joints().end());
+  out->initial_joints[1].assign(r.right_initial_joints().begin(), r.right_initial_joints().end());
+}
+
 Status to_scene_spec(const pb::CreateScenesRequest& r, SceneSpec* out) {
   out->garment = r.garment();
   out->material = r.material();
@@ -108,6 +116,7 @@ Status to_scene_spec(const pb::CreateScenesRequest& r, SceneSpec* out) {
   out->offset_m = r.randomization().offset_m();
   out->garment_params.insert(r.garment_params().begin(), r.garment_params().end());
   out->material_params.insert(r.material_params().begin(), r.material_params().end());
+  if (r.has_robot()) to_robot_spec(r.robot(), &out->robot);
   return Status::Ok();
 }
 
@@ -136,6 +145,7 @@ Status to_step_request(const pb::StepScenesRequest& r, StepRequest* out) {
       }
       cmd.gripper = c.gripper();
       if (c.has_time()) cmd.time = c.time();
+      cmd.joints.assign(c.joints().begin(), c.joints().end());
       act.arms.push_back(cmd);
     }
     if (a.has_targets()) {
@@ -169,6 +179,7 @@ Status to_job_spec(const pb::SubmitJobRequest& r, JobSpec* out) {
   out->garment_params.insert(r.garment_params().begin(), r.garment_params().end());
   out->task_params.insert(r.task_params().begin(), r.task_params().end());
   out->material_params.insert(r.material_params().begin(), r.material_params().end());
+  if (r.has_robot()) to_robot_spec(r.robot(), &out->robot);
   return Status::Ok();
 }
 
@@ -185,6 +196,9 @@ void to_proto(const SceneSnapshot& s, bool include_stats, pb::SceneState* out) {
     st->set_arm(a == 0 ? pb::ARM_LEFT : pb::ARM_RIGHT);
     st->set_closed(s.arms[a].closed);
     st->set_held_vertices(s.arms[a].held_vertices);
+    for (double q : s.arms[a].joints) st->add_joints(q);
+    st->set_gripper(s.arms[a].gripper);
+    st->set_squeeze(s.arms[a].squeeze);
   }
   if (include_stats) {
     pb::StepStats* st = out->mutable_stats();
@@ -204,6 +218,10 @@ void to_proto(const SceneInfo& s, pb::SceneInfo* out) {
   out->set_mode(s.mode);
   out->set_left_shoulder_vertex(s.left_shoulder_vertex);
   out->set_right_shoulder_vertex(s.right_shoulder_vertex);
+  for (const std::string& n : s.joint_names) out->add_joint_names(n);
+  for (double v : s.joint_lower) out->add_joint_lower(v);
+  for (double v : s.joint_upper) out->add_joint_upper(v);
+  out->set_gripper_max(s.gripper_max);
 }
 
 void to_proto(const JobRecord& j, pb::JobInfo* out) {

@@ -27,6 +27,7 @@ Status decode_indices(const pb::Array& a, const char* what, std::vector<int>* ou
 void encode_vec3(const std::vector<Vec3>& v, pb::Array* out);
 void encode_triangles(const std::vector<Eigen::Vector3i>& t, pb::Array* out);
 
+void to_robot_spec(const pb::RobotSettings& r, RobotSpec* out);
 /// The request's fields except the mesh (the handler resolves mesh_id to a path).
 Status to_scene_spec(const pb::CreateScenesRequest& r, SceneSpec* out);
 Status to_step_request(const pb::StepScenesRequest& r, StepRequest* out);

@@ -1,5 +1,7 @@
 #include "service/job_queue.h"
 
+#include "robot/arm_model.h"
+
 #include <fcntl.h>
 #include <spdlog/fmt/fmt.h>
 #include <unistd.h>
@@ -113,10 +115,44 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   if (spec.task.empty()) return Status::InvalidArgument("no task given; use grasp, fold or fling");
   cfg->task = spec.task;
   cfg->mode = spec.mode.empty() ? "pseudo" : spec.mode;
-  if (cfg->mode == "robot")
+  std::string urdf_text;  // robot mode: a URDF sent with the request, written beside the job's output
+  if (cfg->mode == "robot") {
+    if (spec.robot.urdf_xml.size() > kMaxUrdfBytes)
+      return Status::ResourceExhausted(fmt::format("the robot URDF is {} bytes, over the limit of {}",
+                                                   spec.robot.urdf_xml.size(), kMaxUrdfBytes));
+    if (spec.robot.urdf_xml.empty()) {
+      if (options_.robot_urdf.empty())
+        return Status::FailedPrecondition(
+            "robot mode needs the arms' URDF: send its text in the request's robot settings (RobotSettings.urdf), or "
+            "start the server with --robot-urdf PATH (e.g. RGBench's piper_with_gripper.urdf)");
+      cfg->robot.urdf = options_.robot_urdf;
+    } else {
+      try {
+        (void)robot::ArmModel::from_string(spec.robot.urdf_xml, "robot.urdf");
+      } catch (const InputError& e) {
+        return Status::InvalidArgument(fmt::format("robot settings: {}", e.what()));
+      }
+      urdf_text = spec.robot.urdf_xml;
+      cfg->robot.urdf = "robot.urdf";  // its path is set with the job's directory below
+    }
+    if (spec.robot.grip_force) {
+      if (!(*spec.robot.grip_force > 0) || !std::isfinite(*spec.robot.grip_force))
+        return Status::InvalidArgument(fmt::format("robot grip_force must be a finite number > 0 N (got {})",
+                                                   *spec.robot.grip_force));
+      cfg->robot.grip_force = *spec.robot.grip_force;
+    }
+    if (spec.robot.finger_friction) {
+      if (!(*spec.robot.finger_friction >= 0) || !std::isfinite(*spec.robot.finger_friction))
+        return Status::InvalidArgument(fmt::format("robot finger_friction must be a finite number >= 0 (got {})",
+                                                   *spec.robot.finger_friction));
+      cfg->robot.finger_friction = *spec.robot.finger_friction;
+    }
+  } else if (!spec.robot.empty()) {
+    return Status::InvalidArgument(fmt::format("robot settings are for mode robot (this job's mode is {})", cfg->mode));
+  }
+  if (!spec.robot.initial_joints[0].empty() || !spec.robot.initial_joints[1].empty())
     return Status::InvalidArgument(
-        "robot mode runs in a local `gd run --mode robot --urdf PATH` only so far (docs/robot.md); jobs take pseudo "
-        "or fixed_point");
+        "robot initial joints are for scenes; a job's arms start at its trajectory's first sample");
   const int vertices = spec.vertices == 0 ? 2000 : spec.vertices;
   if (vertices < 0) return Status::InvalidArgument(fmt::format("vertices must be > 0 (got {})", spec.vertices));
   if (vertices > options_.max_vertices)
@@ -192,6 +228,7 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   const std::string id = new_id("j-");
   cfg->out_dir = (fs::path(options_.data_dir) / "jobs" / id).string();
   if (traj) cfg->trajectory_file = cfg->out_dir + "/input_trajectory." + spec.trajectory_format;
+  if (!urdf_text.empty()) cfg->robot.urdf = cfg->out_dir + "/robot.urdf";
   try {
     cfg->validate();
   } catch (const InputError& e) {
@@ -213,6 +250,10 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
                                     {"settle", cfg->settle_after}, {"self_contact", cfg->scene.self_contact},
                                     {"capture", spec.capture},    {"icp", cfg->icp},
                                     {"material_params", cfg->material_params},
+                                    {"robot", cfg->mode != "robot" ? nlohmann::json()
+                                                                   : nlohmann::json{{"urdf", urdf_text.empty() ? cfg->robot.urdf : "sent"},
+                                                                                    {"grip_force", cfg->robot.grip_force},
+                                                                                    {"finger_friction", cfg->robot.finger_friction}}},
                                     {"trajectory", traj ? spec.trajectory_format : std::string()}}
                          .dump();
   {
@@ -227,6 +268,12 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
     std::ofstream f(cfg->trajectory_file, std::ios::binary);
     f << spec.trajectory;
     if (!f) return Status::Internal(fmt::format("cannot write '{}'", cfg->trajectory_file));
+  }
+  if (!urdf_text.empty()) {
+    fs::create_directories(cfg->out_dir);
+    std::ofstream f(cfg->robot.urdf, std::ios::binary);
+    f << urdf_text;
+    if (!f) return Status::Internal(fmt::format("cannot write '{}'", cfg->robot.urdf));
   }
   GD_RETURN_IF_ERROR(store_.insert_job(rec));
   {

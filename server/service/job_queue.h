@@ -30,6 +30,7 @@
 
 #include "service/mesh_library.h"
 #include "service/report_store.h"
+#include "service/robot_spec.h"
 #include "service/status.h"
 #include "sim/solver/options.h"
 
@@ -45,7 +46,8 @@ struct JobSpec {
   std::string mesh_id;              ///< an uploaded mesh
   std::string material;             ///< default cotton
   std::string task;                 ///< grasp | fold | fling
-  std::string mode;                 ///< pseudo (default) | fixed_point
+  std::string mode;                 ///< pseudo (default) | fixed_point | robot
+  RobotSpec robot;                  ///< mode robot only
   int vertices = 0;                 ///< 0: 2000
   std::string trajectory;           ///< optional CSV or JSON text
   std::string trajectory_format;    ///< csv | json (required with trajectory)
@@ -71,6 +73,9 @@ struct JobQueueOptions {
   long max_job_steps = 2'000'000;
   bool plots = false;               ///< draw the PNG plots of capture runs (needs Python + matplotlib)
   sim::BackendKind backend = sim::BackendKind::kCpu;
+  /// Robot-mode jobs whose request sends no URDF run with this one (flag --robot-urdf; empty:
+  /// they are refused).
+  std::string robot_urdf;
 };
 
 /// A finished job's report with (optionally) its files' bytes.

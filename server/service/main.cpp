@@ -79,6 +79,10 @@ int main(int argc, char** argv) {
                  "fails before its scene is built")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  app.add_option("--robot-urdf", o.robot_urdf,
+                 "URDF of robot mode's arms for scenes and jobs whose request sends none (e.g. RGBench's "
+                 "piper_with_gripper.urdf; docs/robot.md); without it such requests are refused")
+      ->check(CLI::ExistingFile);
   app.add_flag("--plots", o.plots, "draw the PNG plots of capture jobs (needs Python with matplotlib)");
   app.add_option("--scene-lease-s", o.scene_lease_seconds,
                  "scenes that no call names for this long are destroyed (a client that died or never called "

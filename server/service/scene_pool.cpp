@@ -20,7 +20,9 @@
 #include "sim/log.h"
 #include "sim/material.h"
 #include "sim/scene.h"
+#include "robot/arm_model.h"
 #include "tasks/grippers.h"
+#include "tasks/robot_arms.h"
 #include "tasks/trajectory.h"
 
 namespace gd::service {
@@ -98,6 +100,10 @@ Eigen::Isometry3d home_pose(tasks::Arm arm) {
   return tasks::make_pose(tasks::base_offset(arm) + Vec3(0, 0, 0.3), tasks::top_down_orientation());
 }
 
+Eigen::Isometry3d robot_home_pose(tasks::Arm arm) {
+  return tasks::make_pose(tasks::base_offset(arm) + Vec3(0.25, 0, 0.25), tasks::top_down_orientation());
+}
+
 namespace {
 
 /// What the scenes of one create() share: the placed garment, material and options.
@@ -107,6 +113,9 @@ struct Template {
   sim::SceneOptions options;
   tasks::GripperOptions grippers;
   std::string mode;
+  tasks::RobotOptions robot;                      ///< mode robot
+  std::shared_ptr<const robot::ArmModel> arms;    ///< mode robot: the URDF's arms
+  std::array<std::vector<double>, 2> initial_joints;  ///< mode robot (empty: inverse kinematics)
   double yaw_deg = 0, offset_m = 0;
   SceneInfo info;
 };
@@ -130,18 +139,21 @@ sim::Mesh randomized_mesh(const Template& t, uint64_t seed) {
   return m;
 }
 
-std::unique_ptr<tasks::GripperController> make_controller(const tasks::GripperOptions& go) {
+/// Both arms parked at home_pose() (robot: robot_home_pose(), or the given joints) with the
+/// gripper open at t = 0.
+tasks::DualArmTrajectory home_trajectory(bool robot, const std::array<std::vector<double>, 2>& joints = {}) {
   tasks::DualArmTrajectory traj;
   for (tasks::Arm a : {tasks::Arm::kLeft, tasks::Arm::kRight}) {
-    const Eigen::Isometry3d h = home_pose(a);
+    const Eigen::Isometry3d h = robot ? robot_home_pose(a) : home_pose(a);
     tasks::ArmSample s;
     s.t = 0;
+    s.joints = joints[static_cast<int>(a)];
     s.position = h.translation();
     s.orientation = Eigen::Quaterniond(h.linear());
     s.gripper = tasks::kGripperOpen;
     traj.arm(a) = tasks::ArmTrajectory({s}, fmt::format("{} arm home pose", tasks::arm_name(a)));
   }
-  return std::make_unique<tasks::GripperController>(std::move(traj), go);
+  return traj;
 }
 
 const sim::MaterialLibrary& materials() {
@@ -171,7 +183,9 @@ struct ScenePool::Entry {
   std::shared_ptr<const Template> tmpl;
   uint64_t seed = 0;
   std::unique_ptr<sim::Scene> scene;
-  std::unique_ptr<tasks::GripperController> controller;
+  std::unique_ptr<tasks::TaskController> controller;
+  tasks::GripperController* grippers = nullptr;  ///< the controller in pseudo / fixed point mode
+  tasks::RobotController* robot = nullptr;       ///< the controller in robot mode
   int64_t steps = 0;
   std::vector<int> target_groups;
   std::string error;        ///< an unexpected error while stepping (the scene counts as failed)
@@ -184,7 +198,18 @@ struct ScenePool::Entry {
   void build(uint64_t s) {
     seed = s;
     scene = sim::Scene::create(randomized_mesh(*tmpl, s), tmpl->material, tmpl->options);
-    controller = make_controller(tmpl->grippers);
+    if (tmpl->arms) {
+      auto r = std::make_unique<tasks::RobotController>(home_trajectory(true, tmpl->initial_joints), tmpl->robot,
+                                                        tmpl->arms);
+      robot = r.get();
+      grippers = nullptr;
+      controller = std::move(r);
+    } else {
+      auto g = std::make_unique<tasks::GripperController>(home_trajectory(false), tmpl->grippers);
+      grippers = g.get();
+      robot = nullptr;
+      controller = std::move(g);
+    }
     steps = 0;
     target_groups.clear();
     error.clear();
@@ -203,9 +228,17 @@ struct ScenePool::Entry {
     if (positions) s.positions = scene->positions();
     if (velocities) s.velocities = scene->velocities();
     for (int a = 0; a < 2; ++a) {
-      const tasks::ArmState& st = controller->state(static_cast<tasks::Arm>(a));
-      s.arms[a].closed = st.closed;
-      s.arms[a].held_vertices = static_cast<int>(st.held.size());
+      if (robot) {
+        const tasks::RobotArmState& st = robot->state(static_cast<tasks::Arm>(a));
+        s.arms[a].closed = st.gripper_command < 0.5 * robot->arm_model().gripper_max();
+        s.arms[a].joints = st.joints;
+        s.arms[a].gripper = st.gripper;
+        s.arms[a].squeeze = st.squeeze;
+      } else {
+        const tasks::ArmState& st = grippers->state(static_cast<tasks::Arm>(a));
+        s.arms[a].closed = st.closed;
+        s.arms[a].held_vertices = static_cast<int>(st.held.size());
+      }
     }
     s.newton_iterations = newton;
     s.pcg_iterations = pcg;
@@ -246,7 +279,14 @@ ScenePool::ScenePool(PoolOptions options)
           throw InputError("scene pool limits must be >= 0");
         return options;
       }()),
-      pool_(options_.threads) {}
+      robot_model_(options_.robot_urdf.empty()
+                       ? nullptr
+                       : std::make_shared<const robot::ArmModel>(robot::ArmModel::load(options_.robot_urdf))),
+      pool_(options_.threads) {
+  if (robot_model_)
+    gd::log().info("robot mode's default arms: {} ({} joints) from {}", robot_model_->name(), robot_model_->arm_dofs(),
+                   options_.robot_urdf);
+}
 
 ScenePool::~ScenePool() {
   std::lock_guard<std::mutex> lock(mu_);
@@ -307,6 +347,52 @@ Status check_alive(const std::vector<std::shared_ptr<ScenePool::Entry>>& entries
 
 }  // namespace
 
+Status ScenePool::robot_arms(const RobotSpec& spec, std::shared_ptr<const robot::ArmModel>* arms,
+                             tasks::RobotOptions* options) const {
+  if (spec.urdf_xml.size() > kMaxUrdfBytes)
+    return Status::ResourceExhausted(fmt::format("the robot URDF is {} bytes, over the limit of {} (send the URDF "
+                                                 "without meshes or comments inlined)",
+                                                 spec.urdf_xml.size(), kMaxUrdfBytes));
+  if (spec.urdf_xml.empty()) {
+    if (!robot_model_)
+      return Status::FailedPrecondition(
+          "robot mode needs the arms' URDF: send its text in the request's robot settings (RobotSettings.urdf), or "
+          "start the server with --robot-urdf PATH (e.g. RGBench's piper_with_gripper.urdf)");
+    *arms = robot_model_;
+    options->urdf = options_.robot_urdf;
+  } else {
+    try {
+      *arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::from_string(spec.urdf_xml, "robot.urdf"));
+    } catch (const InputError& e) {
+      return Status::InvalidArgument(fmt::format("robot settings: {}", e.what()));
+    }
+    options->urdf = "robot.urdf (sent with the request)";
+  }
+  if (spec.grip_force) options->grip_force = *spec.grip_force;
+  if (spec.finger_friction) options->finger_friction = *spec.finger_friction;
+  if (options->grip_force <= 0 && spec.grip_force)
+    return Status::InvalidArgument(fmt::format("robot grip_force must be > 0 N (got {})", *spec.grip_force));
+  if (spec.finger_friction && !(*spec.finger_friction >= 0))
+    return Status::InvalidArgument(fmt::format("robot finger_friction must be >= 0 (got {})", *spec.finger_friction));
+  try {
+    options->validate(false);
+  } catch (const InputError& e) {
+    return Status::InvalidArgument(e.what());
+  }
+  for (int a = 0; a < 2; ++a) {
+    const std::vector<double>& q = spec.initial_joints[a];
+    const char* arm = a == 0 ? "left" : "right";
+    if (q.empty()) continue;
+    if (static_cast<int>(q.size()) != (*arms)->arm_dofs())
+      return Status::InvalidArgument(fmt::format("robot {}_initial_joints has {} values; the URDF's arm has {} ({})", arm,
+                                                 q.size(), (*arms)->arm_dofs(), fmt::join((*arms)->arm_joint_names(), ", ")));
+    for (size_t k = 0; k < q.size(); ++k)
+      if (!std::isfinite(q[k]))
+        return Status::InvalidArgument(fmt::format("robot {}_initial_joints: {} is not finite", arm, (*arms)->arm_joint_names()[k]));
+  }
+  return Status::Ok();
+}
+
 Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
   // Cheap checks first: nothing is built for a bad request.
   const int count = spec.count == 0 ? 1 : spec.count;
@@ -318,12 +404,15 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
                                                  "(ask for fewer, or start the server with a larger --max-vertices)",
                                                  vertices, options_.max_vertices));
   const std::string mode = spec.mode.empty() ? "pseudo" : spec.mode;
-  if (mode == "robot")
-    return Status::InvalidArgument(
-        "robot mode runs in a local `gd run --mode robot --urdf PATH` only so far (docs/robot.md); scenes take pseudo "
-        "or fixed_point");
-  if (mode != "pseudo" && mode != "fixed_point")
-    return Status::InvalidArgument(fmt::format("unknown mode '{}'; use pseudo or fixed_point", mode));
+  if (mode != "pseudo" && mode != "fixed_point" && mode != "robot")
+    return Status::InvalidArgument(fmt::format("unknown mode '{}'; use pseudo, fixed_point or robot", mode));
+  std::shared_ptr<const robot::ArmModel> arms;
+  tasks::RobotOptions robot_options;
+  if (mode == "robot") {
+    GD_RETURN_IF_ERROR(robot_arms(spec.robot, &arms, &robot_options));
+  } else if (!spec.robot.empty()) {
+    return Status::InvalidArgument(fmt::format("robot settings are for mode robot (this request's mode is {})", mode));
+  }
   if (spec.mesh_path.empty()) {
     if (spec.garment.empty())
       return Status::InvalidArgument("no garment given: set garment (a type from ListGarments) or mesh_id (from UploadMesh)");
@@ -404,6 +493,9 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     if (spec.grab_time) t->grippers.grab_time = *spec.grab_time;
     t->grippers.validate();
     t->mode = mode;
+    t->arms = arms;
+    t->robot = robot_options;
+    t->initial_joints = spec.robot.initial_joints;
     t->yaw_deg = spec.yaw_deg;
     t->offset_m = spec.offset_m;
     t->info.vertex_count = static_cast<int>(t->mesh.x.size());
@@ -413,6 +505,14 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     t->info.mode = mode;
     t->info.left_shoulder_vertex = garment.landmarks.left_shoulder_vertex;
     t->info.right_shoulder_vertex = garment.landmarks.right_shoulder_vertex;
+    if (arms) {
+      t->info.joint_names = arms->arm_joint_names();
+      for (const robot::JointLimits& l : arms->arm_limits()) {
+        t->info.joint_lower.push_back(l.lower);
+        t->info.joint_upper.push_back(l.upper);
+      }
+      t->info.gripper_max = arms->gripper_max();
+    }
 
     std::vector<std::shared_ptr<Entry>> made(count);
     std::vector<std::string> errors(count);
@@ -511,6 +611,13 @@ Status check_action(const SceneAction& a, int vertex_count) {
       return Status::InvalidArgument(fmt::format(
           "scene '{}': the {} arm's orientation must be a finite non-zero quaternion (unset: identity)", a.scene_id,
           tasks::arm_name(c.arm)));
+    for (double q : c.joints)
+      if (!std::isfinite(q))
+        return Status::InvalidArgument(fmt::format("scene '{}': the {} arm's joints must be finite", a.scene_id,
+                                                   tasks::arm_name(c.arm)));
+    if (c.joints.size() > 64)
+      return Status::InvalidArgument(fmt::format("scene '{}': the {} arm's command gives {} joints; an arm has a few",
+                                                 a.scene_id, tasks::arm_name(c.arm), c.joints.size()));
     if (!std::isfinite(c.gripper) || c.gripper < 0 || c.gripper > 1)
       return Status::InvalidArgument(fmt::format("scene '{}': the {} arm's gripper opening must be in [0, 1] m "
                                                  "(0 = closed, 0.035 = open); got {}",
@@ -601,16 +708,21 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
       return Status::FailedPrecondition(fmt::format("scene '{}' has failed ({}); reset it (ResetScenes) or destroy it",
                                                     e->id, e->scene->failure().empty() ? e->error : e->scene->failure()));
 
-  // Each arm's samples must follow its last one (checked before anything changes).
+  // Each arm's samples must follow its last one, and robot mode's poses must be within reach
+  // (checked before anything changes: the samples are made here and appended below).
+  std::vector<std::vector<std::pair<tasks::Arm, tasks::ArmSample>>> samples(entries.size());
   for (size_t i = 0; i < entries.size(); ++i) {
     const SceneAction* a = actions[i];
     if (!a) continue;
     Entry& e = *entries[i];
     const double t_end = e.scene->time() + substeps * e.scene->options().dt;
+    const tasks::DualArmTrajectory& traj = e.robot ? e.robot->trajectory() : e.grippers->trajectory();
     double after[2];
+    std::vector<double> joints[2];  // robot mode: each arm's latest joints (inverse kinematics' seed)
     for (int k = 0; k < 2; ++k) {
-      const tasks::ArmTrajectory& traj = e.controller->trajectory().arm(static_cast<tasks::Arm>(k));
-      after[k] = traj.empty() ? -std::numeric_limits<double>::infinity() : traj.samples().back().t;
+      const tasks::ArmTrajectory& arm = traj.arm(static_cast<tasks::Arm>(k));
+      after[k] = arm.empty() ? -std::numeric_limits<double>::infinity() : arm.samples().back().t;
+      if (!arm.empty()) joints[k] = arm.samples().back().joints;
     }
     for (const ArmCommand& c : a->arms) {
       double& prev = after[static_cast<int>(c.arm)];
@@ -621,6 +733,25 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
             "increasing time, each after the last one sent{}", e.id, tasks::arm_name(c.arm), t, prev,
             c.time ? "" : " (an untimed command is at the end of this call's steps)"));
       prev = t;
+      if (!c.joints.empty() && !e.robot)
+        return Status::InvalidArgument(fmt::format(
+            "scene '{}': the {} arm's command gives joints, which only robot-mode scenes take (this scene's mode is "
+            "{}); give the end-effector pose", e.id, tasks::arm_name(c.arm), e.tmpl->mode));
+      tasks::ArmSample s;
+      s.t = t;
+      s.position = c.position;
+      s.orientation = c.orientation.normalized();
+      s.gripper = c.gripper;
+      s.joints = c.joints;
+      if (e.robot) {
+        try {
+          s = e.robot->resolve(c.arm, s, joints[static_cast<int>(c.arm)]);
+        } catch (const InputError& ex) {
+          return Status::InvalidArgument(fmt::format("scene '{}': {}", e.id, ex.what()));
+        }
+        joints[static_cast<int>(c.arm)] = s.joints;
+      }
+      samples[i].emplace_back(c.arm, std::move(s));
     }
   }
   // Kinematic targets first (the only action the scene itself may still refuse); undone on error.
@@ -650,18 +781,11 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
   // Arm commands: samples at their times, an untimed one at the end time of this call's steps
   // (validated above and before the targets).
   for (size_t i = 0; i < entries.size(); ++i) {
-    const SceneAction* a = actions[i];
-    if (!a) continue;
     Entry& e = *entries[i];
-    const double t_end = e.scene->time() + substeps * e.scene->options().dt;
-    for (const ArmCommand& c : a->arms) {
-      tasks::ArmSample s;
-      s.t = c.time ? *c.time : t_end;
-      s.position = c.position;
-      s.orientation = c.orientation.normalized();
-      s.gripper = c.gripper;
+    for (const auto& [arm, s] : samples[i]) {
       try {
-        e.controller->append(c.arm, s);
+        if (e.robot) e.robot->append(arm, s);  // joints resolved above: no inverse kinematics again
+        else e.grippers->append(arm, s);
       } catch (const InputError& ex) {
         return Status::InvalidArgument(fmt::format("scene '{}': {}", e.id, ex.what()));
       }
@@ -774,6 +898,8 @@ Status ScenePool::destroy(const std::vector<std::string>& ids, int* destroyed, c
     e->close_subscribers();
     e->scene.reset();
     e->controller.reset();
+    e->grippers = nullptr;
+    e->robot = nullptr;
   }
   *destroyed = static_cast<int>(entries.size());
   return Status::Ok();
@@ -822,6 +948,8 @@ int ScenePool::expire_idle() {
     e->close_subscribers();
     e->scene.reset();
     e->controller.reset();
+    e->grippers = nullptr;
+    e->robot = nullptr;
   }
   return static_cast<int>(gone.size());
 }

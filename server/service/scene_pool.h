@@ -16,8 +16,11 @@
 /// tasks::default_garment_pose(), rigidly randomised per seed (yaw about z, x/y offset), a
 /// material, SceneOptions = ExperimentConfig::default_scene_options() with the spec's dt and
 /// self-contact, and a tasks::GripperController (pseudo grasp or RGBench's fixed point) whose
-/// trajectory starts with both arms parked at home_pose() with the gripper open at t = 0. A step's
-/// arm command appends a sample at the step's end time; arms not named hold their last command.
+/// trajectory starts with both arms parked at home_pose() with the gripper open at t = 0, or in
+/// robot mode a tasks::RobotController (URDF arms whose fingers hold the cloth; docs/robot.md)
+/// starting at robot_home_pose(). A step's arm command appends a sample at the step's end time
+/// (robot mode: its joints, or its pose through inverse kinematics); arms not named hold their
+/// last command.
 ///
 /// Every method validates its input and returns a Status (never throws): unknown ids ->
 /// kNotFound, bad values/NaN -> kInvalidArgument, over a limit -> kResourceExhausted, stepping a
@@ -43,11 +46,19 @@
 #include <string>
 #include <vector>
 
+#include "service/robot_spec.h"
 #include "service/status.h"
 #include "service/thread_pool.h"
 #include "sim/solver/options.h"
 #include "sim/types.h"
 #include "tasks/frames.h"
+
+namespace gd::robot {
+class ArmModel;
+}
+namespace gd::tasks {
+struct RobotOptions;
+}
 
 namespace gd::service {
 
@@ -70,6 +81,9 @@ struct PoolOptions {
   /// slots and memory for good.
   double scene_lease_seconds = 0;
   sim::BackendKind backend = sim::BackendKind::kCpu;
+  /// The arms of robot-mode scenes whose request sends no URDF (flag --robot-urdf; empty: such
+  /// requests are refused). Loaded when the pool is built: a bad file stops the server there.
+  std::string robot_urdf;
 };
 
 
@@ -79,7 +93,8 @@ struct SceneSpec {
   std::string mesh_path;         ///< an OBJ file (an uploaded mesh); takes precedence when set
   std::string material = "cotton";
   int vertices = 2000;           ///< target vertex count of a generated garment
-  std::string mode = "pseudo";   ///< pseudo | fixed_point
+  std::string mode = "pseudo";   ///< pseudo | fixed_point | robot
+  RobotSpec robot;               ///< mode robot only
   uint64_t seed = 0;             ///< randomisation seed of the initial pose (0: none)
   int count = 1;                 ///< scenes to create
   std::optional<double> dt;      ///< s (default 0.01)
@@ -104,6 +119,9 @@ struct ArmCommand {
   /// Scene time of this sample, s; unset: the end of the call's steps. Several samples of one
   /// arm come in increasing time, each after the arm's last sample (an untimed one last).
   std::optional<double> time;
+  /// Robot mode only: the arm's joint angles (SceneInfo::joint_names' order); position and
+  /// orientation are then unused. Empty in robot mode: the pose by inverse kinematics.
+  std::vector<double> joints;
 };
 
 /// What to do to one scene in a step.
@@ -129,8 +147,11 @@ struct StepRequest {
 
 /// One arm's state in a snapshot.
 struct ArmSnapshot {
-  bool closed = false;
-  int held_vertices = 0;
+  bool closed = false;               ///< the gripper is commanded closed
+  int held_vertices = 0;             ///< pseudo / fixed point modes
+  std::vector<double> joints;        ///< robot mode: the arm's joints, rad
+  double gripper = 0;                ///< robot mode: the fingers' opening, m
+  double squeeze = 0;                ///< robot mode: the cloth's push on the fingers, N
 };
 
 /// The state of one scene.
@@ -159,6 +180,10 @@ struct SceneInfo {
   std::string mode;
   int left_shoulder_vertex = -1;
   int right_shoulder_vertex = -1;
+  /// Robot mode: the arm joints ArmCommand::joints takes, their limits, the largest opening (m).
+  std::vector<std::string> joint_names;
+  std::vector<double> joint_lower, joint_upper;
+  double gripper_max = 0;
 };
 
 struct CreatedScenes {
@@ -212,6 +237,10 @@ class FrameSubscription {
 
 /// The default home pose of an arm: 0.3 m above its base, gripper pointing down.
 Eigen::Isometry3d home_pose(tasks::Arm arm);
+/// Robot mode's home pose of an arm's tool, reached by inverse kinematics (the Piper cannot reach
+/// straight above its base): 0.25 m in front of its base and 0.25 m up, pointing down as far as
+/// the wrist allows.
+Eigen::Isometry3d robot_home_pose(tasks::Arm arm);
 
 /// Ownership: every scene belongs to the principal that created it (SceneSpec::owner; with
 /// --auth-token-file the fingerprint of the caller's token, else ""). Every call names its caller
@@ -262,8 +291,12 @@ class ScenePool {
  private:
   Status lookup(const std::vector<std::string>& ids, const std::string& owner,
                 std::vector<std::shared_ptr<Entry>>* out) const;
+  /// Robot mode's arms and options for a request (its URDF, else the server's).
+  Status robot_arms(const RobotSpec& spec, std::shared_ptr<const robot::ArmModel>* arms,
+                    tasks::RobotOptions* options) const;
 
   PoolOptions options_;
+  std::shared_ptr<const robot::ArmModel> robot_model_;  ///< options_.robot_urdf's arms, if any
   ThreadPool pool_;
   /// A step call runs each scene's substeps in slices of about this long (at least one step)
   /// and queues the scene again behind other calls' scenes between slices.

@@ -31,6 +31,8 @@ struct ServerOptions {
   int job_workers = 1;
   long max_job_steps = 2'000'000;    ///< simulation steps per job (0: no limit)
   bool plots = false;
+  /// URDF of robot mode's arms for requests that send none (empty: they must send one).
+  std::string robot_urdf;
   double grace_seconds = 10;         ///< drain: how long running jobs may still take
   double scene_lease_seconds = 3600; ///< scenes no call names for this long are destroyed (0: never)
   double mesh_lease_seconds = 7 * 86400;  ///< uploads unused for this long are deleted (0: never)

@@ -1,6 +1,7 @@
 #include "tasks/robot_arms.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -35,8 +36,8 @@ Eigen::VectorXd to_vector(const std::vector<double>& q) { return Eigen::Map<cons
 
 }  // namespace
 
-void RobotOptions::validate() const {
-  if (urdf.empty()) throw InputError("robot mode needs the arms' URDF (--urdf PATH, e.g. RGBench's piper_with_gripper.urdf)");
+void RobotOptions::validate(bool need_urdf) const {
+  if (need_urdf && urdf.empty()) throw InputError("robot mode needs the arms' URDF (--urdf PATH, e.g. RGBench's piper_with_gripper.urdf)");
   auto check = [](double v, const char* name) {
     if (!std::isfinite(v)) throw InputError(fmt::format("robot option {} must be finite", name));
   };
@@ -72,11 +73,18 @@ struct RobotController::PadPoses {
 };
 
 RobotController::RobotController(DualArmTrajectory traj, RobotOptions options)
-    : traj_(std::move(traj)), options_(std::move(options)), poses_(std::make_shared<PadPoses>()) {
-  options_.validate();
-  model_ = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(options_.urdf, options_.arm));
+    : RobotController(std::move(traj), options, [&] {
+        options.validate();  // the URDF's path first of all
+        return std::make_shared<const robot::ArmModel>(robot::ArmModel::load(options.urdf, options.arm));
+      }()) {}
+
+RobotController::RobotController(DualArmTrajectory traj, RobotOptions options,
+                                 std::shared_ptr<const robot::ArmModel> model)
+    : traj_(std::move(traj)), options_(std::move(options)), model_(std::move(model)),
+      poses_(std::make_shared<PadPoses>()) {
+  GD_DEMAND(model_ != nullptr, "RobotController needs an arm model");
+  options_.validate(false);
   const robot::ArmModel& m = *model_;
-  const int dofs = m.arm_dofs();
   grip_force_ = options_.grip_force > 0 ? options_.grip_force : m.finger_limits().effort;
   if (!(grip_force_ > 0))
     throw InputError(fmt::format("URDF {}: finger joint '{}' gives no effort limit; set the grip force", options_.urdf,
@@ -85,51 +93,80 @@ RobotController::RobotController(DualArmTrajectory traj, RobotOptions options)
                                             : std::min(kMaxFingerSpeed, m.finger_limits().velocity > 0
                                                                             ? m.finger_limits().velocity
                                                                             : kMaxFingerSpeed);
-  // Joints for every sample: the recorded ones, or inverse kinematics along the trajectory.
+  // Joints for every sample: the recorded ones, or inverse kinematics along the trajectory, each
+  // sample seeded by the previous answer.
   for (Arm a : {Arm::kLeft, Arm::kRight}) {
     const ArmTrajectory& arm = traj_.arm(a);
     if (arm.empty()) throw InputError(fmt::format("robot mode: the {} arm has no trajectory samples", arm_name(a)));
     std::vector<ArmSample> samples = arm.samples();
-    Eigen::VectorXd seed = Eigen::VectorXd::Zero(dofs);
-    for (int k = 0; k < dofs; ++k) {
-      const robot::JointLimits& l = m.arm_limits()[k];
-      seed[k] = std::clamp(0.0, l.lower, l.upper);
-    }
     for (size_t i = 0; i < samples.size(); ++i) {
-      ArmSample& s = samples[i];
-      if (!s.joints.empty()) {
-        if (static_cast<int>(s.joints.size()) != dofs)
-          throw InputError(fmt::format("robot mode: the {} arm's sample at t={:.4f} s has {} joint values, the URDF's "
-                                       "arm has {}",
-                                       arm_name(a), s.t, s.joints.size(), dofs));
-        seed = to_vector(s.joints);
-        continue;
-      }
-      Eigen::Isometry3d ee = base_pose(a).inverse() * make_pose(s.position, s.orientation);
-      ee.linear() = ee.linear() * options_.tool_to_ee;
-      const robot::IkResult r = m.ik_position_first(ee, seed, options_.max_tilt, kIkPositionTolerance);
-      if (!r.ok)
-        throw InputError(fmt::format("robot mode: the {} arm cannot reach its pose at t={:.3f} s (world position "
-                                     "{:.3f}, {:.3f}, {:.3f}): {:.1f} mm and {:.2f} deg away at best; move the task "
-                                     "within reach (e.g. a lower lift height)",
-                                     arm_name(a), s.t, s.position.x(), s.position.y(), s.position.z(),
-                                     1e3 * r.position_error, r.rotation_error * 180 / 3.14159265358979323846));
-      s.joints.assign(r.q.data(), r.q.data() + dofs);
-      // A jump between neighbouring samples (another branch of the inverse kinematics) would
-      // sweep the pads through the cloth within one step.
-      if (i > 0 && (r.q - seed).cwiseAbs().maxCoeff() > kIkJumpWarning)
-        gd::log().warn("robot mode: the {} arm's joints jump by {:.2f} rad between t={:.3f} and {:.3f} s (inverse "
-                       "kinematics changed branch); sample the trajectory more finely",
-                       arm_name(a), (r.q - seed).cwiseAbs().maxCoeff(), samples[i - 1].t, s.t);
-      seed = r.q;  // the next sample starts from this answer
-      ++ik_solved_;
-      ik_max_tilt_ = std::max(ik_max_tilt_, r.rotation_error);
+      const bool solve = samples[i].joints.empty();
+      samples[i] = resolve(a, samples[i], i > 0 ? samples[i - 1].joints : std::vector<double>{});
+      if (solve) ++ik_solved_;
     }
+    // The state before the first step: the first sample's joints and opening.
+    RobotArmState& st = state_[static_cast<int>(a)];
+    st.joints = samples.front().joints;
+    st.gripper_command = std::clamp(samples.front().gripper, 0.0, m.gripper_max());
+    st.gripper = st.gripper_command;
     traj_.arm(a) = ArmTrajectory(std::move(samples), fmt::format("{} arm", arm_name(a)));
   }
   if (ik_solved_ > 0)
     gd::log().info("robot mode: inverse kinematics for {} trajectory samples (orientation missed by up to {:.1f} deg)",
                    ik_solved_, ik_max_tilt_ * 180 / 3.14159265358979323846);
+}
+
+ArmSample RobotController::resolve(Arm a, ArmSample s, const std::vector<double>& seed_joints) const {
+  const robot::ArmModel& m = *model_;
+  const int dofs = m.arm_dofs();
+  if (!s.joints.empty()) {
+    if (static_cast<int>(s.joints.size()) != dofs)
+      throw InputError(fmt::format("robot mode: the {} arm's sample at t={:.4f} s has {} joint values, the URDF's "
+                                   "arm has {} ({})",
+                                   arm_name(a), s.t, s.joints.size(), dofs, fmt::join(m.arm_joint_names(), ", ")));
+    for (int k = 0; k < dofs; ++k)
+      if (!std::isfinite(s.joints[k]))
+        throw InputError(fmt::format("robot mode: the {} arm's sample at t={:.4f} s has a non-finite value for {}",
+                                     arm_name(a), s.t, m.arm_joint_names()[k]));
+    return s;
+  }
+  Eigen::VectorXd seed(dofs);
+  if (static_cast<int>(seed_joints.size()) == dofs) {
+    seed = to_vector(seed_joints);
+  } else {
+    for (int k = 0; k < dofs; ++k) {
+      const robot::JointLimits& l = m.arm_limits()[k];
+      seed[k] = std::clamp(0.0, l.lower, l.upper);
+    }
+  }
+  if (!s.position.allFinite() || !s.orientation.coeffs().allFinite())
+    throw InputError(fmt::format("robot mode: the {} arm's sample at t={:.4f} s has a non-finite pose", arm_name(a), s.t));
+  Eigen::Isometry3d ee = base_pose(a).inverse() * make_pose(s.position, s.orientation.normalized());
+  ee.linear() = ee.linear() * options_.tool_to_ee;
+  const robot::IkResult r = m.ik_position_first(ee, seed, options_.max_tilt, kIkPositionTolerance);
+  if (!r.ok)
+    throw InputError(fmt::format("robot mode: the {} arm cannot reach its pose at t={:.3f} s (world position "
+                                 "{:.3f}, {:.3f}, {:.3f}): {:.1f} mm and {:.2f} deg away at best; move the task "
+                                 "within reach (e.g. a lower lift height)",
+                                 arm_name(a), s.t, s.position.x(), s.position.y(), s.position.z(),
+                                 1e3 * r.position_error, r.rotation_error * 180 / 3.14159265358979323846));
+  s.joints.assign(r.q.data(), r.q.data() + dofs);
+  // A jump between neighbouring samples (another branch of the inverse kinematics) would sweep
+  // the pads through the cloth within one step.
+  if (static_cast<int>(seed_joints.size()) == dofs && (r.q - seed).cwiseAbs().maxCoeff() > kIkJumpWarning)
+    gd::log().warn("robot mode: the {} arm's joints jump by {:.2f} rad up to t={:.3f} s (inverse kinematics changed "
+                   "branch); sample the trajectory more finely",
+                   arm_name(a), (r.q - seed).cwiseAbs().maxCoeff(), s.t);
+  ik_max_tilt_ = std::max(ik_max_tilt_, r.rotation_error);
+  return s;
+}
+
+void RobotController::append(Arm a, const ArmSample& s) {
+  ArmTrajectory& arm = traj_.arm(a);
+  const bool solve = s.joints.empty();
+  ArmSample r = resolve(a, s, arm.empty() ? std::vector<double>{} : arm.samples().back().joints);
+  arm.append(r, fmt::format("{} arm command", arm_name(a)));
+  if (solve) ++ik_solved_;
 }
 
 std::array<Eigen::Isometry3d, 2> RobotController::finger_poses(Arm a, const std::vector<double>& joints,

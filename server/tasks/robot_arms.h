@@ -42,7 +42,7 @@
 namespace gd::tasks {
 
 struct RobotOptions {
-  std::string urdf;                 ///< path of the arms' URDF (required)
+  std::string urdf;                 ///< path of the arms' URDF (required unless a model is given)
   robot::ArmModelOptions arm;       ///< links, finger joints and pads of the URDF
   /// Friction coefficient of the finger pads against the cloth; < 0: the garment material's own.
   double finger_friction = -1;
@@ -63,8 +63,8 @@ struct RobotOptions {
   /// default: link7 y = tool z (approach), link7 z = tool x (closing direction).
   Eigen::Matrix3d tool_to_ee = (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished();
 
-  /// Throws InputError naming a bad value.
-  void validate() const;
+  /// Throws InputError naming a bad value (a missing URDF path only when `need_urdf`).
+  void validate(bool need_urdf = true) const;
 };
 
 /// What one arm does at the latest update.
@@ -83,6 +83,17 @@ class RobotController final : public TaskController {
   /// everything. Throws InputError: options, a sample with the wrong number of joints, a pose the
   /// arm cannot reach (naming the arm, the time and by how far).
   RobotController(DualArmTrajectory traj, RobotOptions options);
+  /// The same with the arms already loaded (the service loads a URDF once for many scenes);
+  /// options.urdf then only names it.
+  RobotController(DualArmTrajectory traj, RobotOptions options, std::shared_ptr<const robot::ArmModel> model);
+
+  /// `s` with its joints filled in: recorded joints are checked (count, finite), a pose without
+  /// joints is solved by inverse kinematics from `seed` (the previous sample's joints; empty: the
+  /// joints at 0 within their limits). Throws InputError naming the arm and time.
+  ArmSample resolve(Arm a, ArmSample s, const std::vector<double>& seed) const;
+  /// Appends a sample after the arm's last one (resolved from the last sample's joints), for
+  /// trajectories that arrive step by step (the service's scenes). Throws InputError.
+  void append(Arm a, const ArmSample& s);
 
   void update(sim::Scene& scene, double t_end) override;
   double end_time() const override { return traj_.end_time(); }
@@ -112,7 +123,7 @@ class RobotController final : public TaskController {
   std::shared_ptr<PadPoses> poses_;  ///< shared with the colliders' pose functions
   double grip_force_ = 0, finger_speed_ = 0;
   int ik_solved_ = 0;
-  double ik_max_tilt_ = 0;
+  mutable double ik_max_tilt_ = 0;  ///< grows in resolve()
   bool attached_ = false;
   std::array<bool, 2> closing_{false, false};
   struct Previous {

@@ -354,8 +354,9 @@ DualArmTrajectory trajectory_from_json(const json& j, const std::string& source)
       const json& e = arr[k];
       if (!e.is_object()) throw InputError(fmt::format("{}: a sample must be an object", where));
       for (const auto& [key, v] : e.items())
-        if (key != "t" && key != "position" && key != "quat_wxyz" && key != "gripper")
-          throw InputError(fmt::format("{}: unknown field '{}' (expected t, position, quat_wxyz, gripper)", where, key));
+        if (key != "t" && key != "position" && key != "quat_wxyz" && key != "gripper" && key != "joints")
+          throw InputError(
+              fmt::format("{}: unknown field '{}' (expected t, position, quat_wxyz, gripper, joints)", where, key));
       ArmSample s;
       s.t = json_number(e, "t", where);
       const auto p = json_array(e, "position", 3, where);
@@ -363,6 +364,12 @@ DualArmTrajectory trajectory_from_json(const json& j, const std::string& source)
       const auto q = json_array(e, "quat_wxyz", 4, where);
       s.orientation = quat_from_wxyz(q[0], q[1], q[2], q[3]);
       s.gripper = json_number(e, "gripper", where);
+      if (e.contains("joints")) {  // robot mode's joint angles (optional)
+        const json& jv = e["joints"];
+        if (!jv.is_array() || jv.empty())
+          throw InputError(fmt::format("{}: field 'joints' must be a non-empty array of numbers", where));
+        s.joints = json_array(e, "joints", jv.size(), where);
+      }
       rows.push_back(s);
       labels.push_back(where);
     }
@@ -381,10 +388,12 @@ json trajectory_to_json(const DualArmTrajectory& traj) {
     json arr = json::array();
     for (const ArmSample& s : traj.arm(a).samples()) {
       const auto q = quat_to_wxyz(s.orientation);
-      arr.push_back({{"t", s.t},
-                     {"position", {s.position.x(), s.position.y(), s.position.z()}},
-                     {"quat_wxyz", {q[0], q[1], q[2], q[3]}},
-                     {"gripper", s.gripper}});
+      json e = {{"t", s.t},
+                {"position", {s.position.x(), s.position.y(), s.position.z()}},
+                {"quat_wxyz", {q[0], q[1], q[2], q[3]}},
+                {"gripper", s.gripper}};
+      if (!s.joints.empty()) e["joints"] = s.joints;
+      arr.push_back(std::move(e));
     }
     j[arm_name(a)] = std::move(arr);
   }

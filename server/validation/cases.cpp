@@ -1,4 +1,5 @@
 #include "validation/cases.h"
+#include "validation/robot_cases.h"
 
 #include <algorithm>
 #include <chrono>
@@ -432,7 +433,7 @@ CaseResult hang_case(const sim::Material& m) {
   return r;
 }
 
-std::vector<NamedCase> case_list(const sim::MaterialLibrary& lib) {
+std::vector<NamedCase> case_list(const sim::MaterialLibrary& lib, const std::string& robot_urdf) {
   std::vector<NamedCase> cases;
   for (const std::string& name : lib.names()) {
     const sim::Material m = lib.get(name);
@@ -449,6 +450,13 @@ std::vector<NamedCase> case_list(const sim::MaterialLibrary& lib) {
   cases.push_back({"slope/cotton", [cotton] { return slope_case(cotton); }});
   cases.push_back({"pinch/cotton", [cotton] { return pinch_case(cotton); }});
   cases.push_back({"self/press/cotton", [cotton] { return press_case(cotton); }});
+  if (!robot_urdf.empty()) {
+    cases.push_back({"robot/fk", [robot_urdf] { return robot_fk_case(robot_urdf); }});
+    for (const std::string& name : lib.names()) {
+      const sim::Material m = lib.get(name);
+      cases.push_back({"robot/pinch/" + name, [m, robot_urdf] { return robot_pinch_case(m, robot_urdf); }});
+    }
+  }
   return cases;
 }
 

@@ -87,7 +87,8 @@ struct NamedCase {
   std::function<CaseResult()> run;
 };
 /// Every case, in gd-validate's order: cantilever for each fabric of the library, then the
-/// cotton cases (mesh independence, tensile, hang, drop, slide, drape).
-std::vector<NamedCase> case_list(const sim::MaterialLibrary& lib);
+/// cotton cases (mesh independence, tensile, hang, drop, slide, drape), then with a robot URDF
+/// (robot_cases.h) robot/fk and robot/pinch/<fabric> for each fabric.
+std::vector<NamedCase> case_list(const sim::MaterialLibrary& lib, const std::string& robot_urdf = "");
 
 }  // namespace gd::validation

@@ -2,6 +2,7 @@
 //   gd-validate            a table on stdout, progress on stderr
 //   gd-validate --json     one JSON array of {name, expected, measured, rel_error, pass, ...}
 //   gd-validate --only cantilever/cotton,tensile     cases whose name contains any of these
+//   gd-validate --urdf piper_with_gripper.urdf --only robot    robot mode's cases (robot/fk, robot/pinch/*)
 //   gd-validate --drape-spacings 0.0075,0.005 [--drape-fabric cotton]
 //                          the Cusick drape at each mesh spacing (m), with and without self-contact
 // Exit status 0 when every case passes, 1 otherwise.
@@ -77,12 +78,18 @@ int drape_study(const gd::sim::Material& m, const std::vector<std::string>& spac
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"GarmentDynamics validation scenes: cantilever (ASTM D1388), tensile, hang, drop, slide, Cusick drape"};
+  CLI::App app{"GarmentDynamics validation scenes: cantilever (ASTM D1388), tensile, hang, drop, slide, Cusick drape, "
+               "friction, self-contact, robot mode (with --urdf)"};
   bool json = false;
   std::string only, materials;
   app.add_flag("--json", json, "print one JSON array and nothing else on stdout");
   app.add_option("--only", only, "comma-separated name filters (substring match)");
   app.add_option("--materials", materials, "extra material file (JSON) merged into the library");
+  std::string urdf;
+  app.add_option("--urdf", urdf,
+                 "robot arms' URDF (RGBench's piper_with_gripper.urdf): adds the robot/fk and robot/pinch/<fabric> "
+                 "cases (--only robot runs just those)")
+      ->check(CLI::ExistingFile);
   std::string drape_spacings, drape_fabric = "cotton";
   app.add_option("--drape-spacings", drape_spacings,
                  "comma-separated mesh spacings (m): run only the Cusick drape at each, with and without self-contact");
@@ -101,9 +108,11 @@ int main(int argc, char** argv) {
     };
     std::vector<gd::validation::CaseResult> results;
     // run_all decides the cases; filtered ones are skipped by running cases lazily here.
-    const auto all = gd::validation::case_list(lib);
+    const auto all = gd::validation::case_list(lib, urdf);
     int total = 0;
     for (const auto& c : all) total += keep(c.name);
+    if (total == 0 && urdf.empty() && only.find("robot") != std::string::npos)
+      throw gd::sim::InputError("the robot cases need the arms' URDF: give --urdf PATH (RGBench's piper_with_gripper.urdf)");
     int done = 0;
     for (const auto& c : all) {
       if (!keep(c.name)) continue;

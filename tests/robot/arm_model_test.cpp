@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <random>
+#include <thread>
 
 #include "sim/demand.h"
 
@@ -199,6 +200,44 @@ TEST(ArmModel, PiperPositionFirstReachesThePointWithTheLeastTilt) {
   EXPECT_GT(r.rotation_error, 0.3);  // what the wrist's limits force
   EXPECT_LT(r.rotation_error, 0.8);
   EXPECT_FALSE(arm.ik_position_first(down, seed, 0.2, 1e-3).ok);  // more tilt than allowed
+}
+
+}  // namespace
+}  // namespace gd::robot
+
+namespace gd::robot {
+namespace {
+
+// One model shared by threads (a server's scenes share their URDF's arms): inverse and forward
+// kinematics from two threads at once give exactly the serial answers (KDL's joints cache their
+// last pose, so unguarded concurrent calls race).
+TEST(ArmModel, SharedModelGivesTheSerialAnswersFromTwoThreads) {
+  const std::string path = piper_urdf();
+  if (path.empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  const ArmModel arm = ArmModel::load(path);
+  std::vector<Eigen::Isometry3d> targets;
+  for (int i = 0; i < 12; ++i) {
+    Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+    t.translation() = Eigen::Vector3d(0.2 + 0.01 * i, 0.05 * std::sin(i), 0.1 + 0.01 * i);
+    t.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    targets.push_back(t);
+  }
+  const Eigen::VectorXd seed = Eigen::VectorXd::Zero(arm.arm_dofs());
+  auto solve_all = [&] {
+    std::vector<Eigen::VectorXd> out;
+    for (const auto& t : targets) out.push_back(arm.ik_position_first(t, seed, 2.1, 1e-3).q);
+    return out;
+  };
+  const std::vector<Eigen::VectorXd> serial = solve_all();
+  std::vector<Eigen::VectorXd> a, b;
+  std::thread ta([&] { a = solve_all(); });
+  std::thread tb([&] { b = solve_all(); });
+  ta.join();
+  tb.join();
+  for (size_t i = 0; i < targets.size(); ++i) {
+    EXPECT_EQ(a[i], serial[i]) << i;
+    EXPECT_EQ(b[i], serial[i]) << i;
+  }
 }
 
 }  // namespace

@@ -223,6 +223,26 @@ TEST(TrajectoryJson, RoundTripsAndRejectsMalformedInput) {
   fs::remove_all(d);
 }
 
+// Robot mode's joint angles ride along in the JSON format: written when a sample has them, read
+// back exactly; malformed joints are refused.
+TEST(TrajectoryJson, CarriesJointsForRobotMode) {
+  DualArmTrajectory t = sample_trajectory();
+  std::vector<ArmSample> left = t.left.samples();
+  for (size_t i = 0; i < left.size(); ++i) left[i].joints = {0.1 * i, 1.0, -1.0, 0.0, 0.5, -0.25};
+  t.left = ArmTrajectory(left, "left");
+  const nlohmann::json j = trajectory_to_json(t);
+  EXPECT_TRUE(j["left"][0].contains("joints"));
+  EXPECT_FALSE(j["right"][0].contains("joints"));
+  const DualArmTrajectory back = trajectory_from_json(j);
+  for (size_t i = 0; i < left.size(); ++i) EXPECT_EQ(back.left.samples()[i].joints, left[i].joints) << i;
+  EXPECT_TRUE(back.right.samples()[0].joints.empty());
+  nlohmann::json bad = j;
+  bad["left"][0]["joints"] = nlohmann::json::array();
+  EXPECT_INPUT_ERROR_MENTIONS(trajectory_from_json(bad), "joints");
+  bad["left"][0]["joints"] = {0.1, "x"};
+  EXPECT_INPUT_ERROR_MENTIONS(trajectory_from_json(bad), "joints");
+}
+
 // --- RGBench joints CSVs ---------------------------------------------------------------------
 
 TEST(RgbenchJoints, ReadsEndPosesIntoTheWorldFrameOnTheMasterTimeBase) {

@@ -119,6 +119,9 @@ struct ArmCommand {
   Pose pose;
   double gripper = 0.035;  ///< opening, m: 0 closed, 0.035 fully open
   std::optional<double> time;  ///< scene time of this sample, s (unset: the end of the call's steps)
+  /// Robot mode: the arm's joint angles (SceneInfo::joint_names' order, rad); `pose` is then
+  /// unused. Empty in robot mode: the pose (tool frame) by inverse kinematics on the server.
+  std::vector<double> joints;
 };
 
 /// What one scene does during a step. Arms not named hold their last command.
@@ -140,13 +143,25 @@ struct SceneSettings {
   std::optional<double> grab_time;     ///< s, fixed-point mode
 };
 
+/// Robot mode's arms (docs/robot.md): two arms from a URDF whose gripper fingers hold the cloth
+/// by contact and friction.
+struct RobotSettings {
+  std::string urdf;                    ///< the URDF file's contents; empty: the server's --robot-urdf
+  std::optional<double> grip_force;    ///< N: squeeze at which closing fingers stop (default: the URDF's limit)
+  std::optional<double> finger_friction;  ///< fabric-finger coefficient (default: the material's)
+  /// Scenes: each arm's joints at t = 0 and after a reset (empty: the tool 0.25 m in front of the
+  /// arm's base and 0.25 m up, through inverse kinematics).
+  std::vector<double> left_initial_joints, right_initial_joints;
+};
+
 /// What to create: a generated garment (`garment`) or an uploaded mesh (`mesh_id`), one of them.
 struct SceneSpec {
   std::string garment;                 ///< a type from list_garments() (towel, tshirt, ...)
   std::string mesh_id;                 ///< an id from upload_mesh()
   std::string material = "cotton";
   int vertices = 2000;                 ///< target vertex count of a generated garment
-  std::string mode = "pseudo";         ///< pseudo | fixed_point
+  std::string mode = "pseudo";         ///< pseudo | fixed_point | robot
+  RobotSettings robot;                 ///< mode robot only
   uint64_t seed = 0;                   ///< initial pose randomisation (0: none)
   int count = 1;                       ///< identical scenes to create
   SceneSettings settings;
@@ -169,12 +184,19 @@ struct SceneInfo {
   std::string mode;
   int left_shoulder_vertex = -1;       ///< landmarks, -1 when unknown
   int right_shoulder_vertex = -1;
+  /// Robot mode: each arm's joints in ArmCommand::joints' order, their limits, the largest opening (m).
+  std::vector<std::string> joint_names;
+  std::vector<double> joint_lower, joint_upper;
+  double gripper_max = 0;
 };
 
 struct ArmState {
   Arm arm = Arm::kUnspecified;
-  bool closed = false;
-  int held_vertices = 0;
+  bool closed = false;                 ///< the gripper is commanded closed
+  int held_vertices = 0;               ///< pseudo and fixed-point modes
+  std::vector<double> joints;          ///< robot mode: the arm's joints, rad
+  double gripper = 0;                  ///< robot mode: the fingers' opening, m
+  double squeeze = 0;                  ///< robot mode: the cloth's push on the fingers, N
 };
 
 /// Solver statistics of a scene's last step call.
@@ -231,7 +253,8 @@ struct JobSpec {
   std::string mesh_id;                 ///< an id from upload_mesh()
   std::string material = "cotton";
   std::string task = "fold";           ///< grasp | fold | fling
-  std::string mode = "pseudo";         ///< pseudo | fixed_point
+  std::string mode = "pseudo";         ///< pseudo | fixed_point | robot
+  RobotSettings robot;                 ///< mode robot only
   int vertices = 2000;
   std::string trajectory;              ///< optional: trajectory CSV or JSON text (docs/tasks.md)
   std::string trajectory_format;       ///< csv | json (required with trajectory)

@@ -7,6 +7,9 @@
   cluster, or addresses), stepped concurrently; a lost server's episodes are cut and run again
   elsewhere (the `[ray]` extra for actors).
 
+Actions are the arms' end-effector poses, (2, 8); in robot mode (mode="robot", the Piper arms of
+a URDF) control="joints" takes each arm's joint targets and gripper opening, (2, J + 1), instead.
+
 Both are registered with Gymnasium as "garmentdynamics/Garment-v0" (gymnasium.make) and
 "garmentdynamics/Garment-v0" with gymnasium.make_vec(..., vectorization_mode="vector_entry_point").
 """

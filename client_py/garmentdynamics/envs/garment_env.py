@@ -8,7 +8,7 @@ import numpy as np
 from ..client import Client
 from .render import render_rgb
 from .scenes import SceneBatch
-from .spaces import action_space, observation_space
+from .spaces import observation_space
 
 
 class GarmentEnv(gym.Env):
@@ -20,6 +20,15 @@ class GarmentEnv(gym.Env):
     mode a gripper closing below 0.01 m takes the vertices within its jaw radius and they follow
     it until it opens. Each step() is `substeps` simulation steps of the scene's dt; the arm
     poses are reached at its end.
+    Robot mode (mode="robot": two URDF arms, RGBench's AgileX Piper from `urdf`, a path or its
+    text, or the server's --robot-urdf; the cloth is held by the fingers' contact and friction):
+    control="pose" (the default) takes the (2, 8) poses above, reached by inverse kinematics (a
+    pose out of reach raises grpc.RpcError INVALID_ARGUMENT); control="joints" takes Box (2, J + 1)
+    float32, rows [left, right]: the J joint targets within the arms' limits (the Piper: joint1..
+    joint6, rad; scene_info["joint_names"], "joint_lower", "joint_upper"), then the gripper
+    opening in [0, scene_info["gripper_max"]] m, reached at the step's end. The arms start at a
+    home pose 0.3 m above their bases; reset's and step's info["arms"] give each arm's joints,
+    gripper opening and squeeze (N). grip_force, finger_friction: as in Client.create_scenes.
     Reward: `task` ("lift" or "fold"), see garmentdynamics.envs.rewards.
     terminated: the scene failed (its state turned non-finite; reward -10).
     truncated: after max_episode_steps steps (None: never). gymnasium.make("garmentdynamics/Garment-v0")
@@ -45,7 +54,8 @@ class GarmentEnv(gym.Env):
                  vertices: int = 200, task: str = "lift", max_episode_steps: Optional[int] = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
                  yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None,
-                 render_mode: Optional[str] = None):
+                 render_mode: Optional[str] = None, control: str = "pose", urdf=None,
+                 grip_force: Optional[float] = None, finger_friction: Optional[float] = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
@@ -53,11 +63,13 @@ class GarmentEnv(gym.Env):
                                   material=material, vertices=vertices, task=task,
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
                                   self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m,
-                                  client_kwargs=client_kwargs)
+                                  client_kwargs=client_kwargs, control=control, urdf=urdf, grip_force=grip_force,
+                                  finger_friction=finger_friction)
         self.observation_space = observation_space(self._scenes.vertex_count)
         self.metadata = {**self.metadata, "render_fps": max(1, round(1.0 / (float(self._scenes.info["dt"]) * substeps)))}
         self._x: Optional[np.ndarray] = None
-        self.action_space = action_space()
+        self.action_space = self._scenes.action_space()
+        self.control = control
         self.task = task
 
     @property
@@ -78,7 +90,7 @@ class GarmentEnv(gym.Env):
         scene_seed = seed if seed is not None else int(self.np_random.integers(1, 2**62))
         x = self._scenes.reset([0], [scene_seed])[0]
         self._x = x
-        return x, {"seed": scene_seed, "time": 0.0}
+        return x, {"seed": scene_seed, "time": 0.0, "arms": self._scenes.arms[0]}
 
     def step(self, action):
         x, r, term, trunc, infos = self._scenes.step([0], np.asarray(action)[None])

@@ -12,7 +12,7 @@ from gymnasium.vector.utils import batch_space
 from .. import health
 from ..client import Client
 from .scenes import SceneBatch
-from .spaces import action_space, observation_space
+from .spaces import observation_space
 from .vector_env import StepResults, reset_seeds_and_mask
 
 # A server that answers these is taken for gone (crashed, restarted without its scenes, or
@@ -40,7 +40,8 @@ class RayVectorEnv(VectorEnv):
     infos["cut_server"]); their episodes then run again from the start. Every other scene's step
     is unaffected. RuntimeError when no server is left.
 
-    Autoreset, seeds, spaces, rewards and the other keyword arguments as in GarmentVectorEnv.
+    Autoreset, seeds, spaces, rewards and the other keyword arguments (control="joints" and
+    robot mode's urdf, grip_force, finger_friction included) as in GarmentVectorEnv.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -48,7 +49,8 @@ class RayVectorEnv(VectorEnv):
     def __init__(self, num_envs: int, servers: Sequence, *, garment: str = "towel", material: str = "cotton",
                  vertices: int = 200, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
-                 yaw_deg: float = 10.0, offset_m: float = 0.02, timeout: float = 120.0):
+                 yaw_deg: float = 10.0, offset_m: float = 0.02, timeout: float = 120.0, control: str = "pose",
+                 urdf=None, grip_force: Optional[float] = None, finger_friction: Optional[float] = None):
         if num_envs < 1:
             raise ValueError("num_envs must be at least 1")
         if not servers:
@@ -64,7 +66,8 @@ class RayVectorEnv(VectorEnv):
         self._timeout = timeout
         self._batch_kwargs = dict(garment=garment, material=material, vertices=vertices, task=task,
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
-                                  self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m)
+                                  self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m, control=control,
+                                  urdf=urdf, grip_force=grip_force, finger_friction=finger_friction)
         self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=len(self._servers))
         # Scene i is scene _slot[i] of batch _batch[i]; a batch is SceneBatch scenes on one server.
         self._batches: Dict[int, SceneBatch] = {}
@@ -85,7 +88,8 @@ class RayVectorEnv(VectorEnv):
         first = next(iter(self._batches.values()))
         self._vertex_count = first.vertex_count
         self.single_observation_space = observation_space(self._vertex_count)
-        self.single_action_space = action_space()
+        self.single_action_space = first.action_space()
+        self.control = control
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self.task = task
@@ -240,7 +244,7 @@ class RayVectorEnv(VectorEnv):
         return self._obs.copy(), infos
 
     def step(self, actions):
-        actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, 2, 8)
+        actions = np.asarray(actions, dtype=np.float32).reshape((self.num_envs,) + self.single_action_space.shape)
         n = self.num_envs
         out = StepResults(n)
         self._cut_server = np.full(n, -1, dtype=np.int64)

@@ -17,6 +17,22 @@ def action_space() -> spaces.Box:
     return spaces.Box(low=np.stack([ARM_LOW, ARM_LOW]), high=np.stack([ARM_HIGH, ARM_HIGH]), dtype=np.float32)
 
 
+def joint_action_space(joint_lower, joint_upper, gripper_max: float) -> spaces.Box:
+    """Robot mode's joint actions, Box (2, J + 1): rows [left, right], columns the J joint targets
+    within the arms' limits (rad or m, scene_info()'s joint_lower .. joint_upper), then the gripper
+    opening in [0, gripper_max] m (the fingers close toward it until they squeeze the cloth with
+    the grip force)."""
+    lower = np.asarray(joint_lower, dtype=np.float64)
+    upper = np.asarray(joint_upper, dtype=np.float64)
+    if lower.ndim != 1 or lower.shape != upper.shape or lower.size == 0:
+        raise ValueError(f"joint limits must be two equally long, non-empty lists, got {lower.shape} and {upper.shape}")
+    if not gripper_max > 0:
+        raise ValueError(f"gripper_max must be > 0 m, got {gripper_max}")
+    low = np.append(lower, 0.0).astype(np.float32)
+    high = np.append(upper, gripper_max).astype(np.float32)
+    return spaces.Box(low=np.stack([low, low]), high=np.stack([high, high]), dtype=np.float32)
+
+
 # Vertex positions stay within this many metres of the world origin: the arms reach less than a
 # metre, the table is the plane z = 0 and a failing scene is restored to its last finite state.
 OBSERVATION_BOUND = 5.0

@@ -9,7 +9,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..client import Client
 from .scenes import SceneBatch
-from .spaces import action_space, observation_space
+from .spaces import observation_space
 
 
 def reset_seeds_and_mask(env: VectorEnv, seed, options: Optional[dict]):
@@ -69,6 +69,8 @@ class GarmentVectorEnv(VectorEnv):
 
     client, target, spawn_kwargs, client_kwargs: the server, as in GarmentEnv (client_kwargs: the
     options of the Client made here, e.g. token_file= and root_certificates=).
+    mode="robot" with control="joints": joint-space actions, (num_envs, 2, J + 1); urdf,
+    grip_force, finger_friction: robot mode's settings (as in GarmentEnv).
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -77,17 +79,21 @@ class GarmentVectorEnv(VectorEnv):
                  spawn_kwargs: Optional[dict] = None, garment: str = "towel", material: str = "cotton",
                  vertices: int = 200, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
-                 yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None):
+                 yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None,
+                 control: str = "pose", urdf=None, grip_force: Optional[float] = None,
+                 finger_friction: Optional[float] = None):
         if num_envs < 1:
             raise ValueError("num_envs must be at least 1")
         self._scenes = SceneBatch(num_envs, client=client, target=target, spawn_kwargs=spawn_kwargs,
                                   garment=garment, material=material, vertices=vertices, task=task,
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
                                   self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m,
-                                  client_kwargs=client_kwargs)
+                                  client_kwargs=client_kwargs, control=control, urdf=urdf, grip_force=grip_force,
+                                  finger_friction=finger_friction)
         self.num_envs = num_envs
         self.single_observation_space = observation_space(self._scenes.vertex_count)
-        self.single_action_space = action_space()
+        self.single_action_space = self._scenes.action_space()
+        self.control = control
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self.task = task
@@ -115,7 +121,7 @@ class GarmentVectorEnv(VectorEnv):
         return self._obs.copy(), infos
 
     def step(self, actions):
-        actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, 2, 8)
+        actions = np.asarray(actions, dtype=np.float32).reshape((self.num_envs,) + self.single_action_space.shape)
         n = self.num_envs
         out = StepResults(n)
 

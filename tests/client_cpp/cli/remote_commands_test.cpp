@@ -198,8 +198,9 @@ TEST_F(CliTest, BroadPhaseReachesTheSceneAndTheSummaryAndFindsTheSamePairs) {
 }
 
 // Robot mode: the URDF arms run a generated grasp locally (their solved joints written as
-// RGBench joints CSVs); without --urdf, and through a server, it is refused with what to do.
-TEST_F(CliTest, RobotModeRunsLocallyWithItsJointsAndIsRefusedWithoutAUrdfOrThroughAServer) {
+// RGBench joints CSVs) and as a job with the URDF sent to the server; without a URDF (locally,
+// or on a server without --robot-urdf) it is refused with what to do.
+TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   const char* shared = std::getenv("GD_SHARED_DIR");
   const std::string urdf = shared ? std::string(shared) + "/data/rgbench/piper_with_gripper.urdf" : "";
   if (urdf.empty() || !std::ifstream(urdf)) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
@@ -227,10 +228,17 @@ TEST_F(CliTest, RobotModeRunsLocallyWithItsJointsAndIsRefusedWithoutAUrdfOrThrou
   r = gd(run + " --out " + (dir / "no_urdf").string());
   EXPECT_EQ(r.rc, 2) << r.err;
   EXPECT_NE(r.err.find("--urdf"), std::string::npos) << r.err;
-  r = gd(server_flag() + " run --garment towel --task grasp --mode robot --urdf " + urdf + " --out " +
+  // The same as a job: the URDF's text goes with it, and the job's report says robot mode.
+  r = gd(server_flag() + run.substr(0, run.find(" --no-plots")) + " --quiet --mode robot --urdf " + urdf + " --out " +
          (dir / "remote").string());
-  EXPECT_EQ(r.rc, 2) << r.err;
-  EXPECT_NE(r.err.find("--urdf"), std::string::npos) << r.err;
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto rs = nlohmann::json::parse(slurp(dir / "remote" / "summary.json"));
+  EXPECT_EQ(rs.at("mode"), "robot");
+  EXPECT_GT(rs.at("robot").at("ik_samples").get<int>(), 100);
+  // Without a URDF: this server has no --robot-urdf of its own.
+  r = gd(server_flag() + " run --garment towel --task grasp --mode robot --out " + (dir / "remote_no_urdf").string());
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("--robot-urdf"), std::string::npos) << r.err;
 }
 
 TEST_F(CliTest, GarmentParamSizesTheGarmentLocallyAndAsAJob) {
