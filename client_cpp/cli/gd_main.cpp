@@ -320,7 +320,7 @@ int main(int argc, char** argv) {
     }
     if (remote.selected()) {
       if (server.empty()) throw gd::sim::InputError("this command talks to a server: give --server HOST:PORT");
-      return remote.execute(server, gd::cli::client_options(connection));
+      return remote.execute(server, gd::cli::client_options(connection), connection);
     }
     if (!server.empty()) throw gd::sim::InputError("--server goes with run or a remote command, not this one");
     if (*run) {

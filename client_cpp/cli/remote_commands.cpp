@@ -1,12 +1,15 @@
 #include "remote_commands.h"
 
 #include <cstdio>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <memory>
 #include <sstream>
+#include <unistd.h>
 #include <nlohmann/json.hpp>
 
 #include "array_files.h"
@@ -213,15 +216,25 @@ RemoteCommands::RemoteCommands(CLI::App& app) {
   upload_ = app.add_subcommand("upload", "upload an OBJ mesh; prints its id (needs --server)");
   upload_->add_option("file", upload_file_, "Wavefront OBJ file")->required();
   upload_->add_option("--name", upload_name_, "name kept with the mesh (default: the file's stem)");
+
+  view_ = app.add_subcommand("view", "watch scenes in a live 3D web page (needs --server and the Python client "
+                                     "with its viewer extra: pip install 'garmentdynamics[viewer]'; docs/viewer.md)");
+  view_->add_option("--ids,--scene", ids_, "scene ids, comma-separated")->delimiter(',')->required();
+  view_->add_option("--port", view_port_, "port of the page (0: a free one)")->capture_default_str();
+  view_->add_option("--host", view_host_, "address the page is served on")->capture_default_str();
+  view_->add_option("--every", view_every_, "a frame every k-th step of a scene")->capture_default_str();
+  view_->add_option("--screenshot", view_screenshot_, "write a PNG of the page (headless Chromium) and exit");
+  view_->add_option("--wait", view_wait_, "--screenshot: seconds of page time first")->capture_default_str();
 }
 
 bool RemoteCommands::selected() const {
-  for (const CLI::App* c : {info_, garments_, materials_, create_, step_, report_, cancel_, reports_, destroy_, upload_})
+  for (const CLI::App* c :
+       {info_, garments_, materials_, create_, step_, report_, cancel_, reports_, destroy_, upload_, view_})
     if (c->parsed()) return true;
   return false;
 }
 
-int RemoteCommands::execute(const std::string& server, const ClientOptions& options) {
+int RemoteCommands::execute(const std::string& server, const ClientOptions& options, const ConnectionFlags& flags) {
   Client client(server, options);
   if (info_->parsed()) return do_info(client);
   if (garments_->parsed()) return do_garments(client);
@@ -233,7 +246,28 @@ int RemoteCommands::execute(const std::string& server, const ClientOptions& opti
   if (reports_->parsed()) return do_reports(client);
   if (destroy_->parsed()) return do_destroy(client);
   if (upload_->parsed()) return do_upload(client);
+  if (view_->parsed()) return do_view(client, server, flags);
   throw sim::InputError("no remote command given");
+}
+
+int RemoteCommands::do_view(Client& c, const std::string& server, const ConnectionFlags& flags) {
+  (void)c.get_state(ids_);  // unknown scenes: NOT_FOUND here, before a page is served
+  const char* env_python = std::getenv("GD_PYTHON");
+  const std::string python = env_python && *env_python ? env_python : "python3";
+  std::vector<std::string> args{python, "-m", "garmentdynamics.viewer", "--server", server,
+                                "--port", std::to_string(view_port_), "--host", view_host_,
+                                "--every", std::to_string(view_every_)};
+  for (const std::string& id : ids_) args.insert(args.end(), {"--scene", id});
+  if (!view_screenshot_.empty()) args.insert(args.end(), {"--screenshot", view_screenshot_, "--wait", std::to_string(view_wait_)});
+  if (!flags.token_file.empty()) args.insert(args.end(), {"--token-file", flags.token_file});
+  if (flags.tls || !flags.tls_ca.empty()) args.emplace_back("--tls");
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  std::fflush(stdout);
+  execvp(argv[0], argv.data());  // returns only on failure
+  throw sim::InputError("view: cannot run " + python + " (" + std::strerror(errno) +
+                        "); set GD_PYTHON to a Python with the client installed: pip install 'garmentdynamics[viewer]'");
 }
 
 int RemoteCommands::do_info(Client& c) {

@@ -49,14 +49,15 @@ struct ConnectionFlags {
 ClientOptions client_options(const ConnectionFlags& flags);
 
 /// The remote-only subcommands (info, garments, materials, create, step, report, reports,
-/// destroy, upload), added to `app` on construction; their options live here.
+/// destroy, upload, view), added to `app` on construction; their options live here.
 class RemoteCommands {
  public:
   explicit RemoteCommands(CLI::App& app);
   /// True when the parsed command line chose one of them.
   bool selected() const;
-  /// Runs the chosen subcommand against `server`; returns the exit code.
-  int execute(const std::string& server, const ClientOptions& options);
+  /// Runs the chosen subcommand against `server`; returns the exit code. `flags` are passed on
+  /// to the Python viewer (view).
+  int execute(const std::string& server, const ClientOptions& options, const ConnectionFlags& flags = {});
 
  private:
   CLI::App* info_ = nullptr;
@@ -69,6 +70,7 @@ class RemoteCommands {
   CLI::App* reports_ = nullptr;
   CLI::App* destroy_ = nullptr;
   CLI::App* upload_ = nullptr;
+  CLI::App* view_ = nullptr;
 
   SceneSpec spec_;
   std::vector<std::string> garment_params_;  ///< --garment-param NAME=VALUE
@@ -85,6 +87,11 @@ class RemoteCommands {
   int offset_ = 0;
   std::string upload_file_;
   std::string upload_name_;
+  int view_port_ = 8080;
+  int view_every_ = 1;
+  std::string view_host_ = "127.0.0.1";
+  std::string view_screenshot_;
+  double view_wait_ = 8.0;
 
   int do_info(Client& c);
   int do_garments(Client& c);
@@ -96,6 +103,9 @@ class RemoteCommands {
   int do_reports(Client& c);
   int do_destroy(Client& c);
   int do_upload(Client& c);
+  /// Runs the Python viewer (python -m garmentdynamics.viewer; $GD_PYTHON or python3) on the
+  /// scenes, after checking they exist.
+  int do_view(Client& c, const std::string& server, const ConnectionFlags& flags);
 };
 
 }  // namespace gd::cli

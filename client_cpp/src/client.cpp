@@ -215,6 +215,16 @@ std::vector<SceneState> Client::get_state(const std::vector<std::string>& ids, b
   return out;
 }
 
+std::vector<SceneInfo> Client::describe(const std::vector<std::string>& ids) {
+  pb::GetStateRequest req;
+  for (const auto& id : ids) req.add_scene_ids(id);
+  req.set_include_info(true);
+  const auto resp = impl_->call("GetState", &pb::GarmentDynamics::Stub::GetState, req);
+  std::vector<SceneInfo> out;
+  for (const auto& i : resp.infos()) out.push_back(from_proto(i, "GetState"));
+  return out;
+}
+
 int64_t Client::stream(const std::vector<std::string>& ids, const StreamOptions& options,
                        const std::function<bool(const SceneState&)>& on_frame) {
   pb::StreamFramesRequest req;

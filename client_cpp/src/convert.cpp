@@ -73,6 +73,14 @@ void to_proto(const RobotSettings& in, pb::RobotSettings* out) {
   for (double q : in.right_initial_joints) out->add_right_initial_joints(q);
 }
 
+Pose pose_from_proto(const pb::Pose& p) {
+  Pose out;
+  out.position = {p.position().x(), p.position().y(), p.position().z()};
+  if (p.has_orientation())
+    out.orientation = {p.orientation().w(), p.orientation().x(), p.orientation().y(), p.orientation().z()};
+  return out;
+}
+
 bool empty(const RobotSettings& r) {
   return r.urdf.empty() && !r.grip_force && !r.finger_friction && r.left_initial_joints.empty() &&
          r.right_initial_joints.empty();
@@ -175,7 +183,17 @@ SceneState from_proto(const pb::SceneState& in, const char* rpc) {
     st.joints.assign(a.joints().begin(), a.joints().end());
     st.gripper = a.gripper();
     st.squeeze = a.squeeze();
+    st.pose = pose_from_proto(a.pose());
     s.arms.push_back(std::move(st));
+  }
+  for (const auto& c : in.colliders()) {
+    ColliderState cs;
+    cs.shape = c.shape();
+    cs.pose = pose_from_proto(c.pose());
+    cs.half_extents = {c.half_extents().x(), c.half_extents().y(), c.half_extents().z()};
+    cs.radius = c.radius();
+    cs.half_length = c.half_length();
+    s.colliders.push_back(std::move(cs));
   }
   s.stats.newton_iterations = in.stats().newton_iterations();
   s.stats.pcg_iterations = in.stats().pcg_iterations();
@@ -198,6 +216,7 @@ SceneInfo from_proto(const pb::SceneInfo& in, const char* rpc) {
   s.joint_lower.assign(in.joint_lower().begin(), in.joint_lower().end());
   s.joint_upper.assign(in.joint_upper().begin(), in.joint_upper().end());
   s.gripper_max = in.gripper_max();
+  if (in.has_table_height()) s.table_height = in.table_height();
   return s;
 }
 

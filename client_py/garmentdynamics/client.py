@@ -67,14 +67,19 @@ class SceneState:
     steps: int                      # steps since the last reset
     positions: Optional[np.ndarray]  # (N, 3) float32, None when omitted
     velocities: Optional[np.ndarray]  # (N, 3) float32, None unless asked for
-    # "left"/"right" -> {closed, held_vertices}; robot mode also joints ((J,) float64, rad, in
-    # scene_info()["joint_names"] order), gripper (the fingers' opening now, m; may stop short of
-    # the command on cloth) and squeeze (N, the cloth's push on the fingers: the grip).
+    # "left"/"right" -> {closed, held_vertices, position ((3,) world m), orientation ((4,) wxyz):
+    # the tool at this time (pseudo: the commanded pose; robot: the end effector by forward
+    # kinematics)}; robot mode also joints ((J,) float64, rad, in scene_info()["joint_names"]
+    # order), gripper (the fingers' opening now, m; may stop short of the command on cloth) and
+    # squeeze (N, the cloth's push on the fingers: the grip).
     arms: Dict[str, dict] = field(default_factory=dict)
     stats: dict = field(default_factory=dict)             # newton/pcg iterations, contacts, wall_ms
     # Frames of a subscribing stream (steps=0) only: frames the server dropped so far because this
     # client read slower than its scenes stepped (oldest first; at most --max-queued-frames-mb queued).
     dropped_frames: int = 0
+    # The scene's kinematic colliders now (robot mode: the four finger pads), each {shape ("box",
+    # "capsule", ...), position (3,), orientation (4,) wxyz, half_extents (3,), radius, half_length}.
+    colliders: List[dict] = field(default_factory=list)
 
     @property
     def failed(self) -> bool:
@@ -88,12 +93,21 @@ class SceneState:
             positions=from_array(s.positions) if s.HasField("positions") and s.positions.data else None,
             velocities=from_array(s.velocities) if s.HasField("velocities") and s.velocities.data else None,
             arms={_ARM_NAME.get(a.arm, str(a.arm)): _arm_state(a) for a in s.arms},
+            colliders=[dict(shape=c.shape, **_pose(c.pose),
+                            half_extents=np.array([c.half_extents.x, c.half_extents.y, c.half_extents.z]),
+                            radius=c.radius, half_length=c.half_length) for c in s.colliders],
             stats={"newton_iterations": s.stats.newton_iterations, "pcg_iterations": s.stats.pcg_iterations,
                    "active_contacts": s.stats.active_contacts, "wall_ms": s.stats.wall_ms})
 
 
+def _pose(p: "pb.Pose") -> dict:
+    q = p.orientation if p.HasField("orientation") else pb.Quat(w=1.0)
+    return {"position": np.array([p.position.x, p.position.y, p.position.z]),
+            "orientation": np.array([q.w, q.x, q.y, q.z])}
+
+
 def _arm_state(a: "pb.ArmState") -> dict:
-    out = {"closed": a.closed, "held_vertices": a.held_vertices}
+    out = {"closed": a.closed, "held_vertices": a.held_vertices, **_pose(a.pose)}
     if len(a.joints):  # robot mode
         out.update(joints=np.array(a.joints, dtype=np.float64), gripper=a.gripper, squeeze=a.squeeze)
     return out
@@ -115,7 +129,8 @@ def _scene_info_to_dict(info: "pb.SceneInfo") -> dict:
             "joint_names": list(info.joint_names),
             "joint_lower": np.array(info.joint_lower, dtype=np.float64),
             "joint_upper": np.array(info.joint_upper, dtype=np.float64),
-            "gripper_max": info.gripper_max}
+            "gripper_max": info.gripper_max,
+            "table_height": info.table_height if info.HasField("table_height") else None}
 
 
 MAX_URDF_BYTES = 1 << 20  # the largest URDF a request may carry (RobotSettings.urdf)
@@ -492,6 +507,17 @@ class Client:
         resp = self._stub.GetState(pb.GetStateRequest(scene_ids=_ids(ids), include_velocities=include_velocities),
                                    timeout=self.timeout)
         return [SceneState.from_proto(s) for s in resp.states]
+
+    def describe(self, ids) -> List[dict]:
+        """What each scene was created with (as scene_info(): triangles, rest positions, mode, the
+        arms' joints, table_height), also for scenes another client created (a viewer's), in
+        `ids` order; scene_info() knows them afterwards."""
+        ids = _ids(ids)
+        resp = self._stub.GetState(pb.GetStateRequest(scene_ids=ids, include_info=True), timeout=self.timeout)
+        infos = [_scene_info_to_dict(i) for i in resp.infos]
+        for sid, info in zip(ids, infos):
+            self._scene_info[sid] = info
+        return infos
 
     def positions(self, ids) -> np.ndarray:
         """The current positions, (len(ids), N, 3) float32."""

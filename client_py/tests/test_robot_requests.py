@@ -245,7 +245,7 @@ def test_step_sends_joints_and_reads_the_arms(recorded):
     # pseudo-mode arms report no robot fields
     pseudo = c.create_scenes(garment="towel")
     arms = c.step_states(pseudo)[0].arms
-    assert set(arms["left"]) == {"closed", "held_vertices"}
+    assert set(arms["left"]) == {"closed", "held_vertices", "position", "orientation"}
 
 
 def test_a_wrong_joint_count_is_refused_before_a_call(recorded):

@@ -141,6 +141,24 @@ class Run {
   /// Seconds spent in each solver stage, summed over the steps.
   const sim::StageTimes& stage_seconds() const { return stage_; }
 
+  /// The recorded frames' positions as OUT/animation.npy (float32, (frames, N, 3), world m) and
+  /// their times; at most kMaxAnimationFrames (and kMaxAnimationBytes), evenly spaced over the run.
+  nlohmann::json write_animation(const std::string& path) const {
+    const size_t n = scene_->vertex_count();
+    const size_t frames = anim_times_.size();
+    std::string header = fmt::format("{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}, 3), }}", frames, n);
+    header.append(63 - (10 + header.size()) % 64, ' ');  // magic (6) + version (2) + length (2): 64-byte aligned
+    header.push_back('\n');
+    std::ofstream f(path, std::ios::binary);
+    if (!f) throw InputError(fmt::format("cannot write '{}'", path));
+    const uint16_t len = static_cast<uint16_t>(header.size());
+    f.write("\x93NUMPY\x01\x00", 8);
+    f.write(reinterpret_cast<const char*>(&len), 2);  // little-endian hosts only (x86-64, arm64)
+    f << header;
+    f.write(reinterpret_cast<const char*>(anim_.data()), static_cast<std::streamsize>(anim_.size() * sizeof(float)));
+    return {{"file", fs::path(path).filename().string()}, {"frames", frames}, {"times", anim_times_}};
+  }
+
   void write_timeseries(const std::string& path) const {
     std::ofstream f(path);
     if (!f) throw InputError(fmt::format("cannot write '{}'", path));
@@ -158,7 +176,29 @@ class Run {
                                 st.contacts, st.intersecting_pairs, st.newton_iters, st.pcg_iters,
                                 1e3 * st.seconds));
     next_record_ = scene_->time() + frame_interval_;
+    // Every anim_stride_-th frame for the animation; past kMaxAnimationFrames every other
+    // frame kept is dropped and the stride doubles, so the frames stay evenly spaced.
+    if (anim_count_++ % anim_stride_ != 0) return;
+    for (const Vec3& p : x)
+      for (int k = 0; k < 3; ++k) anim_.push_back(static_cast<float>(p[k]));
+    anim_times_.push_back(scene_->time());
+    // At most kMaxAnimationFrames, and at most kMaxAnimationBytes (a report's file; 16 frames at least).
+    const size_t cap = std::clamp<size_t>(kMaxAnimationBytes / (12 * std::max<size_t>(1, x.size())), 16,
+                                          kMaxAnimationFrames);
+    if (anim_times_.size() > cap) {
+      const size_t n = x.size() * 3;
+      size_t kept = 0;
+      for (size_t i = 0; i < anim_times_.size(); i += 2, ++kept) {
+        std::copy_n(anim_.begin() + i * n, n, anim_.begin() + kept * n);
+        anim_times_[kept] = anim_times_[i];
+      }
+      anim_.resize(kept * n);
+      anim_times_.resize(kept);
+      anim_stride_ *= 2;
+    }
   }
+  static constexpr size_t kMaxAnimationFrames = 160;
+  static constexpr size_t kMaxAnimationBytes = size_t(32) << 20;
 
   void write_mesh() {
     const long ms = std::lround(1e3 * scene_->time());
@@ -179,6 +219,9 @@ class Run {
   long newton_ = 0, pcg_ = 0, converged_ = 0;
   sim::StageTimes stage_;
   std::vector<std::string> rows_;
+  std::vector<float> anim_;           ///< the animation's frames, (frames, N, 3)
+  std::vector<double> anim_times_;
+  long anim_count_ = 0, anim_stride_ = 1;
 };
 
 }  // namespace
@@ -488,6 +531,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   const std::vector<Vec3> xf = sc.positions();
   sim::write_obj(mesh, xf, out + "/final.obj");
   run.write_timeseries(out + "/timeseries.csv");
+  result.summary["animation"] = run.write_animation(out + "/animation.npy");
   const Shape fin = shape_of(xf), ini = shape_of(x0);
   const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
   s["garment"] = garment.type;
@@ -564,6 +608,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     f << s.dump(2) << "\n";
   }
   if (capture && config.plots) plot_report(out);
+  if (config.plots) run_plot_script("plot_animation.py", out);  // OUT/animation.gif
   if (sc.failed()) gd::log().error("experiment: the simulation failed: {}", sc.failure());
   gd::log().info("experiment: {} steps in {:.1f} s ({:.0f} ms/step), max intersecting pairs {}, untangling {} times",
                  run.steps(), wall, s["ms_per_step"].get<double>(), run.intersecting_max(), sc.untangle_runs());

@@ -9,6 +9,10 @@
 ///     OUT/initial.obj, OUT/final.obj     the garment at t = 0 and at the end (world frame)
 ///     OUT/trajectory.csv                 the end-effector trajectory replayed (docs/tasks.md)
 ///     OUT/timeseries.csv                 per recorded frame: t, heights, extents, energies, contacts
+///     OUT/animation.npy                  up to 160 of those frames' positions (at most 32 MiB),
+///                                        float32 (F, N, 3)
+///                                        (times in summary.json "animation"); with plots,
+///                                        OUT/animation.gif drawn from it (scripts/plot_animation.py)
 ///     OUT/summary.json                   see ExperimentResult::summary
 ///     with a capture:  OUT/metrics.csv (RGBench's shape), OUT/comparison.{csv,md} (paper
 ///                      baselines beside ours), OUT/frames/*.ply, and the PNG plots of

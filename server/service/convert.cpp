@@ -183,6 +183,22 @@ Status to_job_spec(const pb::SubmitJobRequest& r, JobSpec* out) {
   return Status::Ok();
 }
 
+namespace {
+
+void to_proto(const Eigen::Isometry3d& p, pb::Pose* out) {
+  const Vec3 t = p.translation();
+  out->mutable_position()->set_x(t.x());
+  out->mutable_position()->set_y(t.y());
+  out->mutable_position()->set_z(t.z());
+  const Eigen::Quaterniond q(p.linear());
+  out->mutable_orientation()->set_w(q.w());
+  out->mutable_orientation()->set_x(q.x());
+  out->mutable_orientation()->set_y(q.y());
+  out->mutable_orientation()->set_z(q.z());
+}
+
+}  // namespace
+
 void to_proto(const SceneSnapshot& s, bool include_stats, pb::SceneState* out) {
   out->set_scene_id(s.scene_id);
   out->set_status(s.failed ? pb::SCENE_FAILED : pb::SCENE_READY);
@@ -199,6 +215,17 @@ void to_proto(const SceneSnapshot& s, bool include_stats, pb::SceneState* out) {
     for (double q : s.arms[a].joints) st->add_joints(q);
     st->set_gripper(s.arms[a].gripper);
     st->set_squeeze(s.arms[a].squeeze);
+    to_proto(s.arms[a].pose, st->mutable_pose());
+  }
+  for (const ColliderSnapshot& c : s.colliders) {
+    pb::ColliderState* cs = out->add_colliders();
+    cs->set_shape(c.shape);
+    to_proto(c.pose, cs->mutable_pose());
+    cs->mutable_half_extents()->set_x(c.half_extents.x());
+    cs->mutable_half_extents()->set_y(c.half_extents.y());
+    cs->mutable_half_extents()->set_z(c.half_extents.z());
+    cs->set_radius(c.radius);
+    cs->set_half_length(c.half_length);
   }
   if (include_stats) {
     pb::StepStats* st = out->mutable_stats();
@@ -222,6 +249,7 @@ void to_proto(const SceneInfo& s, pb::SceneInfo* out) {
   for (double v : s.joint_lower) out->add_joint_lower(v);
   for (double v : s.joint_upper) out->add_joint_upper(v);
   out->set_gripper_max(s.gripper_max);
+  if (s.table_height) out->set_table_height(*s.table_height);
 }
 
 void to_proto(const JobRecord& j, pb::JobInfo* out) {

@@ -228,16 +228,29 @@ struct ScenePool::Entry {
     if (positions) s.positions = scene->positions();
     if (velocities) s.velocities = scene->velocities();
     for (int a = 0; a < 2; ++a) {
+      const auto arm = static_cast<tasks::Arm>(a);
       if (robot) {
-        const tasks::RobotArmState& st = robot->state(static_cast<tasks::Arm>(a));
+        const tasks::RobotArmState& st = robot->state(arm);
         s.arms[a].closed = st.gripper_command < 0.5 * robot->arm_model().gripper_max();
         s.arms[a].joints = st.joints;
         s.arms[a].gripper = st.gripper;
         s.arms[a].squeeze = st.squeeze;
+        s.arms[a].pose = robot->ee_world(arm);
       } else {
-        const tasks::ArmState& st = grippers->state(static_cast<tasks::Arm>(a));
+        const tasks::ArmState& st = grippers->state(arm);
         s.arms[a].closed = st.closed;
         s.arms[a].held_vertices = static_cast<int>(st.held.size());
+        const tasks::ArmSample ee = grippers->ee(arm, scene->time());
+        s.arms[a].pose = tasks::make_pose(ee.position, ee.orientation);
+      }
+    }
+    if (robot) {
+      const Vec3 half = robot->options().arm.pad.half_extents;
+      for (const Eigen::Isometry3d& p : robot->pad_poses(scene->time())) {
+        ColliderSnapshot c;
+        c.pose = p;
+        c.half_extents = half;
+        s.colliders.push_back(c);
       }
     }
     s.newton_iterations = newton;
@@ -505,6 +518,7 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     t->info.mode = mode;
     t->info.left_shoulder_vertex = garment.landmarks.left_shoulder_vertex;
     t->info.right_shoulder_vertex = garment.landmarks.right_shoulder_vertex;
+    if (t->options.table) t->info.table_height = t->options.table_height;
     if (arms) {
       t->info.joint_names = arms->arm_joint_names();
       for (const robot::JointLimits& l : arms->arm_limits()) {
@@ -645,21 +659,23 @@ Status check_action(const SceneAction& a, int vertex_count) {
 
 namespace {
 
-/// An upper bound of one scene's share of a StepScenes / GetState reply, bytes: its id, stats
-/// and arms, and 12 bytes per vertex for each of positions and velocities included.
-size_t snapshot_reply_bytes(int vertices, bool positions, bool velocities) {
-  const size_t array = 12 * static_cast<size_t>(vertices) + 32;  // float32 (N, 3), dtype, shape, tags
-  return 1024 + (positions ? array : 0) + (velocities ? array : 0);
+/// An upper bound of one scene's share of a StepScenes / GetState reply, bytes: its id, stats,
+/// arms and colliders, 12 bytes per vertex for each of positions and velocities included, and
+/// its SceneInfo (rest positions and triangles) when asked for.
+size_t snapshot_reply_bytes(const SceneInfo& info, bool positions, bool velocities, bool with_info) {
+  const size_t array = 12 * static_cast<size_t>(info.vertex_count) + 32;  // float32 (N, 3), dtype, shape, tags
+  const size_t info_bytes = with_info ? 1024 + array + 12 * info.triangles.size() + 32 : 0;
+  return 1024 + (positions ? array : 0) + (velocities ? array : 0) + info_bytes;
 }
 
 /// Refuses a call whose reply would pass `limit` bytes (0: none), before any work: gRPC would
 /// refuse to send it only after the scenes had stepped.
 Status check_reply_size(const std::vector<std::shared_ptr<ScenePool::Entry>>& entries, bool positions,
-                        bool velocities, size_t limit) {
+                        bool velocities, size_t limit, bool with_info = false) {
   if (limit == 0) return Status::Ok();
   size_t bytes = 0, largest = 0;
   for (const auto& e : entries) {
-    const size_t b = snapshot_reply_bytes(e->tmpl->info.vertex_count, positions, velocities);
+    const size_t b = snapshot_reply_bytes(e->tmpl->info, positions, velocities, with_info);
     bytes += b;
     largest = std::max(largest, b);
   }
@@ -857,15 +873,17 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
 }
 
 Status ScenePool::state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out,
-                        const std::string& owner) {
+                        const std::string& owner, std::vector<SceneInfo>* infos) {
   std::vector<std::shared_ptr<Entry>> entries;
   GD_RETURN_IF_ERROR(lookup(ids, owner, &entries));
-  GD_RETURN_IF_ERROR(check_reply_size(entries, true, include_velocities, options_.max_reply_bytes));
+  GD_RETURN_IF_ERROR(check_reply_size(entries, true, include_velocities, options_.max_reply_bytes, infos != nullptr));
   out->clear();
+  if (infos) infos->clear();
   for (const auto& e : entries) {
     std::lock_guard<std::mutex> lock(e->mu);
     if (e->destroyed) return Status::NotFound(fmt::format("scene '{}' was destroyed", e->id));
     out->push_back(e->snapshot(true, include_velocities));
+    if (infos) infos->push_back(e->tmpl->info);
   }
   return Status::Ok();
 }

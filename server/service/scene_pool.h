@@ -152,6 +152,17 @@ struct ArmSnapshot {
   std::vector<double> joints;        ///< robot mode: the arm's joints, rad
   double gripper = 0;                ///< robot mode: the fingers' opening, m
   double squeeze = 0;                ///< robot mode: the cloth's push on the fingers, N
+  /// The tool at the snapshot's time, world frame: the commanded trajectory's pose (pseudo,
+  /// fixed point) or the end effector by forward kinematics (robot).
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+};
+
+/// A kinematic collider at the snapshot's time (robot mode's finger pads), for viewers.
+struct ColliderSnapshot {
+  std::string shape = "box";         ///< box | capsule | plane | mesh
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< world pose of its local frame
+  Vec3 half_extents = Vec3::Zero();  ///< box, m
+  double radius = 0, half_length = 0;  ///< capsule, m
 };
 
 /// The state of one scene.
@@ -164,6 +175,7 @@ struct SceneSnapshot {
   std::vector<Vec3> positions;         ///< when asked for
   std::vector<Vec3> velocities;        ///< when asked for
   std::array<ArmSnapshot, 2> arms;     ///< [left, right]
+  std::vector<ColliderSnapshot> colliders;
   int newton_iterations = 0;           ///< of the last step call (summed over its substeps)
   int pcg_iterations = 0;
   int active_contacts = 0;
@@ -184,6 +196,7 @@ struct SceneInfo {
   std::vector<std::string> joint_names;
   std::vector<double> joint_lower, joint_upper;
   double gripper_max = 0;
+  std::optional<double> table_height;  ///< m, the table top; unset: no table
 };
 
 struct CreatedScenes {
@@ -269,9 +282,9 @@ class ScenePool {
   /// Applies the actions and advances the scenes req.substeps steps each, in parallel. Input is
   /// checked before any scene changes.
   Status step(const StepRequest& req, std::vector<SceneSnapshot>* out);
-  /// Current states.
+  /// Current states; with `infos`, also each scene's SceneInfo (the same order).
   Status state(const std::vector<std::string>& ids, bool include_velocities, std::vector<SceneSnapshot>* out,
-               const std::string& owner = {});
+               const std::string& owner = {}, std::vector<SceneInfo>* infos = nullptr);
   /// OK when every id names a live scene, each once (else lookup's NOT_FOUND / INVALID_ARGUMENT).
   Status check(const std::vector<std::string>& ids, const std::string& owner = {}) const;
   /// The ids among `ids` that name live scenes, in order.

@@ -137,8 +137,11 @@ grpc::Status GarmentDynamicsService::GetState(Ctx* ctx, const pb::GetStateReques
   return handle(ctx, "GetState", false, [&](const Call& call) {
     std::vector<std::string> ids(req->scene_ids().begin(), req->scene_ids().end());
     std::vector<SceneSnapshot> states;
-    GD_RETURN_IF_ERROR(scenes_.state(ids, req->include_velocities(), &states, call.owner));
+    std::vector<SceneInfo> infos;
+    GD_RETURN_IF_ERROR(
+        scenes_.state(ids, req->include_velocities(), &states, call.owner, req->include_info() ? &infos : nullptr));
     for (const SceneSnapshot& s : states) to_proto(s, true, resp->add_states());
+    for (const SceneInfo& i : infos) to_proto(i, resp->add_infos());
     return Status::Ok();
   });
 }

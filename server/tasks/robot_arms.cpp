@@ -177,6 +177,26 @@ std::array<Eigen::Isometry3d, 2> RobotController::finger_poses(Arm a, const std:
   return out;
 }
 
+Eigen::Isometry3d RobotController::ee_world(Arm a) const {
+  const RobotArmState& st = state_[static_cast<int>(a)];
+  return base_pose(a) * model_->ee_pose(to_vector(st.joints));
+}
+
+std::array<Eigen::Isometry3d, 4> RobotController::pad_poses(double t) const {
+  std::array<Eigen::Isometry3d, 4> out;
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+  offset.translation() = options_.arm.pad.center;
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    const RobotArmState& st = state_[static_cast<int>(a)];
+    const auto fp = finger_poses(a, st.joints, st.gripper);
+    for (int f = 0; f < 2; ++f) {
+      const int k = 2 * static_cast<int>(a) + f;
+      out[k] = attached_ ? poses_->at(k, t) : fp[f] * offset;
+    }
+  }
+  return out;
+}
+
 void RobotController::attach(sim::Scene& scene) {
   const double t = scene.time();
   const double mu = options_.finger_friction >= 0 ? options_.finger_friction : scene.material().friction;

@@ -85,6 +85,33 @@ TEST(RobotScenesRpc, JointCommandsDriveTheArmsAndPosesGoThroughInverseKinematics
   EXPECT_EQ(made.states(0).arms(0).joints_size(), 6);
   EXPECT_NEAR(made.states(0).arms(0).gripper(), 0.035, 1e-9);
   for (int arm = 0; arm < 2; ++arm) EXPECT_EQ(joints_of(made.states(0), arm), joints_of(made.states(1), arm)) << arm;
+  // What a viewer sees: the four finger pads as boxes, each arm's end effector where forward
+  // kinematics puts it, and (include_info) the scene's mesh and joints, for a client that did not
+  // create the scene.
+  {
+    pb::GetStateRequest g;
+    g.add_scene_ids(made.scene_ids(0));
+    g.set_include_info(true);
+    pb::GetStateResponse got;
+    ASSERT_TRUE(stub->GetState(ctx().get(), g, &got).ok());
+    ASSERT_EQ(got.infos_size(), 1);
+    EXPECT_EQ(got.infos(0).vertex_count(), info.vertex_count());
+    EXPECT_EQ(got.infos(0).triangles().data(), info.triangles().data());
+    EXPECT_EQ(got.infos(0).joint_names_size(), 6);
+    EXPECT_TRUE(got.infos(0).has_table_height());
+    const pb::SceneState& s0 = got.states(0);
+    ASSERT_EQ(s0.colliders_size(), 4);
+    for (const pb::ColliderState& c : s0.colliders()) {
+      EXPECT_EQ(c.shape(), "box");
+      EXPECT_GT(c.half_extents().x(), 0.0);
+    }
+    const auto fk = robot::ArmModel::load(urdf).ee_pose(
+        Eigen::Map<const Eigen::VectorXd>(joints_of(s0, 0).data(), 6));
+    const pb::Vec3& p = s0.arms(0).pose().position();
+    EXPECT_NEAR(p.x(), fk.translation().x(), 1e-9);
+    EXPECT_NEAR(p.y(), fk.translation().y() + 0.25, 1e-9);  // the left base at y = +0.25
+    EXPECT_NEAR(p.z(), fk.translation().z(), 1e-9);
+  }
 
   const auto model = robot::ArmModel::load(urdf);
   // Joints: the left arm to a commanded configuration over 10 steps; the state reports it.

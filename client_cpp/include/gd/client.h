@@ -188,6 +188,7 @@ struct SceneInfo {
   std::vector<std::string> joint_names;
   std::vector<double> joint_lower, joint_upper;
   double gripper_max = 0;
+  std::optional<double> table_height;  ///< m, the table top (unset: no table)
 };
 
 struct ArmState {
@@ -197,6 +198,17 @@ struct ArmState {
   std::vector<double> joints;          ///< robot mode: the arm's joints, rad
   double gripper = 0;                  ///< robot mode: the fingers' opening, m
   double squeeze = 0;                  ///< robot mode: the cloth's push on the fingers, N
+  /// The tool at the state's time, world frame (pseudo: the commanded pose; robot: the end
+  /// effector by forward kinematics).
+  Pose pose;
+};
+
+/// A kinematic collider at the state's time (robot mode's finger pads).
+struct ColliderState {
+  std::string shape;                   ///< box | capsule | plane | mesh
+  Pose pose;                           ///< world pose of its local frame
+  std::array<double, 3> half_extents{0, 0, 0};  ///< box, m
+  double radius = 0, half_length = 0;  ///< capsule, m
 };
 
 /// Solver statistics of a scene's last step call.
@@ -217,6 +229,7 @@ struct SceneState {
   std::vector<float> positions;        ///< N*3 (empty when omitted)
   std::vector<float> velocities;       ///< N*3, when asked for
   std::vector<ArmState> arms;
+  std::vector<ColliderState> colliders;
   StepStats stats;
   /// Frames of a subscribing stream only (StreamOptions::steps = 0): how many frames the server
   /// has dropped so far because this client read slower than its scenes stepped (it queues at
@@ -386,6 +399,9 @@ class Client {
   std::vector<SceneState> step(const std::vector<std::string>& ids, const std::vector<SceneAction>& actions = {},
                                const StepOptions& options = {});
   std::vector<SceneState> get_state(const std::vector<std::string>& ids, bool include_velocities = false);
+  /// What each scene was created with (triangles, rest positions, joints, ...), also for scenes
+  /// this client did not create (a viewer's); in ids order.
+  std::vector<SceneInfo> describe(const std::vector<std::string>& ids);
   /// Streams frames (one scene per frame) to `on_frame` until the stream ends; `on_frame`
   /// returns false to stop early (the call is then cancelled, which is not an error). Returns
   /// the number of frames received.

@@ -367,3 +367,35 @@ TEST_F(CliTest, ATokenFileOrGdTokenFileReachesAServerThatNeedsTokens) {
 
 }  // namespace
 }  // namespace gd::client_test
+
+namespace gd::client_test {
+namespace {
+
+// `gd view`: the Python viewer on a scene of this server, its page rendered by headless Chromium
+// into a PNG (--screenshot); an unknown scene is refused before any page. Needs the build's
+// venv with the client and viser (scripts/build) and Chromium; skipped without them.
+TEST_F(CliTest, ViewWritesAScreenshotOfTheScenesPage) {
+  const std::filesystem::path python = std::filesystem::path(GD_BUILD_DIR) / "venv" / "bin" / "python";
+  if (!std::filesystem::exists(python)) GTEST_SKIP() << "no " << python;
+  if (std::system((python.string() + " -c 'import viser, garmentdynamics.viewer' >/dev/null 2>&1").c_str()) != 0)
+    GTEST_SKIP() << "the venv has no viser or garmentdynamics.viewer";
+  if (std::system("command -v chromium >/dev/null 2>&1") != 0) GTEST_SKIP() << "no chromium";
+  CliRun r = gd(server_flag() + " create --garment towel --vertices 200");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const std::string id = lines(r.out).at(0);
+  const auto png = fresh_dir("cli_view") / "towel.png";
+  const std::string env = "GD_PYTHON=" + python.string() + " ";
+  r = gd(env + GD_CLI_BINARY + " " + server_flag() + " view --ids " + id + " --port 0 --wait 4 --screenshot " +
+             png.string(),
+         true);
+  ASSERT_EQ(r.rc, 0) << r.err;
+  ASSERT_TRUE(std::filesystem::exists(png)) << r.out << r.err;
+  EXPECT_GT(std::filesystem::file_size(png), 5000u);
+  EXPECT_EQ(slurp(png).substr(1, 3), "PNG");
+  r = gd(env + GD_CLI_BINARY + " " + server_flag() + " view --ids s-nope --port 0 --screenshot " + png.string(), true);
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("s-nope"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace gd::client_test

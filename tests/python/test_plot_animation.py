@@ -1,0 +1,65 @@
+"""scripts/plot_animation.py on a report directory built by hand: animation.npy as `gd run` writes
+it (float32 (F, N, 3)), the times in summary.json, and the trajectory CSV of the grippers."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPT = ROOT / "scripts" / "plot_animation.py"
+
+
+def make_run(d: Path, frames: int = 12) -> None:
+    g = np.linspace(-0.2, 0.2, 20)
+    xx, yy = np.meshgrid(g + 0.4, g)
+    flat = np.stack([xx.ravel(), yy.ravel(), np.zeros(xx.size)], axis=1)
+    seq = []
+    for k in range(frames):  # one edge lifted more each frame
+        x = flat.copy()
+        x[:, 2] = 0.3 * k / frames * np.clip((x[:, 1] + 0.2) / 0.4, 0, 1) ** 2
+        seq.append(x)
+    np.save(d / "animation.npy", np.asarray(seq, dtype=np.float32))
+    times = [0.1 * k for k in range(frames)]
+    (d / "summary.json").write_text(json.dumps({"garment": "towel", "task": "grasp", "mode": "pseudo",
+                                                "animation": {"file": "animation.npy", "frames": frames,
+                                                              "times": times}}))
+    rows = ["# master_start_time = 0", "time,arm,x,y,z,qw,qx,qy,qz,gripper"]
+    for t in (0.0, 0.5, 1.1):
+        rows.append(f"{t},left,0.4,0.2,{0.3 * t},0,1,0,0,{0.035 if t < 0.4 else 0.0}")
+        rows.append(f"{t},right,0.4,-0.2,0.1,0,1,0,0,0.035")
+    (d / "trajectory.csv").write_text("\n".join(rows) + "\n")
+
+
+def test_writes_an_animated_gif_with_a_frame_per_recorded_frame(tmp_path):
+    make_run(tmp_path)
+    proc = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    gif = tmp_path / "animation.gif"
+    assert gif.read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+    from PIL import Image
+    with Image.open(gif) as im:
+        assert im.n_frames == 12
+        im.seek(0)
+        first = np.asarray(im.convert("RGB"), dtype=np.int32)
+        im.seek(11)
+        last = np.asarray(im.convert("RGB"), dtype=np.int32)
+    assert np.abs(first - last).sum() > 0  # the lifted edge moved
+
+
+def test_caps_the_frames_and_reports_a_missing_animation(tmp_path):
+    make_run(tmp_path, frames=30)
+    proc = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "--max-frames", "10"], capture_output=True,
+                          text=True)
+    assert proc.returncode == 0, proc.stderr
+    from PIL import Image
+    with Image.open(tmp_path / "animation.gif") as im:
+        assert im.n_frames == 10
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    proc = subprocess.run([sys.executable, str(SCRIPT), str(empty)], capture_output=True, text=True)
+    assert proc.returncode == 1 and "no" in proc.stderr
