@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "array_files.h"
+#include "experiment/experiment.h"
 #include "experiment/progress.h"
 #include "run_summary.h"
 #include "sim/demand.h"
@@ -202,6 +203,9 @@ RemoteCommands::RemoteCommands(CLI::App& app) {
   report_ = app.add_subcommand("report", "a job's status and summary; its files with --out (needs --server)");
   report_->add_option("job", job_id_, "job id")->required();
   report_->add_option("--out", report_out_, "directory to write the report's files into");
+  report_->add_flag("--open", report_open_,
+                    "also write the report as one HTML page (report.html in --out, default ./report-JOB; its "
+                    "animation drawn here if the server drew none) and open it in a browser where one can show");
 
   cancel_ = app.add_subcommand("cancel", "cancel a queued or running job (needs --server)");
   cancel_->add_option("job", job_id_, "job id")->required();
@@ -339,6 +343,7 @@ int RemoteCommands::do_step(Client& c) {
 }
 
 int RemoteCommands::do_report(Client& c) {
+  if (report_open_ && report_out_.empty()) report_out_ = "report-" + job_id_;
   const Report r = c.get_report(job_id_, /*include_files=*/!report_out_.empty());
   print_job(r.job);
   if (!r.file_names.empty()) std::printf("files: %s\n", join(r.file_names, ", ").c_str());
@@ -346,6 +351,19 @@ int RemoteCommands::do_report(Client& c) {
   if (!report_out_.empty()) {
     const int n = write_report_files(r, report_out_);
     std::fprintf(stderr, "wrote %d file(s) to %s\n", n, report_out_.c_str());
+  }
+  if (report_open_) {
+    namespace fs = std::filesystem;
+    const fs::path dir(report_out_);
+    if (fs::exists(dir / "animation.npy") && !fs::exists(dir / "animation.gif"))
+      experiment::run_plot_script("plot_animation.py", report_out_);
+    if (!experiment::run_plot_script("report_html.py", report_out_))
+      throw sim::InputError("report --open: could not write report.html (needs Python; set GD_PYTHON)");
+    const std::string page = fs::absolute(dir / "report.html").string();
+    std::printf("report: %s\n", page.c_str());
+    const char* display = std::getenv("DISPLAY");
+    if (display && *display && std::system("command -v xdg-open >/dev/null 2>&1") == 0)
+      (void)std::system(("xdg-open '" + page + "' >/dev/null 2>&1 &").c_str());
   }
   return r.job.status == JobStatus::kSucceeded ? kExitOk : kExitFailed;
 }

@@ -83,6 +83,7 @@ class RemoteCommands {
   std::string step_out_;
   std::string job_id_;
   std::string report_out_;
+  bool report_open_ = false;
   int limit_ = 100;
   int offset_ = 0;
   std::string upload_file_;

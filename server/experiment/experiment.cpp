@@ -608,7 +608,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     f << s.dump(2) << "\n";
   }
   if (capture && config.plots) plot_report(out);
-  if (config.plots) run_plot_script("plot_animation.py", out);  // OUT/animation.gif
+  if (config.plots) {
+    run_plot_script("plot_animation.py", out);  // OUT/animation.gif
+    run_plot_script("report_html.py", out);     // OUT/report.html: the report as one page
+  }
   if (sc.failed()) gd::log().error("experiment: the simulation failed: {}", sc.failure());
   gd::log().info("experiment: {} steps in {:.1f} s ({:.0f} ms/step), max intersecting pairs {}, untangling {} times",
                  run.steps(), wall, s["ms_per_step"].get<double>(), run.intersecting_max(), sc.untangle_runs());

@@ -13,6 +13,7 @@
 ///                                        float32 (F, N, 3)
 ///                                        (times in summary.json "animation"); with plots,
 ///                                        OUT/animation.gif drawn from it (scripts/plot_animation.py)
+///     with plots:      OUT/report.html   the report as one self-contained page (scripts/report_html.py)
 ///     OUT/summary.json                   see ExperimentResult::summary
 ///     with a capture:  OUT/metrics.csv (RGBench's shape), OUT/comparison.{csv,md} (paper
 ///                      baselines beside ours), OUT/frames/*.ply, and the PNG plots of

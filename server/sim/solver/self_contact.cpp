@@ -191,8 +191,18 @@ bool SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
 int SelfContact::find_within_budget(const std::vector<double>& x0, std::vector<double>* x1) {
   GD_DEMAND(x1 != nullptr, "null motion end");
   int halvings = 0;
+  auto longest_move = [&] {
+    double m = 0;
+    for (size_t i = 0; i + 2 < x0.size(); i += 3) {
+      const double dx = (*x1)[i] - x0[i], dy = (*x1)[i + 1] - x0[i + 1], dz = (*x1)[i + 2] - x0[i + 2];
+      m = std::max(m, dx * dx + dy * dy + dz * dz);
+    }
+    return std::sqrt(m);
+  };
   for (;;) {
-    const bool last = halvings == kMaxFloodHalvings;
+    // The unbounded query only once the motion is short: within dhat of the start everywhere.
+    const bool last = halvings >= kMaxFloodHalvingsDiverged ||
+                      (halvings >= kMaxFloodHalvings && !(longest_move() > static_cast<double>(dhat_)));
     if (find(x0, *x1, last ? kNoPairLimit : budget_)) break;
     for (size_t k = 0; k < x0.size(); ++k) (*x1)[k] = x0[k] + 0.5 * ((*x1)[k] - x0[k]);
     ++halvings;

@@ -124,6 +124,16 @@ TEST_F(CliTest, RunAsAJobWritesTheReportFiles) {
   r = gd(server_flag() + " report " + job + " --out " + (dir / "again").string());
   ASSERT_EQ(r.rc, 0) << r.err;
   EXPECT_EQ(slurp(dir / "again" / "summary.json"), slurp(dir / "out" / "summary.json"));
+  // Every run's frames come with it (animation.npy); --open draws the animation here (this server
+  // has no --plots) and writes the report as one HTML page with the pictures inside.
+  EXPECT_TRUE(std::filesystem::exists(dir / "again" / "animation.npy"));
+  r = gd(server_flag() + " report " + job + " --out " + (dir / "page").string() + " --open");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("report.html"), std::string::npos) << r.out;
+  const std::string page = slurp(dir / "page" / "report.html");
+  EXPECT_NE(page.find("<h1>towel grasp"), std::string::npos);
+  if (std::filesystem::exists(dir / "page" / "animation.gif"))  // a Python with matplotlib drew it
+    EXPECT_NE(page.find("data:image/gif;base64,"), std::string::npos);
 }
 
 /// Vertices the grippers held in a local `gd run` towel grasp with these extra flags.
