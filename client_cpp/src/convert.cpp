@@ -198,6 +198,7 @@ SceneState from_proto(const pb::SceneState& in, const char* rpc) {
   s.stats.newton_iterations = in.stats().newton_iterations();
   s.stats.pcg_iterations = in.stats().pcg_iterations();
   s.stats.active_contacts = in.stats().active_contacts();
+  s.stats.intersecting_pairs = in.stats().intersecting_pairs();
   s.stats.wall_ms = in.stats().wall_ms();
   return s;
 }

@@ -73,7 +73,9 @@ class SceneState:
     # order), gripper (the fingers' opening now, m; may stop short of the command on cloth) and
     # squeeze (N, the cloth's push on the fingers: the grip).
     arms: Dict[str, dict] = field(default_factory=dict)
-    stats: dict = field(default_factory=dict)             # newton/pcg iterations, contacts, wall_ms
+    # of the last step call: newton/pcg iterations, active contacts, wall_ms, intersecting_pairs
+    # (the most intersecting triangle pairs after any of its steps)
+    stats: dict = field(default_factory=dict)
     # Frames of a subscribing stream (steps=0) only: frames the server dropped so far because this
     # client read slower than its scenes stepped (oldest first; at most --max-queued-frames-mb queued).
     dropped_frames: int = 0
@@ -97,7 +99,8 @@ class SceneState:
                             half_extents=np.array([c.half_extents.x, c.half_extents.y, c.half_extents.z]),
                             radius=c.radius, half_length=c.half_length) for c in s.colliders],
             stats={"newton_iterations": s.stats.newton_iterations, "pcg_iterations": s.stats.pcg_iterations,
-                   "active_contacts": s.stats.active_contacts, "wall_ms": s.stats.wall_ms})
+                   "active_contacts": s.stats.active_contacts, "wall_ms": s.stats.wall_ms,
+                   "intersecting_pairs": s.stats.intersecting_pairs})
 
 
 def _pose(p: "pb.Pose") -> dict:

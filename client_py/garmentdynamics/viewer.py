@@ -302,8 +302,8 @@ class SceneViewer:
             self._slider.max = max(1, n - 1)
             self._slider.value = k
         self._time_text.value = f"{t:.3f}"
-        lines = ["| scene | t (s) | steps | last call (ms) | contacts | Newton / PCG | arms |",
-                 "|---|---|---|---|---|---|---|"]
+        lines = ["| scene | t (s) | steps | last call (ms) | contacts | intersecting | Newton / PCG | arms |",
+                 "|---|---|---|---|---|---|---|---|"]
         for tr, f in zip(self._tracks, frames):
             if f is None:
                 continue
@@ -315,7 +315,8 @@ class SceneViewer:
                 for a, s in f.arms.items())
             status = "" if not f.failed else f" FAILED: {f.failure}"
             lines.append(f"| {tr.scene_id[:10]} | {f.time:.3f} | {f.steps} | {st.get('wall_ms', 0.0):.1f} | "
-                         f"{st.get('active_contacts', 0)} | {st.get('newton_iterations', 0)} / {st.get('pcg_iterations', 0)} | "
+                         f"{st.get('active_contacts', 0)} | {st.get('intersecting_pairs', 0)} | "
+                         f"{st.get('newton_iterations', 0)} / {st.get('pcg_iterations', 0)} | "
                          f"{arms}{status} |")
         self._stats.content = "\n".join(lines)
 

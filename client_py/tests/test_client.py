@@ -62,6 +62,7 @@ def test_step_applies_each_scenes_own_action(client):
             x = client.step(ids, [lift_actions(corners, True, 0.02 * k), None], substeps=2)
         state = client.get_state(ids)
         assert state[0].arms["left"]["closed"] and state[0].arms["left"]["held_vertices"] > 0
+        assert state[0].stats["intersecting_pairs"] == 0  # the lifted towel never passes through itself
         assert state[1].arms["left"]["held_vertices"] == 0
         # the held corners of scene 0 are at the grippers (0.2 m up); scene 1 still lies flat
         assert x[0, :, 2].max() == pytest.approx(0.2, abs=0.02)

@@ -232,6 +232,7 @@ void to_proto(const SceneSnapshot& s, bool include_stats, pb::SceneState* out) {
     st->set_newton_iterations(s.newton_iterations);
     st->set_pcg_iterations(s.pcg_iterations);
     st->set_active_contacts(s.active_contacts);
+    st->set_intersecting_pairs(s.intersecting_pairs);
     st->set_wall_ms(s.wall_ms);
   }
 }

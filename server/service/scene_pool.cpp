@@ -190,7 +190,7 @@ struct ScenePool::Entry {
   std::vector<int> target_groups;
   std::string error;        ///< an unexpected error while stepping (the scene counts as failed)
   bool destroyed = false;
-  int newton = 0, pcg = 0, contacts = 0;
+  int newton = 0, pcg = 0, contacts = 0, intersecting = 0;
   double wall_ms = 0;
   std::vector<std::weak_ptr<FrameSubscription>> subscribers;
 
@@ -213,7 +213,7 @@ struct ScenePool::Entry {
     steps = 0;
     target_groups.clear();
     error.clear();
-    newton = pcg = contacts = 0;
+    newton = pcg = contacts = intersecting = 0;
     wall_ms = 0;
   }
   bool failed() const { return scene->failed() || !error.empty(); }
@@ -256,6 +256,7 @@ struct ScenePool::Entry {
     s.newton_iterations = newton;
     s.pcg_iterations = pcg;
     s.active_contacts = contacts;
+    s.intersecting_pairs = intersecting;
     s.wall_ms = wall_ms;
     return s;
   }
@@ -818,7 +819,7 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
   // scene in a batch").
   std::vector<int> left(n, substeps);
   std::vector<double> seconds(n, 0.0);
-  for (const auto& e : entries) e->newton = e->pcg = e->contacts = 0;
+  for (const auto& e : entries) e->newton = e->pcg = e->contacts = e->intersecting = 0;
   pool_.run_slices(n, [&](int i) {
     Entry& e = *entries[i];
     set_omp_threads(solver_threads);
@@ -840,6 +841,7 @@ Status ScenePool::step(const StepRequest& req, std::vector<SceneSnapshot>* out) 
         e.newton += st.newton_iters;
         e.pcg += st.pcg_iters;
         e.contacts = st.contacts;
+        e.intersecting = std::max(e.intersecting, st.intersecting_pairs);
         e.publish();
         if (left[i] > 0 && elapsed() >= kSliceSeconds) {  // the rest in a later slice
           more = true;

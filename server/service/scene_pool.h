@@ -179,6 +179,7 @@ struct SceneSnapshot {
   int newton_iterations = 0;           ///< of the last step call (summed over its substeps)
   int pcg_iterations = 0;
   int active_contacts = 0;
+  int intersecting_pairs = 0;          ///< most after any step of the last step call
   double wall_ms = 0;
 };
 

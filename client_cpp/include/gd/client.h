@@ -216,6 +216,7 @@ struct StepStats {
   int newton_iterations = 0;
   int pcg_iterations = 0;
   int active_contacts = 0;
+  int intersecting_pairs = 0;          ///< most intersecting triangle pairs after any of the call's steps
   double wall_ms = 0;                  ///< wall time of this scene's substeps on the server
 };
 
