@@ -117,14 +117,8 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   cfg->mode = spec.mode.empty() ? "pseudo" : spec.mode;
   std::string urdf_text;  // robot mode: a URDF sent with the request, written beside the job's output
   if (cfg->mode == "robot") {
-    if (spec.robot.urdf_xml.size() > kMaxUrdfBytes)
-      return Status::ResourceExhausted(fmt::format("the robot URDF is {} bytes, over the limit of {}",
-                                                   spec.robot.urdf_xml.size(), kMaxUrdfBytes));
+    GD_RETURN_IF_ERROR(apply_robot_spec(spec.robot, !options_.robot_urdf.empty(), &cfg->robot));
     if (spec.robot.urdf_xml.empty()) {
-      if (options_.robot_urdf.empty())
-        return Status::FailedPrecondition(
-            "robot mode needs the arms' URDF: send its text in the request's robot settings (RobotSettings.urdf), or "
-            "start the server with --robot-urdf PATH (e.g. RGBench's piper_with_gripper.urdf)");
       cfg->robot.urdf = options_.robot_urdf;
     } else {
       try {
@@ -134,18 +128,6 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
       }
       urdf_text = spec.robot.urdf_xml;
       cfg->robot.urdf = "robot.urdf";  // its path is set with the job's directory below
-    }
-    if (spec.robot.grip_force) {
-      if (!(*spec.robot.grip_force > 0) || !std::isfinite(*spec.robot.grip_force))
-        return Status::InvalidArgument(fmt::format("robot grip_force must be a finite number > 0 N (got {})",
-                                                   *spec.robot.grip_force));
-      cfg->robot.grip_force = *spec.robot.grip_force;
-    }
-    if (spec.robot.finger_friction) {
-      if (!(*spec.robot.finger_friction >= 0) || !std::isfinite(*spec.robot.finger_friction))
-        return Status::InvalidArgument(fmt::format("robot finger_friction must be a finite number >= 0 (got {})",
-                                                   *spec.robot.finger_friction));
-      cfg->robot.finger_friction = *spec.robot.finger_friction;
     }
   } else if (!spec.robot.empty()) {
     return Status::InvalidArgument(fmt::format("robot settings are for mode robot (this job's mode is {})", cfg->mode));

@@ -8,6 +8,12 @@
 #include <string>
 #include <vector>
 
+#include "service/status.h"
+
+namespace gd::tasks {
+struct RobotOptions;
+}
+
 namespace gd::service {
 
 /// Largest URDF text a request may carry.
@@ -25,5 +31,11 @@ struct RobotSpec {
     return urdf_xml.empty() && !grip_force && !finger_friction && initial_joints[0].empty() && initial_joints[1].empty();
   }
 };
+
+/// What scenes and jobs check alike before they parse the URDF: its size (RESOURCE_EXHAUSTED),
+/// that there is one (the request's or, when `server_has_urdf`, the server's; else
+/// FAILED_PRECONDITION saying how to give one), and the grip force (finite, > 0) and finger
+/// friction (finite, >= 0), which go into `options`.
+Status apply_robot_spec(const RobotSpec& spec, bool server_has_urdf, tasks::RobotOptions* options);
 
 }  // namespace gd::service

@@ -363,15 +363,8 @@ Status check_alive(const std::vector<std::shared_ptr<ScenePool::Entry>>& entries
 
 Status ScenePool::robot_arms(const RobotSpec& spec, std::shared_ptr<const robot::ArmModel>* arms,
                              tasks::RobotOptions* options) const {
-  if (spec.urdf_xml.size() > kMaxUrdfBytes)
-    return Status::ResourceExhausted(fmt::format("the robot URDF is {} bytes, over the limit of {} (send the URDF "
-                                                 "without meshes or comments inlined)",
-                                                 spec.urdf_xml.size(), kMaxUrdfBytes));
+  GD_RETURN_IF_ERROR(apply_robot_spec(spec, robot_model_ != nullptr, options));
   if (spec.urdf_xml.empty()) {
-    if (!robot_model_)
-      return Status::FailedPrecondition(
-          "robot mode needs the arms' URDF: send its text in the request's robot settings (RobotSettings.urdf), or "
-          "start the server with --robot-urdf PATH (e.g. RGBench's piper_with_gripper.urdf)");
     *arms = robot_model_;
     options->urdf = options_.robot_urdf;
   } else {
@@ -382,12 +375,6 @@ Status ScenePool::robot_arms(const RobotSpec& spec, std::shared_ptr<const robot:
     }
     options->urdf = "robot.urdf (sent with the request)";
   }
-  if (spec.grip_force) options->grip_force = *spec.grip_force;
-  if (spec.finger_friction) options->finger_friction = *spec.finger_friction;
-  if (options->grip_force <= 0 && spec.grip_force)
-    return Status::InvalidArgument(fmt::format("robot grip_force must be > 0 N (got {})", *spec.grip_force));
-  if (spec.finger_friction && !(*spec.finger_friction >= 0))
-    return Status::InvalidArgument(fmt::format("robot finger_friction must be >= 0 (got {})", *spec.finger_friction));
   try {
     options->validate(false);
   } catch (const InputError& e) {
