@@ -4,6 +4,12 @@ attached (docs/viewer.md), interleaved rounds in one run, on one server.
 
     build/venv/bin/python bench/viewer_overhead.py [--garment tshirt --vertices 2000 --scenes 4
         --calls 20 --substeps 5 --rounds 3 --every 1 --browser]
+    build/venv/bin/python bench/viewer_overhead.py --job [--garment tshirt --vertices 2000
+        --time-scale 0.3 --rounds 3 --every 1]
+
+With --job, each round runs the same Grasp job twice on the server (one job worker): first alone,
+then with `python -m garmentdynamics.viewer --job ID` subscribed before it starts (it is queued
+behind the first), and compares the jobs' own ms_per_step (their stepping time, set-up excluded).
 
 Each round steps the scenes `calls` times (`substeps` each) and times the calls; "viewer" rounds
 run `python -m garmentdynamics.viewer` on the scenes in a separate process first (subscribed
@@ -56,6 +62,34 @@ def start_viewer(target, ids, every, port, browser):
     return procs
 
 
+def start_job_viewer(target, job, every, port):
+    """The viewer on a queued job: it waits for the job's first step, then serves its page."""
+    return subprocess.Popen([sys.executable, "-m", "garmentdynamics.viewer", "--server", target, "--port", str(port),
+                             "--every", str(every), "--job", job],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True)
+
+
+def job_rounds(client, args):
+    """ms per step of the same job without and with a viewer, interleaved."""
+    spec = dict(garment=args.garment, vertices=args.vertices, task="grasp", time_scale=args.time_scale)
+    plain, viewed = [], []
+    for r in range(args.rounds):
+        alone = client.submit_job(label="alone", **spec)
+        watched = client.submit_job(label="watched", **spec)  # queued behind `alone`
+        viewer = start_job_viewer(client.target, watched, args.every, args.port)
+        try:
+            a = client.wait_report(alone, progress=False)["summary"]
+            b = client.wait_report(watched, progress=False)["summary"]
+        finally:
+            viewer.terminate()
+            viewer.wait(timeout=30)
+        plain.append(a["ms_per_step"])
+        viewed.append(b["ms_per_step"])
+        print(f"round {r + 1}: the job took {plain[-1]:.2f} ms per step alone, {viewed[-1]:.2f} with a viewer "
+              f"({b['steps']} steps)", flush=True)
+    return plain, viewed
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--garment", default="tshirt")
@@ -68,11 +102,23 @@ def main():
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--port", type=int, default=8095)
     p.add_argument("--browser", action="store_true", help="also a headless Chromium on the viewer's page")
+    p.add_argument("--job", action="store_true", help="a job watched while it runs instead of stepped scenes")
+    p.add_argument("--time-scale", type=float, default=0.3, help="--job: the Grasp's time scale")
     p.add_argument("--json", help="write the numbers to this file")
     args = p.parse_args()
     import tempfile
     with tempfile.TemporaryDirectory() as data, \
             Client.spawn(server_bin=find_server_binary(), data_dir=data, threads=args.threads) as client:
+        if args.job:
+            plain, viewed = job_rounds(client, args)
+            a, b = statistics.median(plain), statistics.median(viewed)
+            out = {"job": True, "garment": args.garment, "vertices": args.vertices, "every": args.every,
+                   "ms_per_step_plain": plain, "ms_per_step_viewed": viewed, "median_plain": a,
+                   "median_viewed": b, "slowdown": b / a}
+            print(f"median: {a:.2f} -> {b:.2f} ms per step of the job with a viewer attached ({100 * (b / a - 1):+.1f}%)")
+            if args.json:
+                Path(args.json).write_text(json.dumps(out, indent=1) + "\n")
+            return
         ids = client.create_scenes(garment=args.garment, vertices=args.vertices, count=args.scenes)
         for _ in range(args.calls):  # warm-up: the first steps settle the garments
             client.step(ids, substeps=args.substeps)

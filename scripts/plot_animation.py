@@ -1,13 +1,22 @@
 #!/usr/bin/env python3
-"""Draws a run's animation: REPORT_DIR/animation.gif from REPORT_DIR/animation.npy.
+"""Draws a run's animation: REPORT_DIR/animation.gif (and .mp4) from REPORT_DIR/animation.npy, and
+for a capture run REPORT_DIR/capture_animation.gif (and .mp4) from capture_animation.npy.
 
-    plot_animation.py REPORT_DIR [--fps 10] [--max-frames 120]
+    plot_animation.py REPORT_DIR [--fps 10] [--max-frames 120] [--no-mp4]
 
 `gd run` (and the server's jobs with --plots) writes animation.npy (float32 (F, N, 3): the garment's
 vertices, world frame, at the times listed in summary.json "animation") and calls this script.
 Each GIF frame shows the garment from the front (y, z: the arms at y = +/-0.25 face the viewer)
 and from above (x, y): its triangles (from initial.obj) drawn far to near, coloured by height, the
 table line, and the grippers from trajectory.csv (green open, purple closed).
+
+A capture run (`gd run --capture`) also writes capture_animation.npy (float32 (F, 2, P, 3): the
+simulated vertices and the real capture's points, each resampled to P points, world frame, at the
+evaluated frames listed in summary.json "capture_animation"); its animation shows the simulation and
+the real cloud side by side from the front, and both from above.
+
+The MP4s (H.264) are written where an ffmpeg is found: on PATH, else the one the PyPI package
+imageio-ffmpeg ships (scripts/requirements.txt has it). Each frame is drawn once for both files.
 """
 
 from __future__ import annotations
@@ -15,6 +24,8 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -23,8 +34,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
+from PIL import Image  # noqa: E402
 
 
 def read_triangles(path: Path):
@@ -52,6 +63,96 @@ def read_trajectory(path: Path):
     return out
 
 
+def ffmpeg_exe():
+    """An ffmpeg binary: on PATH, else imageio-ffmpeg's; None without either."""
+    exe = shutil.which("ffmpeg")
+    if exe:
+        return exe
+    try:
+        import imageio_ffmpeg
+        return imageio_ffmpeg.get_ffmpeg_exe()
+    except Exception:  # not installed, or its binary missing
+        return None
+
+
+class Movie:
+    """A figure's frames to STEM.gif (Pillow) and, with an ffmpeg, STEM.mp4 (H.264): add() after
+    drawing each frame, close() writes them and returns the paths written."""
+
+    def __init__(self, fig, stem: Path, fps: float, mp4: bool):
+        self.fig, self.stem, self.fps = fig, stem, fps
+        self.frames: list = []
+        self.proc = None
+        self.exe = ffmpeg_exe() if mp4 else None
+
+    def add(self) -> None:
+        self.fig.canvas.draw()
+        rgb = np.ascontiguousarray(np.asarray(self.fig.canvas.buffer_rgba())[..., :3])
+        self.frames.append(Image.fromarray(rgb))
+        if self.exe and self.proc is None:
+            h, w = rgb.shape[:2]
+            self.proc = subprocess.Popen(
+                [self.exe, "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{w}x{h}",
+                 "-r", f"{self.fps:g}", "-i", "-", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264",
+                 "-pix_fmt", "yuv420p", "-movflags", "+faststart", str(self.stem.with_suffix(".mp4"))],
+                stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+        if self.proc is not None:
+            self.proc.stdin.write(rgb.tobytes())
+
+    def close(self) -> list:
+        out = []
+        gif = self.stem.with_suffix(".gif")
+        if self.frames:
+            self.frames[0].save(gif, save_all=True, append_images=self.frames[1:],
+                                duration=int(round(1000 / self.fps)), loop=0)
+            out.append(gif)
+        if self.proc is not None:
+            _, err = self.proc.communicate()
+            if self.proc.returncode == 0:
+                out.append(self.stem.with_suffix(".mp4"))
+            else:
+                print(f"plot_animation: ffmpeg failed ({self.proc.returncode}): {err.decode(errors='replace')[-500:]}",
+                      file=sys.stderr)
+        return out
+
+
+def capture_movie(d: Path, summary: dict, fps: float, mp4: bool) -> list:
+    """capture_animation.{gif,mp4}: simulation and real capture side by side (front), both from above."""
+    a = np.load(d / "capture_animation.npy")  # (F, 2, P, 3)
+    times = np.asarray(summary.get("capture_animation", {}).get("times", np.arange(len(a)) * 0.1), dtype=float)
+    if len(times) != len(a):
+        times = np.arange(len(a)) * 0.1
+    pts = a.reshape(-1, 3)
+    lo, hi = pts.min(axis=0) - 0.03, pts.max(axis=0) + 0.03
+    fig, (sim_ax, real_ax, top) = plt.subplots(1, 3, figsize=(13, 4.4), dpi=72)
+    title = f"{summary.get('garment', '')} {summary.get('task', '')}: simulation and real capture".strip()
+    movie = Movie(fig, d / "capture_animation", fps, mp4)
+    for i in range(len(a)):
+        for ax in (sim_ax, real_ax, top):
+            ax.clear()
+        sim, real = a[i, 0], a[i, 1]
+        sim_ax.scatter(sim[:, 1], sim[:, 2], s=3, c="tab:blue", linewidths=0, zorder=2)
+        real_ax.scatter(real[:, 1], real[:, 2], s=3, c="tab:orange", linewidths=0, zorder=2)
+        top.scatter(real[:, 0], real[:, 1], s=3, c="tab:orange", linewidths=0, label="real")
+        top.scatter(sim[:, 0], sim[:, 1], s=1.5, c="tab:blue", linewidths=0, label="simulation")
+        for ax, name in ((sim_ax, "simulation, front (y, z)"), (real_ax, "real capture, front (y, z)")):
+            ax.set_xlim(hi[1], lo[1])
+            ax.set_ylim(lo[2], hi[2])
+            ax.axhline(0.0, color="0.6", lw=1, zorder=1)  # the table
+            ax.set_title(name, fontsize=9)
+        top.set_xlim(lo[0], hi[0])
+        top.set_ylim(lo[1], hi[1])
+        top.set_title("both, top (x, y)", fontsize=9)
+        top.legend(loc="upper right", fontsize=7, markerscale=6)
+        for ax in (sim_ax, real_ax, top):
+            ax.set_aspect("equal")
+            ax.tick_params(labelsize=7)
+        fig.suptitle(f"{title}   t = {times[i]:5.2f} s", fontsize=10)
+        movie.add()
+    plt.close(fig)
+    return movie.close()
+
+
 def arm_at(track, t: float):
     times, xyz, grip = track
     return np.array([np.interp(t, times, xyz[:, k]) for k in range(3)]), float(np.interp(t, times, grip))
@@ -62,6 +163,7 @@ def main() -> int:
     p.add_argument("report_dir")
     p.add_argument("--fps", type=float, default=10.0)
     p.add_argument("--max-frames", type=int, default=120)
+    p.add_argument("--no-mp4", action="store_true", help="only the GIFs, even where an ffmpeg is found")
     args = p.parse_args()
     d = Path(args.report_dir)
     npy = d / "animation.npy"
@@ -83,7 +185,7 @@ def main() -> int:
     pad = 0.05
     lo, hi = lo - pad, hi + pad
     lo[2] = min(lo[2], -0.02)
-    fig, (front, top) = plt.subplots(1, 2, figsize=(10, 4.6))
+    fig, (front, top) = plt.subplots(1, 2, figsize=(10, 4.6), dpi=72)
     title = f"{summary.get('garment', '')} {summary.get('task', '')} ({summary.get('mode', '')} mode)".strip()
     norm = plt.Normalize(vmin=lo[2], vmax=hi[2])
     cmap = plt.get_cmap("viridis")
@@ -124,13 +226,17 @@ def main() -> int:
             ax.set_title(name, fontsize=9)
             ax.tick_params(labelsize=7)
         fig.suptitle(f"{title}   t = {t:5.2f} s", fontsize=10)
-        return []
 
-    anim = FuncAnimation(fig, draw, frames=len(pick), blit=False)
-    out = d / "animation.gif"
-    anim.save(out, writer=PillowWriter(fps=args.fps), dpi=72)
+    movie = Movie(fig, d / "animation", args.fps, not args.no_mp4)
+    for k in range(len(pick)):
+        draw(k)
+        movie.add()
     plt.close(fig)
-    print(out)
+    written = movie.close()
+    if (d / "capture_animation.npy").exists():
+        written += capture_movie(d, summary, args.fps, not args.no_mp4)
+    for path in written:
+        print(path)
     return 0
 
 

@@ -5,8 +5,8 @@
 
 Reads what `gd run` (or a job, fetched by `gd report JOB --out DIR`) wrote there: summary.json,
 metrics_summary.json and comparison.csv of a capture run, and the pictures (animation.gif,
-metrics_over_time.png, frames.png), which are embedded as data URIs, so the page can be mailed
-or attached as one file. `gd run` writes it with its plots; `gd report JOB --out DIR --open`
+capture_animation.gif, metrics_over_time.png, frames.png), which are embedded as data URIs, so
+the page can be mailed or attached as one file. `gd run` writes it with its plots; `gd report JOB --out DIR --open`
 writes it for a job and opens it.
 """
 
@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 PICTURES = [("animation.gif", "The run (front and top views)"),
+            ("capture_animation.gif", "Simulation and real capture side by side"),
             ("metrics_over_time.png", "Sim-to-real metrics over time"),
             ("frames.png", "Simulated and real point clouds")]
 METRICS = [("cd_l1_s2r", "CD L1 sim→real"), ("cd_l2_s2r", "CD L2 sim→real"), ("cd_l1_r2s", "CD L1 real→sim"),

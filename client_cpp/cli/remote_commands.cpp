@@ -221,9 +221,13 @@ RemoteCommands::RemoteCommands(CLI::App& app) {
   upload_->add_option("file", upload_file_, "Wavefront OBJ file")->required();
   upload_->add_option("--name", upload_name_, "name kept with the mesh (default: the file's stem)");
 
-  view_ = app.add_subcommand("view", "watch scenes in a live 3D web page (needs --server and the Python client "
-                                     "with its viewer extra: pip install 'garmentdynamics[viewer]'; docs/viewer.md)");
-  view_->add_option("--ids,--scene", ids_, "scene ids, comma-separated")->delimiter(',')->required();
+  view_ = app.add_subcommand("view", "watch scenes or a running job in a live 3D web page (needs --server and the "
+                                     "Python client with its viewer extra: pip install 'garmentdynamics[viewer]'; "
+                                     "docs/viewer.md)");
+  auto* view_ids = view_->add_option("--ids,--scene", ids_, "scene ids, comma-separated")->delimiter(',');
+  auto* view_job = view_->add_option("--job", view_job_, "a queued or running job (SubmitJob's id) instead of scenes");
+  view_ids->excludes(view_job);
+  view_job->excludes(view_ids);
   view_->add_option("--port", view_port_, "port of the page (0: a free one)")->capture_default_str();
   view_->add_option("--host", view_host_, "address the page is served on")->capture_default_str();
   view_->add_option("--every", view_every_, "a frame every k-th step of a scene")->capture_default_str();
@@ -255,13 +259,16 @@ int RemoteCommands::execute(const std::string& server, const ClientOptions& opti
 }
 
 int RemoteCommands::do_view(Client& c, const std::string& server, const ConnectionFlags& flags) {
-  (void)c.get_state(ids_);  // unknown scenes: NOT_FOUND here, before a page is served
+  if (ids_.empty() && view_job_.empty()) throw sim::InputError("view: give the scenes (--ids) or a job (--job)");
+  // Unknown scenes: NOT_FOUND here, before a page is served (a job: the viewer's stream says why).
+  if (view_job_.empty()) (void)c.get_state(ids_);
   const char* env_python = std::getenv("GD_PYTHON");
   const std::string python = env_python && *env_python ? env_python : "python3";
   std::vector<std::string> args{python, "-m", "garmentdynamics.viewer", "--server", server,
                                 "--port", std::to_string(view_port_), "--host", view_host_,
                                 "--every", std::to_string(view_every_)};
   for (const std::string& id : ids_) args.insert(args.end(), {"--scene", id});
+  if (!view_job_.empty()) args.insert(args.end(), {"--job", view_job_});
   if (!view_screenshot_.empty()) args.insert(args.end(), {"--screenshot", view_screenshot_, "--wait", std::to_string(view_wait_)});
   if (!flags.token_file.empty()) args.insert(args.end(), {"--token-file", flags.token_file});
   if (flags.tls || !flags.tls_ca.empty()) args.emplace_back("--tls");

@@ -82,6 +82,7 @@ class RemoteCommands {
   int substeps_ = 1;
   std::string step_out_;
   std::string job_id_;
+  std::string view_job_;  ///< gd view --job
   std::string report_out_;
   bool report_open_ = false;
   int limit_ = 100;

@@ -125,6 +125,40 @@ struct Client::Impl {
     if (!options.token.empty()) ctx.AddMetadata("authorization", "Bearer " + options.token);
   }
 
+  /// Reads a StreamFrames call to its end: each frame to `on_frame` (false stops it: the call is
+  /// cancelled, which is not an error), a job's SceneInfo into `info` before its first frame.
+  int64_t read_frames(const pb::StreamFramesRequest& req, const std::function<bool(const SceneState&)>& on_frame,
+                      SceneInfo* info) {
+    grpc::ClientContext ctx;
+    prepare(ctx, true);
+    auto reader = stub->StreamFrames(&ctx, req);
+    pb::StreamFramesResponse msg;
+    int64_t frames = 0;
+    bool stopped = false;
+    std::exception_ptr error;
+    while (reader->Read(&msg)) {
+      ++frames;
+      try {
+        if (info && msg.has_info()) *info = from_proto(msg.info(), "StreamFrames");
+        SceneState frame = from_proto(msg.state(), "StreamFrames");
+        frame.dropped_frames = msg.dropped_frames();
+        if (!on_frame(frame)) stopped = true;
+      } catch (...) {
+        error = std::current_exception();
+      }
+      if (stopped || error) {
+        ctx.TryCancel();
+        while (reader->Read(&msg)) {
+        }
+        break;
+      }
+    }
+    const grpc::Status status = reader->Finish();
+    if (error) std::rethrow_exception(error);
+    if (!stopped) check(status, "StreamFrames");
+    return frames;
+  }
+
   /// One unary call of the generated stub.
   template <typename Req, typename Resp>
   Resp call(const char* rpc, grpc::Status (pb::GarmentDynamics::Stub::*method)(grpc::ClientContext*, const Req&, Resp*),
@@ -232,33 +266,17 @@ int64_t Client::stream(const std::vector<std::string>& ids, const StreamOptions&
   req.set_every(options.every);
   req.set_steps(options.steps);
   req.set_max_frames(options.max_frames);
-  grpc::ClientContext ctx;
-  impl_->prepare(ctx, true);
-  auto reader = impl_->stub->StreamFrames(&ctx, req);
-  pb::StreamFramesResponse msg;
-  int64_t frames = 0;
-  bool stopped = false;
-  std::exception_ptr error;
-  while (reader->Read(&msg)) {
-    ++frames;
-    try {
-      SceneState frame = from_proto(msg.state(), "StreamFrames");
-      frame.dropped_frames = msg.dropped_frames();
-      if (!on_frame(frame)) stopped = true;
-    } catch (...) {
-      error = std::current_exception();
-    }
-    if (stopped || error) {
-      ctx.TryCancel();
-      while (reader->Read(&msg)) {
-      }
-      break;
-    }
-  }
-  const grpc::Status status = reader->Finish();
-  if (error) std::rethrow_exception(error);
-  if (!stopped) check(status, "StreamFrames");
-  return frames;
+  return impl_->read_frames(req, on_frame, nullptr);
+}
+
+int64_t Client::stream_job(const std::string& job_id, const StreamOptions& options,
+                           const std::function<bool(const SceneState&)>& on_frame, SceneInfo* info) {
+  if (options.steps != 0) throw std::invalid_argument("stream_job: a job steps its own scene; leave StreamOptions::steps at 0");
+  pb::StreamFramesRequest req;
+  req.set_job_id(job_id);
+  req.set_every(options.every);
+  req.set_max_frames(options.max_frames);
+  return impl_->read_frames(req, on_frame, info);
 }
 
 int Client::destroy(const std::vector<std::string>& ids) {

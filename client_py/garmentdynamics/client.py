@@ -544,6 +544,27 @@ class Client:
         finally:
             call.cancel()
 
+    def stream_job(self, job_id: str, every: int = 1, max_frames: int = 0,
+                   timeout: Optional[float] = None) -> Iterator[SceneState]:
+        """Yields the scene of a queued or running job every `every`-th step of its run, until the
+        job ends, after max_frames frames (0 = no limit), or when the generator is closed. The
+        frames carry the job id as scene_id; the job's scene (as scene_info(): triangles, table,
+        joints; rest_positions are the positions at the first frame) is known as
+        scene_info(job_id) from the first frame on. A finished job raises FAILED_PRECONDITION
+        (its report has the run's animation)."""
+        call = self._stub.StreamFrames(
+            pb.StreamFramesRequest(job_id=str(job_id), every=int(every), max_frames=int(max_frames)),
+            timeout=self.stream_timeout if timeout is None else timeout)
+        try:
+            for msg in call:
+                if msg.HasField("info"):
+                    self._scene_info[str(job_id)] = _scene_info_to_dict(msg.info)
+                frame = SceneState.from_proto(msg.state)
+                frame.dropped_frames = msg.dropped_frames
+                yield frame
+        finally:
+            call.cancel()
+
     def destroy(self, ids) -> int:
         """Destroys scenes; returns how many were destroyed."""
         ids = _ids(ids)

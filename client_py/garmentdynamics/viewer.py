@@ -2,9 +2,11 @@
 
     python -m garmentdynamics.viewer --server 127.0.0.1:50051 --scene s-1234 [--scene s-5678 ...]
     python -m garmentdynamics.viewer --server 127.0.0.1:50051 --scene s-1234 --screenshot out.png
+    python -m garmentdynamics.viewer --server 127.0.0.1:50051 --job j-5678
 
 The viewer subscribes to the scenes' frames (StreamFrames without steps of its own: it watches
-whatever steps them, an RL loop or a benchmark) and draws them with viser, which serves the page
+whatever steps them, an RL loop or a benchmark), or to a queued or running job's scene as the
+job steps it (from its first step on; the page opens once that step is made), and draws them with viser, which serves the page
 from this process (open the printed URL; on a remote machine forward the port): the garments in a
 grid, the table, each arm's tool (green open, red closed) and the kinematic colliders (robot
 mode's finger pads), a time slider over the frames received, and per-scene statistics. Viewing
@@ -42,8 +44,10 @@ from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
+import grpc
+
 from ._proto import pb
-from .client import Client, SceneState
+from .client import Client, SceneState, _scene_info_to_dict
 
 CLOTH_COLOR = (214, 72, 48)       # garments: a saturated red-orange, easy to find in a screenshot
 TABLE_COLOR = (190, 190, 196)
@@ -120,20 +124,28 @@ class SceneViewer:
     """Watches scenes on a server and draws them in a viser page (see the module docstring).
 
     client: a Client of the server (its token sees the scenes); scene_ids: the scenes, drawn in a
-    grid in this order; host/port: where the page is served (port 0: a free one); every: a frame
+    grid in this order, or job_id: a queued or running job, whose scene is drawn from its first
+    step on (the constructor waits for that step, at most first_frame_timeout s); host/port: where the page is served (port 0: a free one); every: a frame
     every k-th step of a scene; keep_frames: frames kept per scene for the time slider; max_fps:
     how often the page is updated at most (frames arriving faster are kept for the slider but
     drawn only at this rate, so a browser on the server's machine does not take its cores)."""
 
-    def __init__(self, client: Client, scene_ids: Sequence[str], host: str = "127.0.0.1", port: int = 8080,
-                 every: int = 1, keep_frames: int = 600, max_fps: float = 10.0):
+    def __init__(self, client: Client, scene_ids: Sequence[str] = (), host: str = "127.0.0.1", port: int = 8080,
+                 every: int = 1, keep_frames: int = 600, max_fps: float = 10.0, job_id: Optional[str] = None,
+                 first_frame_timeout: float = 600.0):
         viser = _viser()
-        if not scene_ids:
-            raise ValueError("give at least one scene id")
+        if bool(scene_ids) == bool(job_id):
+            raise ValueError("give scene ids or a job id (one of them)")
         self.client = client
-        self.scene_ids = [str(s) for s in scene_ids]
-        infos = client.describe(self.scene_ids)
-        first = client.get_state(self.scene_ids)
+        self.job_id = str(job_id) if job_id else None
+        self._call = None
+        if self.job_id:
+            self.scene_ids = [self.job_id]
+            infos, first = self._open_job(int(every), first_frame_timeout)
+        else:
+            self.scene_ids = [str(s) for s in scene_ids]
+            infos = client.describe(self.scene_ids)
+            first = client.get_state(self.scene_ids)
         if port == 0:
             port = _free_port(host)
         self.host, self.port = host, int(port)
@@ -142,7 +154,6 @@ class SceneViewer:
         self._tracks = self._layout(infos, keep_frames)
         self._frames_received = 0
         self._stop = threading.Event()
-        self._call = None
         self._error: Optional[BaseException] = None
         self._build_page(infos)
         for track, state in zip(self._tracks, first):
@@ -221,7 +232,7 @@ class SceneViewer:
             tris = np.asarray(info["triangles"], dtype=np.uint32)
             verts = np.asarray(info["rest_positions"], dtype=np.float32) + t.offset.astype(np.float32)
             t.mesh = s.scene.add_mesh_simple(f"/{t.scene_id}/cloth", verts, tris, color=CLOTH_COLOR, side="double")
-            s.scene.add_label(f"/{t.scene_id}/label", t.scene_id[:12],
+            s.scene.add_label(f"/{t.scene_id}/label", _short(t.scene_id),
                               position=(float(verts[:, 0].min()), float(verts[:, 1].max()), 0.1))
             for arm in ("left", "right"):
                 t.arms[arm] = s.scene.add_icosphere(f"/{t.scene_id}/{arm}_tool", radius=0.015, color=OPEN_COLOR)
@@ -250,12 +261,42 @@ class SceneViewer:
             self._redraw()
 
     # --- frames --------------------------------------------------------------------------------
+    def _open_job(self, every: int, timeout: float):
+        """Subscribes to the job's frames and waits for the first (it carries the scene's info)."""
+        self._call = self.client._stub.StreamFrames(pb.StreamFramesRequest(job_id=self.job_id, every=every),
+                                                    timeout=self.client.stream_timeout)
+        got: list = []
+
+        def first() -> None:
+            try:
+                got.append(next(self._call))
+            except BaseException as exc:  # the stream's error (unknown or finished job), or no frame
+                got.append(exc)
+
+        t = threading.Thread(target=first, daemon=True)
+        t.start()
+        t.join(timeout)
+        if not got:
+            self._call.cancel()
+            raise TimeoutError(f"job {self.job_id}: no frame within {timeout:g} s (is it still queued?)")
+        msg = got[0]
+        if isinstance(msg, StopIteration):
+            raise RuntimeError(f"job {self.job_id} ended before its first frame")
+        if isinstance(msg, grpc.RpcError):
+            raise RuntimeError(f"job {self.job_id}: {msg.code().name}: {msg.details()}") from None
+        if isinstance(msg, BaseException):
+            raise msg
+        info = _scene_info_to_dict(msg.info)
+        self.client._scene_info[self.job_id] = info
+        return [info], [SceneState.from_proto(msg.state)]
+
     def _listen(self, every: int) -> None:
         ids = self.scene_ids
         by_id = {t.scene_id: t for t in self._tracks}
         try:
-            self._call = self.client._stub.StreamFrames(
-                pb.StreamFramesRequest(scene_ids=ids, every=every, steps=0), timeout=self.client.stream_timeout)
+            if self._call is None:
+                self._call = self.client._stub.StreamFrames(
+                    pb.StreamFramesRequest(scene_ids=ids, every=every, steps=0), timeout=self.client.stream_timeout)
             for msg in self._call:
                 if self._stop.is_set():
                     break
@@ -314,7 +355,7 @@ class SceneViewer:
                 + (f" {s['squeeze']:.1f} N" if "squeeze" in s else (f" {s['held_vertices']} v" if s["closed"] else ""))
                 for a, s in f.arms.items())
             status = "" if not f.failed else f" FAILED: {f.failure}"
-            lines.append(f"| {tr.scene_id[:10]} | {f.time:.3f} | {f.steps} | {st.get('wall_ms', 0.0):.1f} | "
+            lines.append(f"| {_short(tr.scene_id)} | {f.time:.3f} | {f.steps} | {st.get('wall_ms', 0.0):.1f} | "
                          f"{st.get('active_contacts', 0)} | {st.get('intersecting_pairs', 0)} | "
                          f"{st.get('newton_iterations', 0)} / {st.get('pcg_iterations', 0)} | "
                          f"{arms}{status} |")
@@ -342,6 +383,12 @@ class SceneViewer:
             box.wxyz = tuple(np.asarray(c["orientation"]))
 
 
+def _short(scene_id: str) -> str:
+    """A label for a scene or job id: scenes ("s-" + 32 hex) by their head, jobs ("j-" + time +
+    "-" + hex) by their random tail (their heads are the date)."""
+    return scene_id[:12] if not scene_id.startswith("j-") else "j-…" + scene_id[-8:]
+
+
 def _free_port(host: str) -> int:
     import socket
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
@@ -354,6 +401,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                 description="A live 3D viewer of scenes on a GarmentDynamics server (docs/viewer.md)")
     p.add_argument("--server", required=True, help="HOST:PORT of the gd-server")
     p.add_argument("--scene", action="append", default=[], help="a scene id (repeat, or comma-separated)")
+    p.add_argument("--job", help="a queued or running job's id instead of scenes: its scene as it runs")
     p.add_argument("--host", default="127.0.0.1", help="address the page is served on (0.0.0.0: every interface)")
     p.add_argument("--port", type=int, default=8080, help="port of the page (0: a free one)")
     p.add_argument("--every", type=int, default=1, help="a frame every k-th step of a scene")
@@ -365,16 +413,23 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--tls", action="store_true", help="connect with TLS")
     args = p.parse_args(argv)
     ids = [s for arg in args.scene for s in arg.split(",") if s]
-    if not ids:
-        p.error("give the scenes to watch: --scene ID")
+    if bool(ids) == bool(args.job):
+        p.error("give the scenes to watch (--scene ID) or a job (--job ID)")
     client = Client(args.server, token_file=args.token_file, tls=args.tls)
-    with SceneViewer(client, ids, host=args.host, port=args.port, every=args.every, max_fps=args.max_fps) as viewer:
+    try:
+        viewer = SceneViewer(client, ids, host=args.host, port=args.port, every=args.every, max_fps=args.max_fps,
+                             job_id=args.job)
+    except (RuntimeError, TimeoutError) as exc:
+        print(f"viewer: {exc}", file=sys.stderr)
+        return 2
+    with viewer:
         if args.screenshot:
             w, h = (int(v) for v in args.size.lower().split("x"))
             out = screenshot(viewer.url, args.screenshot, width=w, height=h, wait_s=args.wait)
             print(out)
             return 0
-        print(f"viewing {len(ids)} scene(s) at {viewer.url} (Ctrl-C to stop)", flush=True)
+        what = f"job {args.job}" if args.job else f"{len(ids)} scene(s)"
+        print(f"viewing {what} at {viewer.url} (Ctrl-C to stop)", flush=True)
         try:
             while viewer._thread.is_alive():
                 time.sleep(0.5)

@@ -170,6 +170,30 @@ def test_job_with_its_report(client):
     assert client.count_reports() >= 1
 
 
+def test_a_running_jobs_scene_streams_until_the_job_ends(client):
+    # One job worker: the watched job waits behind the first, so the stream is in place before
+    # its first step.
+    ahead = client.submit_job(garment="towel", task="grasp", vertices=200, dt=0.02, time_scale=0.5, settle=0.1,
+                              self_contact=False, label="ahead")
+    job = client.submit_job(garment="towel", task="grasp", vertices=200, dt=0.02, time_scale=0.5, settle=0.1,
+                            self_contact=False, label="watched")
+    frames = list(client.stream_job(job, every=3))
+    report = client.wait_report(job, progress=False)
+    assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+    assert client.wait_report(ahead, progress=False)["job"]["status"] == "SUCCEEDED"
+    info = client.scene_info(job)
+    assert info["vertex_count"] == report["summary"]["vertices"]
+    assert info["triangles"].shape == (report["summary"]["triangles"], 3)
+    assert info["table_height"] is not None and info["mode"] == "pseudo"
+    assert len(frames) == report["summary"]["steps"] // 3
+    assert [f.steps for f in frames] == [3 * (k + 1) for k in range(len(frames))]
+    assert all(f.scene_id == job and f.positions.shape == (info["vertex_count"], 3) for f in frames)
+    assert np.all(np.diff([f.time for f in frames]) > 0)
+    assert frames[-1].positions[:, 2].max() > frames[0].positions[:, 2].max() + 0.02  # the grasp lifted it
+    expect_code(grpc.StatusCode.FAILED_PRECONDITION, lambda: list(client.stream_job(job)))
+    expect_code(grpc.StatusCode.NOT_FOUND, lambda: list(client.stream_job("j-nosuchjob")))
+
+
 def test_cancel_job(client):
     job = client.submit_job(garment="towel", material="cotton", task="grasp", vertices=200, dt=0.01,
                             time_scale=1.0, settle=1.0, label="to cancel")

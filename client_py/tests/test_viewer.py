@@ -92,6 +92,29 @@ def test_a_grid_of_scenes_and_the_robot_pads(client, piper_urdf, tmp_path):
         client.destroy(pseudo + robot)
 
 
+def test_a_job_in_progress(client):
+    # The viewer follows a job's scene from its first step to its end (the job waits behind
+    # another, so the viewer is subscribed before it runs); the page draws the garment and keeps
+    # the last frame once the job has ended.
+    ahead = client.submit_job(garment="towel", task="grasp", vertices=TOWEL_VERTICES, dt=0.02, time_scale=0.5,
+                              settle=0.1, self_contact=False, label="ahead")
+    job = client.submit_job(garment="towel", task="grasp", vertices=TOWEL_VERTICES, dt=0.02, time_scale=0.5,
+                            settle=0.1, self_contact=False, label="viewed")
+    with SceneViewer(client, job_id=job, port=0, every=2) as viewer:
+        assert viewer.scene_ids == [job]
+        assert viewer.wait_for_frames(3, timeout=120)
+        png = screenshot(viewer.url, output_dir() / "job_in_progress.png", width=960, height=640, wait_s=6)
+        viewer._thread.join(timeout=300)  # the stream ends with the job
+        assert not viewer._thread.is_alive() and viewer._error is None
+        report = client.wait_report(job, progress=False)
+        assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+        assert viewer.frames_received + 1 == report["summary"]["steps"] // 2  # + the first, taken before
+    assert client.wait_report(ahead, progress=False)["job"]["status"] == "SUCCEEDED"
+    assert cloth_mask(png).sum() > 3000
+    with pytest.raises(RuntimeError, match="FAILED_PRECONDITION"):  # ended: its report has the animation
+        SceneViewer(client, job_id=job, port=0)
+
+
 def test_unknown_scenes_are_refused_before_a_page_is_served(client):
     import grpc
     with pytest.raises(grpc.RpcError) as err:

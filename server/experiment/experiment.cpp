@@ -90,16 +90,40 @@ std::string shared_dir() {
 /// the table, which stops them.
 constexpr double kRobotGraspDepth = 0.005;
 
+/// Writes `data` as a float32 .npy array of `shape` (C order).
+void write_npy_f32(const std::string& path, const std::vector<float>& data, const std::vector<size_t>& shape) {
+  std::string dims;  // "F, N, 3", or "N," for one dimension
+  for (size_t k = 0; k < shape.size(); ++k) dims += (k == 0 ? "" : ", ") + std::to_string(shape[k]);
+  if (shape.size() == 1) dims += ",";
+  std::string header = fmt::format("{{'descr': '<f4', 'fortran_order': False, 'shape': ({}), }}", dims);
+  header.append(63 - (10 + header.size()) % 64, ' ');  // magic (6) + version (2) + length (2): 64-byte aligned
+  header.push_back('\n');
+  std::ofstream f(path, std::ios::binary);
+  if (!f) throw InputError(fmt::format("cannot write '{}'", path));
+  const uint16_t len = static_cast<uint16_t>(header.size());
+  f.write("\x93NUMPY\x01\x00", 8);
+  f.write(reinterpret_cast<const char*>(&len), 2);  // little-endian hosts only (x86-64, arm64)
+  f << header;
+  f.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size() * sizeof(float)));
+  if (!f) throw InputError(fmt::format("error while writing '{}'", path));
+}
+
+/// The capture run's animation: kCaptureAnimationFrames (sim, real) pairs, evenly spaced over the
+/// record window, each cloud resampled to kCaptureAnimationPoints points.
+constexpr int kCaptureAnimationFrames = 60;
+constexpr int kCaptureAnimationPoints = 3000;
+
 /// The simulation of one experiment: scene, controller, bookkeeping of statistics and the
 /// time series. advance() is the only place that steps the scene (through tasks::run_until).
 class Run {
  public:
   Run(std::unique_ptr<sim::Scene> scene, std::unique_ptr<tasks::TaskController> controller, double frame_interval,
-      const ProgressFn& progress, double end_time)
+      const ProgressFn& progress, const StepObserver& observe, double end_time)
       : scene_(std::move(scene)),
         controller_(std::move(controller)),
         frame_interval_(frame_interval),
         progress_(progress),
+        observe_(observe),
         end_time_(end_time) {
     record();
   }
@@ -115,7 +139,8 @@ class Run {
 
   /// Steps until the scene time reaches t (overshoot < 1 dt); false once the scene has failed.
   bool advance(double t) {
-    return tasks::run_until(*scene_, *controller_, t, [this](const sim::StepStats& s) {
+    const auto t0 = Clock::now();
+    const bool ok = tasks::run_until(*scene_, *controller_, t, [this](const sim::StepStats& s) {
       ++steps_;
       intersecting_max_ = std::max(intersecting_max_, s.intersecting_pairs);
       contacts_max_ = std::max(contacts_max_, s.contacts);
@@ -127,12 +152,18 @@ class Run {
       if (scene_->time() >= next_record_ - 1e-9) record();
       if (mesh_ && scene_->time() >= next_mesh_ - 1e-9) write_mesh();
       if (progress_) progress_(scene_->time(), end_time_, s);
+      if (observe_) observe_(*scene_, *controller_);
     });
+    stepping_seconds_ += std::chrono::duration<double>(Clock::now() - t0).count();
+    return ok;
   }
 
   sim::Scene& scene() { return *scene_; }
   const tasks::TaskController& controller() const { return *controller_; }
   int steps() const { return steps_; }
+  /// Wall seconds spent in advance(): the steps with their controller and bookkeeping, not the
+  /// set-up (meshing, loading, settling before planning) or the files written at the end.
+  double stepping_seconds() const { return stepping_seconds_; }
   int intersecting_max() const { return intersecting_max_; }
   int contacts_max() const { return contacts_max_; }
   long newton() const { return newton_; }
@@ -144,18 +175,8 @@ class Run {
   /// The recorded frames' positions as OUT/animation.npy (float32, (frames, N, 3), world m) and
   /// their times; at most kMaxAnimationFrames (and kMaxAnimationBytes), evenly spaced over the run.
   nlohmann::json write_animation(const std::string& path) const {
-    const size_t n = scene_->vertex_count();
+    write_npy_f32(path, anim_, {anim_times_.size(), scene_->vertex_count(), 3});
     const size_t frames = anim_times_.size();
-    std::string header = fmt::format("{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}, 3), }}", frames, n);
-    header.append(63 - (10 + header.size()) % 64, ' ');  // magic (6) + version (2) + length (2): 64-byte aligned
-    header.push_back('\n');
-    std::ofstream f(path, std::ios::binary);
-    if (!f) throw InputError(fmt::format("cannot write '{}'", path));
-    const uint16_t len = static_cast<uint16_t>(header.size());
-    f.write("\x93NUMPY\x01\x00", 8);
-    f.write(reinterpret_cast<const char*>(&len), 2);  // little-endian hosts only (x86-64, arm64)
-    f << header;
-    f.write(reinterpret_cast<const char*>(anim_.data()), static_cast<std::streamsize>(anim_.size() * sizeof(float)));
     return {{"file", fs::path(path).filename().string()}, {"frames", frames}, {"times", anim_times_}};
   }
 
@@ -213,9 +234,11 @@ class Run {
   std::string mesh_dir_;
   double mesh_interval_ = 0, next_mesh_ = 0;
   ProgressFn progress_;
+  StepObserver observe_;
   double end_time_;
   double next_record_ = 0;
   int steps_ = 0, intersecting_max_ = 0, contacts_max_ = 0;
+  double stepping_seconds_ = 0;
   long newton_ = 0, pcg_ = 0, converged_ = 0;
   sim::StageTimes stage_;
   std::vector<std::string> rows_;
@@ -274,6 +297,8 @@ namespace {
 /// A garment's state after settling on the table.
 struct Settled {
   std::vector<Vec3> x, v;
+  int steps = 0;
+  double seconds = 0;  ///< wall time of the settling steps
 };
 
 /// A generated task plans its grasp points on the garment as it lies when the arms arrive, not on
@@ -285,11 +310,12 @@ struct Settled {
 /// returned state.
 Settled settle_before_planning(const sim::Mesh& mesh, const sim::Material& material, const sim::SceneOptions& opt,
                                double seconds, const Eigen::Isometry3d& place, garments::Garment* g) {
+  const auto t0 = Clock::now();
   auto scene = sim::Scene::create(mesh, material, opt);
   const int steps = static_cast<int>(std::ceil(seconds / opt.dt - 1e-9));
   for (int k = 0; k < steps; ++k)
     if (!scene->step()) break;  // the run meets the same failure and reports it
-  Settled st{scene->positions(), scene->velocities()};
+  Settled st{scene->positions(), scene->velocities(), steps, std::chrono::duration<double>(Clock::now() - t0).count()};
   const Eigen::Isometry3d inv = place.inverse();
   const auto move = [&](Vec3& p) {  // p in the garment frame
     const int best = sim::nearest_vertex(g->mesh, p);
@@ -355,7 +381,8 @@ bool run_plot_script(const std::string& script_name, const std::string& dir) {
 
 bool plot_report(const std::string& dir) { return run_plot_script("plot_report.py", dir); }
 
-ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn& progress) {
+ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn& progress,
+                                const StepObserver& observe) {
   config.validate();
   const auto t0 = Clock::now();
   fs::create_directories(config.out_dir);
@@ -452,7 +479,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                  traj_source, end_time);
   const std::vector<Vec3> x0 = scene->positions();
   sim::write_obj(mesh, x0, out + "/initial.obj");
-  Run run(std::move(scene), std::move(controller), config.frame_interval, progress, end_time);
+  Run run(std::move(scene), std::move(controller), config.frame_interval, progress, observe, end_time);
   if (config.mesh_interval > 0) run.write_meshes(mesh, out + "/meshes", config.mesh_interval);
 
   ExperimentResult result;
@@ -462,6 +489,8 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     eo.master_start_time = traj.master_start_time;
     eo.prepare_time = prepare;
     eo.keep_frames = config.keep_frames;
+    eo.animation_frames = kCaptureAnimationFrames;
+    eo.animation_points = kCaptureAnimationPoints;
     if (config.icp) {
       // The first evaluated frame shows the garment lying on the table before the arms act (the
       // paper aligns the initial state with a template): register it against the simulated
@@ -505,6 +534,21 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     metrics::write_metrics_csv(out + "/metrics.csv", ev.rows, capture->window);
     metrics::write_summary_json(out + "/metrics_summary.json", ev.rows, capture->window, extra);
     metrics::write_report_frames(out, ev.kept);
+    if (!ev.animation.empty()) {  // OUT/capture_animation.npy: (frames, 2: sim and real, points, 3), world m
+      std::vector<float> a;
+      a.reserve(ev.animation.size() * 2 * kCaptureAnimationPoints * 3);
+      nlohmann::json times = nlohmann::json::array();
+      for (const metrics::FramePair& p : ev.animation) {
+        for (const metrics::Cloud* c : {&p.sim, &p.real})
+          for (const auto& q : *c)
+            for (int k = 0; k < 3; ++k) a.push_back(q[k]);
+        times.push_back(p.sim_time);
+      }
+      write_npy_f32(out + "/capture_animation.npy", a,
+                    {ev.animation.size(), 2, static_cast<size_t>(kCaptureAnimationPoints), 3});
+      s["capture_animation"] = {{"file", "capture_animation.npy"}, {"frames", ev.animation.size()},
+                                {"points", kCaptureAnimationPoints}, {"times", times}};
+    }
     const nlohmann::json mean = metrics::to_json(sum.mean), sd = metrics::to_json(sum.std_dev);
     for (auto it = mean.begin(); it != mean.end(); ++it) s[it.key()] = it.value();
     s["metrics_std"] = sd;
@@ -554,7 +598,13 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["dt"] = config.scene.dt;
   s["sim_seconds"] = sc.time();
   s["wall_seconds"] = wall;
-  s["ms_per_step"] = run.steps() > 0 ? 1e3 * wall / run.steps() : 0.0;
+  // Per step of the run: its stepping time only. Meshing or loading the garment, settling it
+  // before planning (its own steps, reported apart) and writing the files are set-up.
+  s["stepping_seconds"] = run.stepping_seconds();
+  s["setup_seconds"] = wall - run.stepping_seconds();
+  s["ms_per_step"] = run.steps() > 0 ? 1e3 * run.stepping_seconds() / run.steps() : 0.0;
+  s["settle_steps"] = settled ? settled->steps : 0;
+  s["settle_ms_per_step"] = settled && settled->steps > 0 ? 1e3 * settled->seconds / settled->steps : 0.0;
   s["newton_per_step"] = run.steps() > 0 ? double(run.newton()) / run.steps() : 0.0;
   s["pcg_per_step"] = run.steps() > 0 ? double(run.pcg()) / run.steps() : 0.0;
   s["converged_fraction"] = run.steps() > 0 ? double(run.converged()) / run.steps() : 0.0;
@@ -613,8 +663,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     run_plot_script("report_html.py", out);     // OUT/report.html: the report as one page
   }
   if (sc.failed()) gd::log().error("experiment: the simulation failed: {}", sc.failure());
-  gd::log().info("experiment: {} steps in {:.1f} s ({:.0f} ms/step), max intersecting pairs {}, untangling {} times",
-                 run.steps(), wall, s["ms_per_step"].get<double>(), run.intersecting_max(), sc.untangle_runs());
+  gd::log().info("experiment: {} steps in {:.1f} s ({:.0f} ms/step; {:.1f} s in all with set-up), max intersecting "
+                 "pairs {}, untangling {} times",
+                 run.steps(), run.stepping_seconds(), s["ms_per_step"].get<double>(), wall, run.intersecting_max(),
+                 sc.untangle_runs());
   return result;
 }
 

@@ -88,10 +88,14 @@ struct ExperimentConfig {
 
 /// Reported once per step: scene time, the time the run ends, the step's solver statistics.
 using ProgressFn = std::function<void(double sim_time, double end_time, const sim::StepStats&)>;
+/// Called after every step of the run (not the settling before planning), on the running thread,
+/// with the scene and the controller that drives it: live viewers (the server's job frames).
+using StepObserver = std::function<void(const sim::Scene&, const tasks::TaskController&)>;
 
 struct ExperimentResult {
   /// vertices, triangles, garment, material, task, mode, steps, frames, dt, sim_seconds,
-  /// wall_seconds, ms_per_step, intersecting_pairs_max, untangle_runs, flood_halvings, failed, failure,
+  /// wall_seconds, stepping_seconds, setup_seconds, ms_per_step (stepping only), settle_steps,
+  /// settle_ms_per_step, intersecting_pairs_max, untangle_runs, flood_halvings, failed, failure,
   /// min_z_final, max_z_final, extent_x_final, extent_y_final, gripper_separation_final (m, both
   /// arms' positions at the trajectory's end), grasp events; with a capture
   /// also the seven metrics (means over the calculate window), metrics_std, frames_in_window,
@@ -102,7 +106,8 @@ struct ExperimentResult {
 
 /// Runs the experiment and writes its files. Throws InputError for bad configuration or input
 /// files; a simulation that fails (non-finite state) is reported in the summary, not thrown.
-ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn& progress = {});
+ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn& progress = {},
+                                const StepObserver& observe = {});
 
 /// Builds the garment of a config (generated or imported), in its own frame.
 garments::Garment make_experiment_garment(const ExperimentConfig& config);

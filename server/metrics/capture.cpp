@@ -411,6 +411,32 @@ std::vector<ScheduledFrame> evaluation_schedule(const Capture& c, double master_
   return out;
 }
 
+namespace {
+
+/// `k` entries of `expected` (indices into a schedule of `n` frames) evenly spaced from the first
+/// to the last, as a mask over the schedule; the middle one for k = 1.
+std::vector<bool> evenly_spaced(const std::vector<size_t>& expected, size_t n, int k) {
+  std::vector<bool> mask(n, false);
+  if (expected.empty() || k <= 0) return mask;
+  if (k == 1 || expected.size() == 1) {
+    mask[expected[expected.size() / 2]] = true;
+    return mask;
+  }
+  for (int i = 0; i < k; ++i)
+    mask[expected[size_t(std::lround(double(i) * double(expected.size() - 1) / (k - 1)))]] = true;
+  return mask;
+}
+
+}  // namespace
+
+Cloud resample_cloud(const Cloud& c, size_t n) {
+  Cloud out;
+  if (c.empty()) return out;
+  out.reserve(n);
+  for (size_t i = 0; i < n; ++i) out.push_back(c[i * c.size() / n]);
+  return out;
+}
+
 EvalResult run_evaluation(const Capture& c, const EvalOptions& opt,
                           const std::function<SimSample(double)>& step_to) {
   const Eigen::Matrix4d cam_to_world =
@@ -424,16 +450,8 @@ EvalResult run_evaluation(const Capture& c, const EvalOptions& opt,
   std::vector<size_t> expected;
   for (size_t j = 0; j < schedule.size(); ++j)
     if (in_record_window(c.window, schedule[j].compensated - opt.prepare_time)) expected.push_back(j);
-  std::vector<bool> keep(schedule.size(), false);
-  const int k_max = std::max(0, opt.keep_frames);
-  if (!expected.empty() && k_max > 0) {
-    if (k_max == 1 || expected.size() == 1) {
-      keep[expected[expected.size() / 2]] = true;
-    } else {
-      for (int k = 0; k < k_max; ++k)
-        keep[expected[size_t(std::lround(double(k) * double(expected.size() - 1) / (k_max - 1)))]] = true;
-    }
-  }
+  const std::vector<bool> keep = evenly_spaced(expected, schedule.size(), opt.keep_frames);
+  const std::vector<bool> animate = evenly_spaced(expected, schedule.size(), opt.animation_frames);
 
   EvalResult res;
   for (size_t j = 0; j < schedule.size(); ++j) {
@@ -456,6 +474,9 @@ EvalResult run_evaluation(const Capture& c, const EvalOptions& opt,
     row.sim_time = sim_time;
     row.target_time = s.target_time;
     row.frame = s.frame;
+    if (animate[j])
+      res.animation.push_back({res.rows.size(), sim_time, resample_cloud(sample.vertices, opt.animation_points),
+                               resample_cloud(real, opt.animation_points)});
     if (keep[j]) res.kept.push_back({res.rows.size(), sim_time, std::move(sample.vertices), std::move(real)});
     res.rows.push_back(row);
   }

@@ -174,6 +174,10 @@ struct EvalOptions {
   double master_start_time = 0;  ///< absolute Unix s of sim time 0
   double prepare_time = 0;       ///< sim_prepare_time(action)
   int keep_frames = 4;           ///< how many evenly spaced (sim, real) pairs to keep for plots
+  /// How many evenly spaced (sim, real) pairs to keep for the report's animation, each cloud
+  /// resampled to exactly animation_points points (evenly by index; repeated when it has fewer).
+  int animation_frames = 0;
+  int animation_points = 3000;
   /// Overrides capture.world_to_camera (e.g. after refine_world_to_camera).
   std::optional<Eigen::Matrix4d> world_to_camera;
 };
@@ -181,7 +185,12 @@ struct EvalOptions {
 struct EvalResult {
   std::vector<FrameRow> rows;
   std::vector<FramePair> kept;
+  std::vector<FramePair> animation;  ///< EvalOptions::animation_frames pairs, resampled
 };
+
+/// `n` points of `c` evenly by index (point floor(i |c| / n)), repeating points when |c| < n;
+/// empty when c is.
+Cloud resample_cloud(const Cloud& c, size_t n);
 
 /// RGBench's loop: for each scheduled frame in order, `step_to(compensated)` advances the
 /// simulator (never backwards) and returns its vertices and time; sim_time = time -

@@ -20,6 +20,7 @@
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
+#include "sim/scene.h"
 #include "tasks/generators.h"
 #include "tasks/grippers.h"
 #include "tasks/trajectory.h"
@@ -272,12 +273,22 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
 }
 
 void JobQueue::update(const std::string& id, const std::function<void(JobRecord&)>& fn) {
+  std::vector<std::weak_ptr<FrameSubscription>> ended;  // the job's frame streams, once it has ended
   {
     std::lock_guard<std::mutex> lock(mu_);
     Live& l = live_[id];
     fn(l.record);
     ++l.version;
+    if (job_finished(l.record.status)) {
+      auto it = frame_subs_.find(id);
+      if (it != frame_subs_.end()) {
+        ended.swap(it->second);
+        frame_subs_.erase(it);
+      }
+    }
   }
+  for (auto& w : ended)
+    if (auto sub = w.lock()) sub->scene_closed();
   cv_.notify_all();
   std::vector<std::function<void()>> fs;
   {
@@ -352,6 +363,39 @@ void JobQueue::run_job(const std::string& id) {
     files = list_files(cfg->out_dir);
   };
   auto last = std::chrono::steady_clock::now();
+  // Frames for StreamFrames subscribers of this job (none: nothing is copied).
+  std::shared_ptr<const SceneInfo> frame_info;
+  int64_t frame_step = 0;
+  const auto observe = [&](const sim::Scene& scene, const tasks::TaskController& controller) {
+    ++frame_step;
+    std::vector<std::shared_ptr<FrameSubscription>> due;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      auto it = frame_subs_.find(id);
+      if (it == frame_subs_.end()) return;
+      for (auto w = it->second.begin(); w != it->second.end();) {
+        if (auto sub = w->lock()) {
+          if (frame_step % sub->every() == 0) due.push_back(std::move(sub));
+          ++w;
+        } else {
+          w = it->second.erase(w);  // its stream ended
+        }
+      }
+    }
+    if (due.empty()) return;
+    if (!frame_info) frame_info = std::make_shared<const SceneInfo>(info_of(scene, controller, cfg->mode));
+    SceneSnapshot snap = snapshot_of(scene, controller, true, false);
+    snap.scene_id = id;
+    snap.steps = frame_step;
+    snap.info = frame_info;
+    const sim::StepStats& st = scene.last_stats();
+    snap.newton_iterations = st.newton_iters;
+    snap.pcg_iterations = st.pcg_iters;
+    snap.active_contacts = st.contacts;
+    snap.intersecting_pairs = st.intersecting_pairs;
+    snap.wall_ms = 1e3 * st.seconds;
+    for (const auto& sub : due) sub->push(snap);
+  };
   try {
     const garments::MeshingCancellation meshing([&] {  // CancelJob or the drain while the garment is meshed
       if (cancel_.load()) return true;
@@ -373,7 +417,7 @@ void JobQueue::run_job(const std::string& id) {
             r.end_time = end;
             r.progress = end > 0 ? std::min(1.0, t / end) : 1.0;
           });
-        });
+        }, observe);
     summary = res.summary.dump(2);
     const bool failed = res.summary.value("failed", false);
     files = list_files(cfg->out_dir);
@@ -446,6 +490,25 @@ Status unknown_job(const std::string& job_id) {  // the store's message for an u
   return Status::NotFound(fmt::format("no job '{}' on this server; ListReports lists the jobs", job_id));
 }
 }  // namespace
+
+Status JobQueue::subscribe_frames(const std::string& job_id, int every, std::shared_ptr<FrameSubscription>* out,
+                                  const std::string& caller) {
+  if (every < 1) return Status::InvalidArgument(fmt::format("every must be >= 1 (got {})", every));
+  JobRecord rec;
+  GD_RETURN_IF_ERROR(info(job_id, &rec, caller));  // unknown or another caller's: NOT_FOUND
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = live_.find(job_id);
+  if (it != live_.end()) rec = it->second.record;
+  if (it == live_.end() || job_finished(rec.status))
+    return Status::FailedPrecondition(
+        fmt::format("job '{}' has ended ({}); its report has the run's animation (GetReport: animation.npy, "
+                    "animation.gif)",
+                    job_id, job_state_name(rec.status)));
+  auto sub = std::make_shared<FrameSubscription>(every, 1, options_.max_queued_frame_bytes);
+  frame_subs_[job_id].push_back(sub);
+  *out = std::move(sub);
+  return Status::Ok();
+}
 
 Status JobQueue::info(const std::string& job_id, JobRecord* out, const std::string& caller) {
   {

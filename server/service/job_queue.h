@@ -31,6 +31,7 @@
 #include "service/mesh_library.h"
 #include "service/report_store.h"
 #include "service/robot_spec.h"
+#include "service/scene_pool.h"
 #include "service/status.h"
 #include "sim/solver/options.h"
 
@@ -73,6 +74,8 @@ struct JobQueueOptions {
   long max_job_steps = 2'000'000;
   bool plots = false;               ///< draw the PNG plots of capture runs (needs Python + matplotlib)
   sim::BackendKind backend = sim::BackendKind::kCpu;
+  /// Frames one StreamFrames subscription to a job queues for a slow reader (--max-queued-frames-mb).
+  size_t max_queued_frame_bytes = size_t(16) << 20;
   /// Robot-mode jobs whose request sends no URDF run with this one (flag --robot-urdf; empty:
   /// they are refused).
   std::string robot_urdf;
@@ -123,6 +126,14 @@ class JobQueue {
   /// job, NOT_FOUND for an unknown one. `out` receives the record as it stands after the call.
   Status cancel(const std::string& job_id, JobRecord* out, const std::string& caller = {});
 
+  /// Subscribes to the frames of a queued or running job's scene: every `every`-th step of its
+  /// run (the settling before planning is not sent), the job id as scene id, the first frame with
+  /// the scene's SceneInfo (SceneSnapshot::info). The subscription finishes when the job ends.
+  /// FAILED_PRECONDITION for a finished job (its report has the run's animation), NOT_FOUND for
+  /// an unknown one, INVALID_ARGUMENT for every < 1.
+  Status subscribe_frames(const std::string& job_id, int every, std::shared_ptr<FrameSubscription>* out,
+                          const std::string& caller = {});
+
   /// Calls `f` after every change of a job's record, on the thread that made it, with no lock
   /// held; f must not block. Returns an id for remove_listener.
   int add_listener(std::function<void()> f);
@@ -155,6 +166,8 @@ class JobQueue {
   bool draining_ = false;
   std::atomic<bool> cancel_{false};
   std::set<std::string> cancelled_;  ///< running jobs a client cancelled (stop at their next step)
+  /// Frame subscriptions by job (under mu_); closed and dropped when the job's record ends.
+  std::map<std::string, std::vector<std::weak_ptr<FrameSubscription>>> frame_subs_;
   std::vector<std::thread> workers_;
   std::mutex listeners_mu_;  ///< guards listeners_ (not held while they run)
   std::map<int, std::function<void()>> listeners_;

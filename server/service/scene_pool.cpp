@@ -175,6 +175,67 @@ int64_t steady_ns() {
 
 }  // namespace
 
+SceneSnapshot snapshot_of(const sim::Scene& scene, const tasks::TaskController& controller, bool positions,
+                          bool velocities) {
+  SceneSnapshot s;
+  s.failed = scene.failed();
+  s.failure = scene.failure();
+  s.time = scene.time();
+  if (positions) s.positions = scene.positions();
+  if (velocities) s.velocities = scene.velocities();
+  const auto* robot = dynamic_cast<const tasks::RobotController*>(&controller);
+  const auto* grippers = dynamic_cast<const tasks::GripperController*>(&controller);
+  GD_DEMAND(robot || grippers, "a scene's controller is a GripperController or a RobotController");
+  for (int a = 0; a < 2; ++a) {
+    const auto arm = static_cast<tasks::Arm>(a);
+    if (robot) {
+      const tasks::RobotArmState& st = robot->state(arm);
+      s.arms[a].closed = st.gripper_command < 0.5 * robot->arm_model().gripper_max();
+      s.arms[a].joints = st.joints;
+      s.arms[a].gripper = st.gripper;
+      s.arms[a].squeeze = st.squeeze;
+      s.arms[a].pose = robot->ee_world(arm);
+    } else {
+      const tasks::ArmState& st = grippers->state(arm);
+      s.arms[a].closed = st.closed;
+      s.arms[a].held_vertices = static_cast<int>(st.held.size());
+      const tasks::ArmSample ee = grippers->ee(arm, scene.time());
+      s.arms[a].pose = tasks::make_pose(ee.position, ee.orientation);
+    }
+  }
+  if (robot) {
+    const Vec3 half = robot->options().arm.pad.half_extents;
+    for (const Eigen::Isometry3d& p : robot->pad_poses(scene.time())) {
+      ColliderSnapshot c;
+      c.pose = p;
+      c.half_extents = half;
+      s.colliders.push_back(c);
+    }
+  }
+  return s;
+}
+
+SceneInfo info_of(const sim::Scene& scene, const tasks::TaskController& controller, const std::string& mode) {
+  SceneInfo info;
+  info.vertex_count = static_cast<int>(scene.vertex_count());
+  info.triangles = scene.mesh().tris;
+  info.rest_positions = scene.positions();
+  info.dt = scene.options().dt;
+  info.backend = scene.backend();
+  info.mode = mode;
+  if (scene.options().table) info.table_height = scene.options().table_height;
+  if (const auto* rc = dynamic_cast<const tasks::RobotController*>(&controller)) {
+    const robot::ArmModel& arms = rc->arm_model();
+    info.joint_names = arms.arm_joint_names();
+    for (const robot::JointLimits& l : arms.arm_limits()) {
+      info.joint_lower.push_back(l.lower);
+      info.joint_upper.push_back(l.upper);
+    }
+    info.gripper_max = arms.gripper_max();
+  }
+  return info;
+}
+
 struct ScenePool::Entry {
   std::mutex mu;
   std::atomic<int64_t> last_used_ns{steady_ns()};  ///< when a call last named it (lease)
@@ -219,40 +280,11 @@ struct ScenePool::Entry {
   bool failed() const { return scene->failed() || !error.empty(); }
 
   SceneSnapshot snapshot(bool positions, bool velocities) const {
-    SceneSnapshot s;
+    SceneSnapshot s = snapshot_of(*scene, *controller, positions, velocities);
     s.scene_id = id;
     s.failed = failed();
-    s.failure = !error.empty() ? error : scene->failure();
-    s.time = scene->time();
+    if (!error.empty()) s.failure = error;
     s.steps = steps;
-    if (positions) s.positions = scene->positions();
-    if (velocities) s.velocities = scene->velocities();
-    for (int a = 0; a < 2; ++a) {
-      const auto arm = static_cast<tasks::Arm>(a);
-      if (robot) {
-        const tasks::RobotArmState& st = robot->state(arm);
-        s.arms[a].closed = st.gripper_command < 0.5 * robot->arm_model().gripper_max();
-        s.arms[a].joints = st.joints;
-        s.arms[a].gripper = st.gripper;
-        s.arms[a].squeeze = st.squeeze;
-        s.arms[a].pose = robot->ee_world(arm);
-      } else {
-        const tasks::ArmState& st = grippers->state(arm);
-        s.arms[a].closed = st.closed;
-        s.arms[a].held_vertices = static_cast<int>(st.held.size());
-        const tasks::ArmSample ee = grippers->ee(arm, scene->time());
-        s.arms[a].pose = tasks::make_pose(ee.position, ee.orientation);
-      }
-    }
-    if (robot) {
-      const Vec3 half = robot->options().arm.pad.half_extents;
-      for (const Eigen::Isometry3d& p : robot->pad_poses(scene->time())) {
-        ColliderSnapshot c;
-        c.pose = p;
-        c.half_extents = half;
-        s.colliders.push_back(c);
-      }
-    }
     s.newton_iterations = newton;
     s.pcg_iterations = pcg;
     s.active_contacts = contacts;

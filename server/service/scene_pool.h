@@ -58,6 +58,10 @@ class ArmModel;
 }
 namespace gd::tasks {
 struct RobotOptions;
+class TaskController;
+}
+namespace gd::sim {
+class Scene;
 }
 
 namespace gd::service {
@@ -166,6 +170,8 @@ struct ColliderSnapshot {
 };
 
 /// The state of one scene.
+struct SceneInfo;
+
 struct SceneSnapshot {
   std::string scene_id;
   bool failed = false;
@@ -181,6 +187,9 @@ struct SceneSnapshot {
   int active_contacts = 0;
   int intersecting_pairs = 0;          ///< most after any step of the last step call
   double wall_ms = 0;
+  /// A job's frames (JobQueue::subscribe_frames): the job's scene, which StreamFrames sends with
+  /// its first message. Null for the pool's scenes (GetState gives their SceneInfo).
+  std::shared_ptr<const SceneInfo> info;
 };
 
 /// What the scenes of one create() share.
@@ -255,6 +264,16 @@ Eigen::Isometry3d home_pose(tasks::Arm arm);
 /// straight above its base): 0.25 m in front of its base and 0.25 m up, pointing down as far as
 /// the wrist allows.
 Eigen::Isometry3d robot_home_pose(tasks::Arm arm);
+
+/// The state of `scene` driven by `controller` (a tasks::GripperController or RobotController):
+/// time, failure, both arms and robot mode's finger pads; positions and velocities when asked.
+/// The caller fills scene_id, steps and the step statistics.
+SceneSnapshot snapshot_of(const sim::Scene& scene, const tasks::TaskController& controller, bool positions,
+                          bool velocities);
+/// The SceneInfo of a scene built outside the pool (a job's): its mesh with the scene's positions
+/// now as rest_positions, dt, backend, the table, and in robot mode the arms' joints; `mode` as
+/// the request named it. No shoulder vertices (-1).
+SceneInfo info_of(const sim::Scene& scene, const tasks::TaskController& controller, const std::string& mode);
 
 /// Ownership: every scene belongs to the principal that created it (SceneSpec::owner; with
 /// --auth-token-file the fingerprint of the caller's token, else ""). Every call names its caller

@@ -166,6 +166,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     im.scenes = std::make_unique<ScenePool>(po);
     JobQueueOptions jo;
     jo.data_dir = o.data_dir;
+    jo.max_queued_frame_bytes = po.max_queued_frame_bytes;
     jo.capture_root = o.capture_root.empty() ? (fs::path(o.data_dir) / "captures").string() : o.capture_root;
     fs::create_directories(jo.capture_root);
     jo.workers = o.job_workers;

@@ -152,7 +152,7 @@ grpc::ServerWriteReactor<pb::StreamFramesResponse>* GarmentDynamicsService::Stre
   call.method = "StreamFrames";
   try {
     if (Status st = begin_call(ctx, &call); !st.ok()) return refused_frames(std::move(call), std::move(st));
-    return start_frames(scenes_, streams_, *req, std::move(call));
+    return start_frames(scenes_, jobs_, streams_, *req, std::move(call));
   } catch (...) {
     return refused_frames(std::move(call), unexpected_error("StreamFrames"));
   }

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <condition_variable>
+#include <functional>
 #include <thread>
 #include <utility>
 
@@ -207,19 +208,21 @@ class Stream : public grpc::ServerWriteReactor<Msg>,
 
 using FramesStream = Stream<pb::StreamFramesResponse>;
 
-/// StreamFrames over a subscription: every frame its scenes' steps queue, until they are all
-/// destroyed, max_frames went out, the client leaves or the server drains.
+/// StreamFrames over a subscription: every frame its scenes' steps queue (or its job's run), until
+/// they are all destroyed (the job ended), max_frames went out, the client leaves or the server
+/// drains.
 class SubscribedFrames final : public FramesStream {
  public:
-  SubscribedFrames(StreamRegistry& registry, CallLog log, ScenePool& scenes, std::vector<std::string> ids, int every,
-                   int max_frames)
-      : FramesStream(registry, std::move(log)), scenes_(scenes), ids_(std::move(ids)), every_(every),
-        max_frames_(max_frames) {}
+  /// Makes the subscription (ScenePool::subscribe or JobQueue::subscribe_frames).
+  using Subscribe = std::function<Status(std::shared_ptr<FrameSubscription>*)>;
+
+  SubscribedFrames(StreamRegistry& registry, CallLog log, Subscribe subscribe, int max_frames)
+      : FramesStream(registry, std::move(log)), subscribe_(std::move(subscribe)), max_frames_(max_frames) {}
 
  protected:
   void begin() override {
     std::shared_ptr<FrameSubscription> sub;
-    if (Status st = scenes_.subscribe(ids_, every_, &sub, log_.owner); !st.ok()) return end(std::move(st));
+    if (Status st = subscribe_(&sub); !st.ok()) return end(std::move(st));
     {
       std::lock_guard<std::mutex> lock(mu_);
       if (ended_) return;  // stopped (the drain) before it began
@@ -242,6 +245,11 @@ class SubscribedFrames final : public FramesStream {
       msg_.set_dropped_frames(sub_->dropped());
       msg_.clear_state();
       to_proto(s, true, msg_.mutable_state());
+      msg_.clear_info();
+      if (s.info && !info_sent_) {  // a job's scene, with its first message
+        to_proto(*s.info, msg_.mutable_info());
+        info_sent_ = true;
+      }
       ++frames_;
       return Next::kWrite;
     }
@@ -258,11 +266,11 @@ class SubscribedFrames final : public FramesStream {
   }
 
  private:
-  ScenePool& scenes_;
-  std::vector<std::string> ids_;
-  int every_, max_frames_;
+  Subscribe subscribe_;
+  int max_frames_;
   std::shared_ptr<FrameSubscription> sub_;
   int frames_ = 0;
+  bool info_sent_ = false;
 };
 
 /// StreamFrames that steps its scenes itself (steps > 0), holding their last commands: real work,
@@ -426,7 +434,8 @@ grpc::ServerWriteReactor<pb::WatchJobResponse>* refused_watch(CallLog log, Statu
   return new Refused<pb::WatchJobResponse>(log, std::move(st));
 }
 
-grpc::ServerWriteReactor<pb::StreamFramesResponse>* start_frames(ScenePool& scenes, StreamRegistry& streams,
+grpc::ServerWriteReactor<pb::StreamFramesResponse>* start_frames(ScenePool& scenes, JobQueue& jobs,
+                                                                  StreamRegistry& streams,
                                                                   const pb::StreamFramesRequest& req, CallLog log) {
   auto refuse = [&](Status st) { return refused_frames(std::move(log), std::move(st)); };
   if (req.every() < 0) return refuse(Status::InvalidArgument(fmt::format("every must be >= 1 (got {})", req.every())));
@@ -434,10 +443,28 @@ grpc::ServerWriteReactor<pb::StreamFramesResponse>* start_frames(ScenePool& scen
   if (req.max_frames() < 0)
     return refuse(Status::InvalidArgument(fmt::format("max_frames must be >= 0 (got {})", req.max_frames())));
   const int every = req.every() == 0 ? 1 : req.every();
+  if (!req.job_id().empty()) {
+    if (req.scene_ids_size() > 0)
+      return refuse(Status::InvalidArgument("give scene_ids or a job_id, not both"));
+    if (req.steps() != 0)
+      return refuse(Status::InvalidArgument(
+          fmt::format("steps must be 0 for a job's frames (a job steps its own scene; got {})", req.steps())));
+    const std::string owner = log.owner;
+    auto subscribe = [&jobs, id = req.job_id(), every, owner](std::shared_ptr<FrameSubscription>* sub) {
+      return jobs.subscribe_frames(id, every, sub, owner);
+    };
+    return FramesStream::launch(
+        std::make_shared<SubscribedFrames>(streams, std::move(log), std::move(subscribe), req.max_frames()));
+  }
   std::vector<std::string> ids(req.scene_ids().begin(), req.scene_ids().end());
-  if (req.steps() == 0)
-    return FramesStream::launch(std::make_shared<SubscribedFrames>(streams, std::move(log), scenes, std::move(ids),
-                                                                   every, req.max_frames()));
+  if (req.steps() == 0) {
+    const std::string owner = log.owner;
+    auto subscribe = [&scenes, ids, every, owner](std::shared_ptr<FrameSubscription>* sub) {
+      return scenes.subscribe(ids, every, sub, owner);
+    };
+    return FramesStream::launch(
+        std::make_shared<SubscribedFrames>(streams, std::move(log), std::move(subscribe), req.max_frames()));
+  }
   if (every > scenes.options().max_substeps)
     return refuse(Status::ResourceExhausted(
         fmt::format("every {} is over the server's limit of {} steps per call", every, scenes.options().max_substeps)));

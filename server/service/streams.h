@@ -83,8 +83,9 @@ grpc::ServerWriteReactor<pb::StreamFramesResponse>* refused_frames(CallLog log, 
 grpc::ServerWriteReactor<pb::WatchJobResponse>* refused_watch(CallLog log, Status st);
 
 /// StreamFrames after authentication: checks the request, then streams the frames of the
-/// scenes, subscribed (steps 0) or stepped by the stream itself (steps > 0).
-grpc::ServerWriteReactor<pb::StreamFramesResponse>* start_frames(ScenePool& scenes, StreamRegistry& streams,
+/// scenes, subscribed (steps 0) or stepped by the stream itself (steps > 0), or of a job's run.
+grpc::ServerWriteReactor<pb::StreamFramesResponse>* start_frames(ScenePool& scenes, JobQueue& jobs,
+                                                                  StreamRegistry& streams,
                                                                   const pb::StreamFramesRequest& req, CallLog log);
 /// WatchJob after authentication: the job's record now and after every change, until it ends.
 grpc::ServerWriteReactor<pb::WatchJobResponse>* start_watch(JobQueue& jobs, StreamRegistry& streams,

@@ -85,6 +85,64 @@ TEST_F(JobTest, BadJobIsRefusedAtSubmitWithTheServersMessage) {
   }
 }
 
+// A viewer of a job in progress (gd view --job): the job's scene as it runs, every k-th step, the
+// scene's info first, until the job ends; a finished or unknown job is refused.
+TEST_F(JobTest, AJobsSceneStreamsAsItRunsUntilItEnds) {
+  // The fixture's server runs one job at a time: the watched job waits behind the first, so the
+  // subscription is in place before its first step.
+  const std::string first = client_.submit_job(short_grasp("ahead"));
+  const std::string id = client_.submit_job(short_grasp("watched"));
+  StreamOptions o;
+  o.every = 5;
+  SceneInfo info;
+  std::vector<SceneState> frames;
+  const int64_t n = client_.stream_job(id, o, [&](const SceneState& s) {
+    if (frames.empty()) EXPECT_GT(info.vertex_count, 0) << "the info comes with the first frame";
+    frames.push_back(s);
+    return true;
+  }, &info);
+  const JobInfo done = client_.watch_job(id);  // the stream ended with the job
+  ASSERT_EQ(done.status, JobStatus::kSucceeded) << done.message;
+  ASSERT_EQ(client_.watch_job(first).status, JobStatus::kSucceeded);
+  const auto summary = nlohmann::json::parse(client_.get_report(id).summary_json);
+  const int steps = summary.at("steps").get<int>();
+  ASSERT_EQ(n, static_cast<int64_t>(frames.size()));
+  EXPECT_EQ(n, steps / 5) << steps << " steps";  // a fast reader loses none
+  EXPECT_EQ(info.vertex_count, summary.at("vertices").get<int>());
+  EXPECT_EQ(info.triangles.size(), 3 * summary.at("triangles").get<size_t>());
+  EXPECT_EQ(info.rest_positions.size(), 3u * info.vertex_count);
+  EXPECT_EQ(info.mode, "pseudo");
+  ASSERT_TRUE(info.table_height.has_value());
+  for (size_t k = 0; k < frames.size(); ++k) {
+    const SceneState& f = frames[k];
+    EXPECT_EQ(f.id, id);
+    EXPECT_EQ(f.steps, 5 * static_cast<int64_t>(k + 1));
+    EXPECT_EQ(f.positions.size(), 3u * info.vertex_count);
+    EXPECT_EQ(f.arms.size(), 2u);
+    EXPECT_FALSE(f.failed);
+    if (k > 0) EXPECT_GT(f.time, frames[k - 1].time);
+  }
+  // The grasp lifts the towel: the last frame stands higher than the first.
+  auto top = [](const SceneState& f) {
+    float z = -1e9f;
+    for (size_t i = 2; i < f.positions.size(); i += 3) z = std::max(z, f.positions[i]);
+    return z;
+  };
+  ASSERT_FALSE(frames.empty());
+  EXPECT_GT(top(frames.back()), top(frames.front()) + 0.02f);
+  // Ended and unknown jobs are refused with a status that says why.
+  for (const auto& [job, code] : {std::pair{id, StatusCode::kFailedPrecondition},
+                                  std::pair{std::string("j-nosuchjob"), StatusCode::kNotFound}}) {
+    try {
+      client_.stream_job(job, o, [](const SceneState&) { return true; });
+      FAIL() << "expected ClientError for " << job;
+    } catch (const ClientError& e) {
+      EXPECT_EQ(e.code(), code) << e.what();
+      EXPECT_EQ(e.rpc(), "StreamFrames");
+    }
+  }
+}
+
 TEST_F(JobTest, WatchingAnUnknownJobIsNotFound) {
   try {
     client_.watch_job("no-such-job");

@@ -56,6 +56,13 @@ TEST(Animation, TheRecordedFramesAreWrittenAsANpyArrayWithTheirTimes) {
   for (int i = 0; i < n; i += 37)
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(data[3 * i + k], initial.x[i][k], 1e-6);
   EXPECT_LE(times.back(), r.summary.at("sim_seconds").get<double>() + 1e-9);
+  // The run's speed counts its steps only: set-up (meshing, settling, files) is reported apart.
+  const double wall = r.summary.at("wall_seconds"), stepping = r.summary.at("stepping_seconds");
+  EXPECT_GT(stepping, 0.0);
+  EXPECT_LT(stepping, wall);
+  EXPECT_NEAR(r.summary.at("setup_seconds").get<double>(), wall - stepping, 1e-9);
+  EXPECT_NEAR(r.summary.at("ms_per_step").get<double>(), 1e3 * stepping / r.summary.at("steps").get<int>(), 1e-9);
+  EXPECT_EQ(r.summary.at("settle_steps").get<int>(), 100);  // the garment settles 1 s at dt 10 ms before planning
 }
 
 }  // namespace

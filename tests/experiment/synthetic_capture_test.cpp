@@ -98,6 +98,20 @@ TEST(SyntheticCapture, RunnerRecoversTheReferenceWithTimeAlignment) {
   EXPECT_TRUE(fs::exists(run.out_dir + "/metrics.csv"));
   EXPECT_EQ(r.summary["capture_kind"], "synthetic");
   EXPECT_NE(r.summary["capture_synthetic"].get<std::string>().find("GarmentDynamics"), std::string::npos);
+  // The report's animation of both clouds: (frames, 2, points, 3) float32, the simulation then
+  // the capture, at evaluated frames from the record window's start to its end.
+  const auto& anim = r.summary.at("capture_animation");
+  const size_t frames = anim.at("frames").get<size_t>(), points = anim.at("points").get<size_t>();
+  EXPECT_EQ(frames, std::min<size_t>(60, r.rows.size()));
+  const auto times = anim.at("times").get<std::vector<double>>();
+  ASSERT_EQ(times.size(), frames);
+  EXPECT_DOUBLE_EQ(times.front(), r.rows.front().sim_time);
+  EXPECT_DOUBLE_EQ(times.back(), r.rows.back().sim_time);
+  const size_t data = frames * 2 * points * 3 * sizeof(float);
+  const size_t bytes = fs::file_size(run.out_dir + "/capture_animation.npy");
+  ASSERT_GT(bytes, data);
+  EXPECT_EQ((bytes - data) % 64, 0u);  // the .npy header, padded to 64 bytes
+  EXPECT_LE(bytes - data, 256u);
   EXPECT_TRUE(fs::exists(run.out_dir + "/frames/sim_0.ply"));
 
   // The same capture claiming a camera delay 0.5 s too long compares the wrong instants.

@@ -408,6 +408,13 @@ class Client {
   /// the number of frames received.
   int64_t stream(const std::vector<std::string>& ids, const StreamOptions& options,
                  const std::function<bool(const SceneState&)>& on_frame);
+  /// Streams a queued or running job's scene as the job steps it (every `options.every`-th step;
+  /// options.steps must be 0) until the job ends or `on_frame` returns false. The frames carry
+  /// the job id as SceneState::id. `info`, when given, receives the job's scene (triangles,
+  /// table, joints) before the first frame reaches `on_frame`. A finished job throws
+  /// FAILED_PRECONDITION (get_report has its animation).
+  int64_t stream_job(const std::string& job_id, const StreamOptions& options,
+                     const std::function<bool(const SceneState&)>& on_frame, SceneInfo* info = nullptr);
   /// Returns the number of scenes destroyed.
   int destroy(const std::vector<std::string>& ids);
 

@@ -405,6 +405,15 @@ TEST_F(CliTest, ViewWritesAScreenshotOfTheScenesPage) {
   r = gd(env + GD_CLI_BINARY + " " + server_flag() + " view --ids s-nope --port 0 --screenshot " + png.string(), true);
   EXPECT_EQ(r.rc, 2) << r.err;
   EXPECT_NE(r.err.find("s-nope"), std::string::npos) << r.err;
+  // A job: an unknown one is refused by the viewer's stream, saying so; neither scenes nor a job
+  // is a usage error.
+  r = gd(env + GD_CLI_BINARY + " " + server_flag() + " view --job j-nope --port 0 --screenshot " + png.string(), true);
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("NOT_FOUND"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("j-nope"), std::string::npos) << r.err;
+  r = gd(env + GD_CLI_BINARY + " " + server_flag() + " view --port 0", true);
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("--job"), std::string::npos) << r.err;
 }
 
 }  // namespace
