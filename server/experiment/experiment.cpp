@@ -650,6 +650,8 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     s["robot"] = {{"urdf", config.robot.urdf},
                   {"ik_samples", robot->ik_solved()},
                   {"ik_max_tilt_deg", robot->ik_max_tilt() * 180 / 3.14159265358979323846},
+                  {"joints_clamped", robot->joints_clamped()},
+                  {"joint_clamp_max", robot->joint_clamp_max()},
                   {"arms", arms}};
   }
   {

@@ -101,8 +101,20 @@ RobotController::RobotController(DualArmTrajectory traj, RobotOptions options,
     std::vector<ArmSample> samples = arm.samples();
     for (size_t i = 0; i < samples.size(); ++i) {
       const bool solve = samples[i].joints.empty();
-      samples[i] = resolve(a, samples[i], i > 0 ? samples[i - 1].joints : std::vector<double>{});
-      if (solve) ++ik_solved_;
+      const std::vector<double> given = samples[i].joints;
+      // Recorded joints (a real arm's, whose limits may differ a little from the URDF's) are
+      // clamped to the URDF's limits and counted, not refused.
+      samples[i] = resolve(a, samples[i], i > 0 ? samples[i - 1].joints : std::vector<double>{}, true);
+      if (solve) {
+        ++ik_solved_;
+        continue;
+      }
+      double excess = 0;
+      for (size_t k = 0; k < given.size(); ++k) excess = std::max(excess, std::abs(given[k] - samples[i].joints[k]));
+      if (excess > kJointLimitSlack) {
+        ++joints_clamped_;
+        joint_clamp_max_ = std::max(joint_clamp_max_, excess);
+      }
     }
     // The state before the first step: the first sample's joints and opening.
     RobotArmState& st = state_[static_cast<int>(a)];
@@ -111,12 +123,17 @@ RobotController::RobotController(DualArmTrajectory traj, RobotOptions options,
     st.gripper = st.gripper_command;
     traj_.arm(a) = ArmTrajectory(std::move(samples), fmt::format("{} arm", arm_name(a)));
   }
+  if (joints_clamped_ > 0)
+    gd::log().warn("robot mode: {} recorded samples have joints outside the URDF's limits (by up to {:.4f}); clamped "
+                   "to the limits",
+                   joints_clamped_, joint_clamp_max_);
   if (ik_solved_ > 0)
     gd::log().info("robot mode: inverse kinematics for {} trajectory samples (orientation missed by up to {:.1f} deg)",
                    ik_solved_, ik_max_tilt_ * 180 / 3.14159265358979323846);
 }
 
-ArmSample RobotController::resolve(Arm a, ArmSample s, const std::vector<double>& seed_joints) const {
+ArmSample RobotController::resolve(Arm a, ArmSample s, const std::vector<double>& seed_joints,
+                                   bool clamp_to_limits) const {
   const robot::ArmModel& m = *model_;
   const int dofs = m.arm_dofs();
   if (!s.joints.empty()) {
@@ -128,6 +145,14 @@ ArmSample RobotController::resolve(Arm a, ArmSample s, const std::vector<double>
       if (!std::isfinite(s.joints[k]))
         throw InputError(fmt::format("robot mode: the {} arm's sample at t={:.4f} s has a non-finite value for {}",
                                      arm_name(a), s.t, m.arm_joint_names()[k]));
+    for (int k = 0; k < dofs; ++k) {
+      const robot::JointLimits& l = m.arm_limits()[k];
+      if (!clamp_to_limits && (s.joints[k] < l.lower - kJointLimitSlack || s.joints[k] > l.upper + kJointLimitSlack))
+        throw InputError(fmt::format("robot mode: the {} arm's {} at t={:.4f} s is {:.4f}, outside the URDF's limits "
+                                     "[{:.4f}, {:.4f}]; keep the joints within them",
+                                     arm_name(a), m.arm_joint_names()[k], s.t, s.joints[k], l.lower, l.upper));
+      s.joints[k] = std::clamp(s.joints[k], l.lower, l.upper);
+    }
     return s;
   }
   Eigen::VectorXd seed(dofs);

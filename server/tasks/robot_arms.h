@@ -87,10 +87,15 @@ class RobotController final : public TaskController {
   /// options.urdf then only names it.
   RobotController(DualArmTrajectory traj, RobotOptions options, std::shared_ptr<const robot::ArmModel> model);
 
-  /// `s` with its joints filled in: recorded joints are checked (count, finite), a pose without
-  /// joints is solved by inverse kinematics from `seed` (the previous sample's joints; empty: the
-  /// joints at 0 within their limits). Throws InputError naming the arm and time.
-  ArmSample resolve(Arm a, ArmSample s, const std::vector<double>& seed) const;
+  /// `s` with its joints filled in: given joints are checked (count, finite, within the URDF's
+  /// limits up to kJointLimitSlack, then clamped to them; with clamp_to_limits, joints farther
+  /// out are clamped too instead of refused), a pose without joints is solved by inverse
+  /// kinematics from `seed` (the previous sample's joints; empty: the joints at 0 within their
+  /// limits). Throws InputError naming the arm, the time and, for a joint out of its limits, the
+  /// joint, its value and the limits.
+  ArmSample resolve(Arm a, ArmSample s, const std::vector<double>& seed, bool clamp_to_limits = false) const;
+  /// How far a given joint may lie outside its URDF limit and still be taken (clamped): rad or m.
+  static constexpr double kJointLimitSlack = 1e-3;
   /// Appends a sample after the arm's last one (resolved from the last sample's joints), for
   /// trajectories that arrive step by step (the service's scenes). Throws InputError.
   void append(Arm a, const ArmSample& s);
@@ -109,6 +114,10 @@ class RobotController final : public TaskController {
   int ik_solved() const { return ik_solved_; }
   /// Largest orientation error (rad) inverse kinematics had to accept.
   double ik_max_tilt() const { return ik_max_tilt_; }
+  /// Recorded samples whose joints lay outside the URDF's limits (beyond kJointLimitSlack) and
+  /// were clamped to them, and the largest excess (rad or m).
+  int joints_clamped() const { return joints_clamped_; }
+  double joint_clamp_max() const { return joint_clamp_max_; }
   /// World poses of an arm's two finger links for the given joints and opening.
   std::array<Eigen::Isometry3d, 2> finger_poses(Arm a, const std::vector<double>& joints, double gripper) const;
   /// World pose of an arm's end effector (fingers at 0) at its joints of the latest update.
@@ -130,6 +139,8 @@ class RobotController final : public TaskController {
   double grip_force_ = 0, finger_speed_ = 0;
   int ik_solved_ = 0;
   mutable double ik_max_tilt_ = 0;  ///< grows in resolve()
+  int joints_clamped_ = 0;
+  double joint_clamp_max_ = 0;
   bool attached_ = false;
   std::array<bool, 2> closing_{false, false};
   struct Previous {

@@ -173,6 +173,12 @@ TEST(RobotScenesRpc, JointCommandsDriveTheArmsAndPosesGoThroughInverseKinematics
   st = refused([](pb::SceneAction* a) { add_command(a, pb::ARM_LEFT, 0.3, {0.1, 0.2}, {}, 0.035); });
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(st.error_message().find("joint1"), std::string::npos) << st.error_message();
+  std::vector<double> beyond = q;  // joint3 past its upper limit (SceneInfo's joint_upper)
+  beyond[2] = made.info().joint_upper(2) + 0.1;
+  st = refused([&](pb::SceneAction* a) { add_command(a, pb::ARM_LEFT, 0.3, beyond, {}, 0.035); });
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("joint3"), std::string::npos) << st.error_message();
+  EXPECT_NE(st.error_message().find("outside the URDF's limits"), std::string::npos) << st.error_message();
   // The left arm's good command with the right arm's unreachable one: neither is applied.
   st = refused([&](pb::SceneAction* a) {
     add_command(a, pb::ARM_LEFT, 0.3, q, {}, 0.035);

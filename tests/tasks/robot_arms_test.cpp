@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "robot/arm_model.h"
 #include "tasks/task_test_util.h"
 #include "sim/demand.h"
 
@@ -207,6 +208,41 @@ TEST(RobotArms, GeneratedPosesBecomeJointsWithinReachAndUnreachableOnesAreRefuse
   EXPECT_LT(c.ik_max_tilt(), 1.0);
   RobotOptions none;
   EXPECT_THROW(RobotController(lift_trajectory(), none), sim::InputError);  // no URDF given
+}
+
+// Given joints and the URDF's limits: recorded ones (a real arm's) are clamped and counted, a
+// command beyond them (the service's) is refused naming the joint; within the slack both are
+// clamped quietly.
+TEST(RobotArms, JointsOutsideTheUrdfLimitsAreClampedWhenRecordedAndRefusedWhenCommanded) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  RobotOptions ro;
+  ro.urdf = piper_urdf();
+  const RobotController solved(lift_trajectory(), ro);
+  const robot::ArmModel& m = solved.arm_model();
+  const std::vector<robot::JointLimits>& lim = m.arm_limits();
+  DualArmTrajectory rec = solved.trajectory();  // every sample with joints, as a recording
+  std::vector<ArmSample> s = rec.left.samples();
+  s[1].joints[2] = lim[2].upper + 0.2;                                   // far out: clamped, counted
+  s[3].joints[0] = lim[0].lower - 0.5 * RobotController::kJointLimitSlack;  // within the slack: clamped only
+  rec.left = ArmTrajectory(s, "left");
+  const RobotController c(rec, ro);
+  EXPECT_EQ(c.ik_solved(), 0);
+  EXPECT_EQ(c.joints_clamped(), 1);
+  EXPECT_NEAR(c.joint_clamp_max(), 0.2, 1e-12);
+  EXPECT_DOUBLE_EQ(c.trajectory().left.samples()[1].joints[2], lim[2].upper);
+  EXPECT_DOUBLE_EQ(c.trajectory().left.samples()[3].joints[0], lim[0].lower);
+  // A command: beyond the slack refused, naming the joint, its value and the limits.
+  ArmSample cmd = s[1];
+  try {
+    c.resolve(Arm::kLeft, cmd, s[0].joints);
+    ADD_FAILURE() << "a joint beyond its limit was accepted";
+  } catch (const sim::InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(m.arm_joint_names()[2]), std::string::npos) << what;
+    EXPECT_NE(what.find("outside the URDF's limits"), std::string::npos) << what;
+  }
+  cmd.joints = s[3].joints;
+  EXPECT_DOUBLE_EQ(c.resolve(Arm::kLeft, cmd, s[0].joints).joints[0], lim[0].lower);
 }
 
 }  // namespace
