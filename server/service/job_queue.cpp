@@ -367,34 +367,7 @@ void JobQueue::run_job(const std::string& id) {
   std::shared_ptr<const SceneInfo> frame_info;
   int64_t frame_step = 0;
   const auto observe = [&](const sim::Scene& scene, const tasks::TaskController& controller) {
-    ++frame_step;
-    std::vector<std::shared_ptr<FrameSubscription>> due;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      auto it = frame_subs_.find(id);
-      if (it == frame_subs_.end()) return;
-      for (auto w = it->second.begin(); w != it->second.end();) {
-        if (auto sub = w->lock()) {
-          if (frame_step % sub->every() == 0) due.push_back(std::move(sub));
-          ++w;
-        } else {
-          w = it->second.erase(w);  // its stream ended
-        }
-      }
-    }
-    if (due.empty()) return;
-    if (!frame_info) frame_info = std::make_shared<const SceneInfo>(info_of(scene, controller, cfg->mode));
-    SceneSnapshot snap = snapshot_of(scene, controller, true, false);
-    snap.scene_id = id;
-    snap.steps = frame_step;
-    snap.info = frame_info;
-    const sim::StepStats& st = scene.last_stats();
-    snap.newton_iterations = st.newton_iters;
-    snap.pcg_iterations = st.pcg_iters;
-    snap.active_contacts = st.contacts;
-    snap.intersecting_pairs = st.intersecting_pairs;
-    snap.wall_ms = 1e3 * st.seconds;
-    for (const auto& sub : due) sub->push(snap);
+    publish_frame(id, cfg->mode, ++frame_step, scene, controller, &frame_info);
   };
   try {
     const garments::MeshingCancellation meshing([&] {  // CancelJob or the drain while the garment is meshed
@@ -490,6 +463,37 @@ Status unknown_job(const std::string& job_id) {  // the store's message for an u
   return Status::NotFound(fmt::format("no job '{}' on this server; ListReports lists the jobs", job_id));
 }
 }  // namespace
+
+void JobQueue::publish_frame(const std::string& id, const std::string& mode, int64_t step, const sim::Scene& scene,
+                             const tasks::TaskController& controller, std::shared_ptr<const SceneInfo>* info) {
+  std::vector<std::shared_ptr<FrameSubscription>> due;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = frame_subs_.find(id);
+    if (it == frame_subs_.end()) return;
+    for (auto w = it->second.begin(); w != it->second.end();) {
+      if (auto sub = w->lock()) {
+        if (step % sub->every() == 0) due.push_back(std::move(sub));
+        ++w;
+      } else {
+        w = it->second.erase(w);  // its stream ended
+      }
+    }
+  }
+  if (due.empty()) return;
+  if (!*info) *info = std::make_shared<const SceneInfo>(info_of(scene, controller, mode));
+  SceneSnapshot snap = snapshot_of(scene, controller, true, false);
+  snap.scene_id = id;
+  snap.steps = step;
+  snap.info = *info;
+  const sim::StepStats& st = scene.last_stats();
+  snap.newton_iterations = st.newton_iters;
+  snap.pcg_iterations = st.pcg_iters;
+  snap.active_contacts = st.contacts;
+  snap.intersecting_pairs = st.intersecting_pairs;
+  snap.wall_ms = 1e3 * st.seconds;
+  for (const auto& sub : due) sub->push(snap);
+}
 
 Status JobQueue::subscribe_frames(const std::string& job_id, int every, std::shared_ptr<FrameSubscription>* out,
                                   const std::string& caller) {

@@ -38,6 +38,12 @@
 namespace gd::experiment {
 struct ExperimentConfig;
 }
+namespace gd::sim {
+class Scene;
+}
+namespace gd::tasks {
+class TaskController;
+}
 
 namespace gd::service {
 
@@ -153,6 +159,10 @@ class JobQueue {
   void worker();
   void run_job(const std::string& id);
   void update(const std::string& id, const std::function<void(JobRecord&)>& fn);
+  /// After step `step` of job `id`'s run: a frame of its scene for the subscribers whose period
+  /// divides `step` (`info`: the scene's SceneInfo, made at the first frame sent).
+  void publish_frame(const std::string& id, const std::string& mode, int64_t step, const sim::Scene& scene,
+                     const tasks::TaskController& controller, std::shared_ptr<const SceneInfo>* info);
 
   JobQueueOptions options_;
   ReportStore& store_;

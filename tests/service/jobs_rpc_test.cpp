@@ -210,6 +210,16 @@ TEST(JobsRpc, SigtermDrainsInterruptsTheRunningJobAndExitsZero) {
     ASSERT_TRUE(stub->SubmitJob(ctx().get(), long_grasp(), &sub).ok());
     id = sub.job_id();
     wait_running(*stub, id);
+    // A viewer of the running job: it gets frames, and the drain ends its stream (OK).
+    pb::StreamFramesRequest frames_req;
+    frames_req.set_job_id(id);
+    frames_req.set_every(5);
+    auto frames_ctx = ctx(60);
+    auto frames = stub->StreamFrames(frames_ctx.get(), frames_req);
+    pb::StreamFramesResponse frame;
+    ASSERT_TRUE(frames->Read(&frame));
+    EXPECT_EQ(frame.state().scene_id(), id);
+    EXPECT_GT(frame.info().vertex_count(), 0);
     // Draining: the job has a 1 s grace period, during which health says NOT_SERVING.
     EXPECT_EQ(sigterm_and_wait_for_drain(server), 2) << "health did not turn NOT_SERVING";
     pb::SubmitJobResponse refused;
@@ -221,6 +231,9 @@ TEST(JobsRpc, SigtermDrainsInterruptsTheRunningJobAndExitsZero) {
     pb::CreateScenesResponse no_scene;
     const grpc::Status create = stub->CreateScenes(ctx().get(), scene, &no_scene);
     EXPECT_EQ(create.error_code(), grpc::StatusCode::UNAVAILABLE) << "a scene created during the drain";
+    while (frames->Read(&frame)) EXPECT_FALSE(frame.has_info());  // the info came with the first only
+    const grpc::Status ended = frames->Finish();
+    EXPECT_TRUE(ended.ok()) << ended.error_message();
     EXPECT_EQ(server.signal_and_wait(0, 30), 0) << server.log();
   }
   const pb::JobInfo job = job_after_restart(data, id);
