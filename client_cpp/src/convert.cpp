@@ -184,6 +184,7 @@ SceneState from_proto(const pb::SceneState& in, const char* rpc) {
     st.gripper = a.gripper();
     st.squeeze = a.squeeze();
     st.pose = pose_from_proto(a.pose());
+    st.links.assign(a.links().begin(), a.links().end());
     s.arms.push_back(std::move(st));
   }
   for (const auto& c : in.colliders()) {

@@ -70,8 +70,9 @@ class SceneState:
     # "left"/"right" -> {closed, held_vertices, position ((3,) world m), orientation ((4,) wxyz):
     # the tool at this time (pseudo: the commanded pose; robot: the end effector by forward
     # kinematics)}; robot mode also joints ((J,) float64, rad, in scene_info()["joint_names"]
-    # order), gripper (the fingers' opening now, m; may stop short of the command on cloth) and
-    # squeeze (N, the cloth's push on the fingers: the grip).
+    # order), gripper (the fingers' opening now, m; may stop short of the command on cloth),
+    # squeeze (N, the cloth's push on the fingers: the grip) and links ((K, 3) float32, world m:
+    # the arm's chain from its base through its link origins to the end effector).
     arms: Dict[str, dict] = field(default_factory=dict)
     # of the last step call: newton/pcg iterations, active contacts, wall_ms, intersecting_pairs
     # (the most intersecting triangle pairs after any of its steps)
@@ -112,7 +113,8 @@ def _pose(p: "pb.Pose") -> dict:
 def _arm_state(a: "pb.ArmState") -> dict:
     out = {"closed": a.closed, "held_vertices": a.held_vertices, **_pose(a.pose)}
     if len(a.joints):  # robot mode
-        out.update(joints=np.array(a.joints, dtype=np.float64), gripper=a.gripper, squeeze=a.squeeze)
+        out.update(joints=np.array(a.joints, dtype=np.float64), gripper=a.gripper, squeeze=a.squeeze,
+                   links=np.array(a.links, dtype=np.float32).reshape(-1, 3))
     return out
 
 

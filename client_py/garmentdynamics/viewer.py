@@ -8,8 +8,8 @@ The viewer subscribes to the scenes' frames (StreamFrames without steps of its o
 whatever steps them, an RL loop or a benchmark), or to a queued or running job's scene as the
 job steps it (from its first step on; the page opens once that step is made), and draws them with viser, which serves the page
 from this process (open the printed URL; on a remote machine forward the port): the garments in a
-grid, the table, each arm's tool (green open, red closed) and the kinematic colliders (robot
-mode's finger pads), a time slider over the frames received, and per-scene statistics. Viewing
+grid, the table, each arm's tool (green open, red closed), robot mode's arms (their chains from
+base to hand, by forward kinematics) and the kinematic colliders (robot mode's finger pads), a time slider over the frames received, and per-scene statistics. Viewing
 costs the server a snapshot per frame sent; `every` thins the frames.
 
 viser (PyPI, `pip install garmentdynamics[viewer]`) was chosen over rerun-sdk because it serves
@@ -54,6 +54,7 @@ TABLE_COLOR = (190, 190, 196)
 OPEN_COLOR = (40, 170, 80)
 CLOSED_COLOR = (150, 40, 190)   # purple: not the garment's red
 PAD_COLOR = (70, 90, 200)
+ARM_COLOR = (60, 60, 70)          # robot mode: the arms' chains
 MARGIN = 0.25                     # m between neighbouring scenes of the grid
 
 
@@ -109,6 +110,7 @@ class _SceneTrack:
         self.times: deque = deque(maxlen=keep)
         self.mesh = None
         self.arms: Dict[str, object] = {}
+        self.links: Dict[str, object] = {}   # robot mode: each arm's chain as line segments
         self.colliders: List[object] = []
 
     def frame_at(self, t: float) -> Optional[SceneState]:
@@ -372,6 +374,17 @@ class SceneViewer:
                 continue
             h.position = tuple(np.asarray(a["position"]) + off)
             h.color = CLOSED_COLOR if a["closed"] else OPEN_COLOR
+        for arm, a in f.arms.items():  # robot mode: the arm's chain from its base to the hand
+            pts = a.get("links")
+            if pts is None or len(pts) < 2:
+                continue
+            segs = np.stack([pts[:-1], pts[1:]], axis=1).astype(np.float32) + off.astype(np.float32)
+            h = track.links.get(arm)
+            if h is None or len(h.points) != len(segs):
+                track.links[arm] = s.scene.add_line_segments(f"/{track.scene_id}/{arm}_arm", segs, colors=ARM_COLOR,
+                                                             thickness=0.012)
+            else:
+                h.points = segs
         for k, c in enumerate(f.colliders):
             if c["shape"] != "box":
                 continue

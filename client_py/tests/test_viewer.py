@@ -82,11 +82,17 @@ def test_a_grid_of_scenes_and_the_robot_pads(client, piper_urdf, tmp_path):
         state = client.get_state(robot)[0]
         assert len(state.colliders) == 4 and all(c["shape"] == "box" for c in state.colliders)
         assert state.arms["left"]["position"].shape == (3,)
+        links = state.arms["left"]["links"]  # the arm's chain: base (0, 0.25, 0) to the tool
+        assert links.shape[1] == 3 and len(links) >= 4
+        assert np.allclose(links[0], (0, 0.25, 0), atol=1e-6)
+        assert np.allclose(links[-1], state.arms["left"]["position"], atol=1e-5)
         with SceneViewer(client, pseudo + robot, port=0) as viewer:
             client.step(pseudo + robot, substeps=2)
             assert viewer.wait_for_frames(3, timeout=30)
             png = screenshot(viewer.url, output_dir() / "grid_of_three.png", width=960, height=640, wait_s=6)
             assert len(viewer._tracks[2].colliders) == 4
+            assert set(viewer._tracks[2].links) == {"left", "right"}  # the robot's arms, drawn
+            assert not viewer._tracks[0].links
         assert cloth_mask(png).sum() > 3000
     finally:
         client.destroy(pseudo + robot)

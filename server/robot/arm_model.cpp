@@ -264,6 +264,23 @@ Eigen::Isometry3d ArmModel::ee_pose(const Eigen::VectorXd& q) const {
   return impl_->ee(jq);
 }
 
+std::vector<Eigen::Vector3d> ArmModel::chain_points(const Eigen::VectorXd& q) const {
+  std::lock_guard<std::recursive_mutex> lock(impl_->kdl_mu);
+  impl_->check_q(q, "chain_points");
+  KDL::JntArray jq(q.size());
+  for (Eigen::Index k = 0; k < q.size(); ++k) jq(k) = q[k];
+  KDL::ChainFkSolverPos_recursive fk(impl_->ik_chain);
+  std::vector<Eigen::Vector3d> out{Eigen::Vector3d::Zero()};
+  const int segments = static_cast<int>(impl_->ik_chain.getNrOfSegments());
+  for (int k = 1; k <= segments; ++k) {
+    KDL::Frame f;
+    Impl::check_fk(fk.JntToCart(jq, f, k));
+    const Eigen::Vector3d p = to_eigen(f).translation();
+    if ((p - out.back()).norm() > 1e-6) out.push_back(p);  // fixed joints at one place: one point
+  }
+  return out;
+}
+
 IkResult ArmModel::ik(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed, double pos_tol,
                       double rot_tol) const {
   std::lock_guard<std::recursive_mutex> lock(impl_->kdl_mu);

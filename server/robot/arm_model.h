@@ -97,6 +97,9 @@ class ArmModel {
   std::vector<Eigen::Isometry3d> link_poses(const Eigen::VectorXd& q, double gripper) const;
   /// The end effector's pose with the fingers at 0 (RGBench's recorded end pose).
   Eigen::Isometry3d ee_pose(const Eigen::VectorXd& q) const;
+  /// The arm's chain as points in the base frame: the base, then the origin of each segment from
+  /// the base to the end effector that moves it away from the last point (a viewer's skeleton).
+  std::vector<Eigen::Vector3d> chain_points(const Eigen::VectorXd& q) const;
 
   /// Arm joints that put the end effector at `target` (base frame), starting from `seed`
   /// (arm_dofs() values; the previous sample's answer along a trajectory). ok when the position

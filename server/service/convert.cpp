@@ -216,6 +216,8 @@ void to_proto(const SceneSnapshot& s, bool include_stats, pb::SceneState* out) {
     st->set_gripper(s.arms[a].gripper);
     st->set_squeeze(s.arms[a].squeeze);
     to_proto(s.arms[a].pose, st->mutable_pose());
+    for (const Vec3& p : s.arms[a].links)
+      for (int k = 0; k < 3; ++k) st->add_links(static_cast<float>(p[k]));
   }
   for (const ColliderSnapshot& c : s.colliders) {
     pb::ColliderState* cs = out->add_colliders();

@@ -195,6 +195,7 @@ SceneSnapshot snapshot_of(const sim::Scene& scene, const tasks::TaskController& 
       s.arms[a].gripper = st.gripper;
       s.arms[a].squeeze = st.squeeze;
       s.arms[a].pose = robot->ee_world(arm);
+      s.arms[a].links = robot->chain_world(arm);
     } else {
       const tasks::ArmState& st = grippers->state(arm);
       s.arms[a].closed = st.closed;

@@ -159,6 +159,8 @@ struct ArmSnapshot {
   /// The tool at the snapshot's time, world frame: the commanded trajectory's pose (pseudo,
   /// fixed point) or the end effector by forward kinematics (robot).
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  /// Robot mode: the arm's chain, world frame (base, link origins, end effector), for viewers.
+  std::vector<Vec3> links;
 };
 
 /// A kinematic collider at the snapshot's time (robot mode's finger pads), for viewers.

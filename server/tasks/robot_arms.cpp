@@ -207,6 +207,14 @@ Eigen::Isometry3d RobotController::ee_world(Arm a) const {
   return base_pose(a) * model_->ee_pose(to_vector(st.joints));
 }
 
+std::vector<Vec3> RobotController::chain_world(Arm a) const {
+  const Eigen::Isometry3d base = base_pose(a);
+  std::vector<Vec3> out;
+  for (const Eigen::Vector3d& p : model_->chain_points(to_vector(state_[static_cast<int>(a)].joints)))
+    out.push_back(base * p);
+  return out;
+}
+
 std::array<Eigen::Isometry3d, 4> RobotController::pad_poses(double t) const {
   std::array<Eigen::Isometry3d, 4> out;
   Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();

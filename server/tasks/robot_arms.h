@@ -122,6 +122,8 @@ class RobotController final : public TaskController {
   std::array<Eigen::Isometry3d, 2> finger_poses(Arm a, const std::vector<double>& joints, double gripper) const;
   /// World pose of an arm's end effector (fingers at 0) at its joints of the latest update.
   Eigen::Isometry3d ee_world(Arm a) const;
+  /// The arm's chain at those joints, world frame (robot::ArmModel::chain_points): its skeleton.
+  std::vector<Vec3> chain_world(Arm a) const;
   /// The four finger pads at scene time t within the latest step ([left 0, left 1, right 0,
   /// right 1]; before the first step: where they start): world poses of their boxes' centres.
   /// Their half extents are options().arm.pad.half_extents.

@@ -78,6 +78,16 @@ TEST(ArmModel, ForwardKinematicsOfAPlanarArmMatchesItsClosedForm) {
     EXPECT_LT((fb.translation() - (ee * Eigen::Vector3d(0, -g, 0))).norm(), 1e-12);
     // A gripper value beyond the travel is clamped.
     EXPECT_LT((arm.link_pose("fa", q, 1.0).translation() - (ee * Eigen::Vector3d(0, 0.03, 0))).norm(), 1e-12);
+    // The chain (a viewer's skeleton): from the base through the elbow to the end effector.
+    const std::vector<Eigen::Vector3d> chain = arm.chain_points(q);
+    ASSERT_GE(chain.size(), 3u);
+    EXPECT_LT(chain.front().norm(), 1e-12);
+    EXPECT_LT((chain.back() - ee.translation()).norm(), 1e-12);
+    const Eigen::Vector3d elbow(0.3 * std::cos(a), 0.3 * std::sin(a), 0.1);
+    double nearest = 1e9;
+    for (const Eigen::Vector3d& p : chain) nearest = std::min(nearest, (p - elbow).norm());
+    EXPECT_LT(nearest, 1e-12);
+    for (size_t k = 1; k < chain.size(); ++k) EXPECT_GT((chain[k] - chain[k - 1]).norm(), 1e-6);  // no repeats
   }
 }
 

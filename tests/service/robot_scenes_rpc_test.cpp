@@ -151,6 +151,24 @@ TEST(RobotScenesRpc, JointCommandsDriveTheArmsAndPosesGoThroughInverseKinematics
     // The tool point is the end-effector origin (tool_to_ee only turns the frame).
     EXPECT_LT((ee.translation() - (target - Eigen::Vector3d(0, 0.25, 0))).norm(), 1.5e-3);
   }
+  {  // Each arm's chain, for viewers: from its base (y = +-0.25 m) to its tool, where the pose says.
+    pb::GetStateRequest g;
+    g.add_scene_ids(id);
+    pb::GetStateResponse now;
+    ASSERT_TRUE(stub->GetState(ctx().get(), g, &now).ok());
+    for (const pb::ArmState& a : now.states(0).arms()) {
+      const auto& L = a.links();
+      ASSERT_GE(L.size(), 3 * 4);
+      ASSERT_EQ(L.size() % 3, 0);
+      EXPECT_NEAR(L[0], 0.0, 1e-6);
+      EXPECT_NEAR(std::abs(L[1]), 0.25, 1e-6);
+      EXPECT_NEAR(L[2], 0.0, 1e-6);
+      const int n = L.size();
+      EXPECT_NEAR(L[n - 3], a.pose().position().x(), 1e-5);
+      EXPECT_NEAR(L[n - 2], a.pose().position().y(), 1e-5);
+      EXPECT_NEAR(L[n - 1], a.pose().position().z(), 1e-5);
+    }
+  }
   // Refused without changing the scene: out of reach, a wrong joint count, joints out of order.
   pb::GetStateResponse before;
   {

@@ -201,6 +201,8 @@ struct ArmState {
   /// The tool at the state's time, world frame (pseudo: the commanded pose; robot: the end
   /// effector by forward kinematics).
   Pose pose;
+  /// Robot mode: the arm's chain (base, link origins, end effector), world frame, K*3 (m).
+  std::vector<float> links;
 };
 
 /// A kinematic collider at the state's time (robot mode's finger pads).
