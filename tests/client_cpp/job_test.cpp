@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <thread>
 
 #include "client_cpp/server_fixture.h"
 
@@ -141,6 +142,33 @@ TEST_F(JobTest, AJobsSceneStreamsAsItRunsUntilItEnds) {
       EXPECT_EQ(e.rpc(), "StreamFrames");
     }
   }
+}
+
+// Two viewers of one job: one leaves after three frames (the job goes on, its stream is dropped),
+// the other reads to the end and gets every frame.
+TEST_F(JobTest, AViewerLeavingAJobsStreamLeavesTheOtherViewersAndTheJobAlone) {
+  const std::string first = client_.submit_job(short_grasp("ahead"));
+  const std::string id = client_.submit_job(short_grasp("two viewers"));
+  StreamOptions o;
+  o.every = 4;
+  int64_t leaver = 0;
+  std::thread early([&] {
+    Client c(address());
+    leaver = c.stream_job(id, o, [n = 0](const SceneState&) mutable { return ++n < 3; });
+  });
+  std::vector<int64_t> steps;
+  client_.stream_job(id, o, [&](const SceneState& s) {
+    steps.push_back(s.steps);
+    return true;
+  });
+  early.join();
+  EXPECT_EQ(leaver, 3);
+  const JobInfo done = client_.watch_job(id);
+  ASSERT_EQ(done.status, JobStatus::kSucceeded) << done.message;
+  ASSERT_EQ(client_.watch_job(first).status, JobStatus::kSucceeded);
+  const int total = nlohmann::json::parse(client_.get_report(id).summary_json).at("steps").get<int>();
+  ASSERT_EQ(steps.size(), static_cast<size_t>(total / 4));
+  for (size_t k = 0; k < steps.size(); ++k) EXPECT_EQ(steps[k], 4 * static_cast<int64_t>(k + 1));
 }
 
 TEST_F(JobTest, WatchingAnUnknownJobIsNotFound) {
