@@ -96,8 +96,11 @@ class Movie:
                  "-r", f"{self.fps:g}", "-i", "-", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264",
                  "-pix_fmt", "yuv420p", "-movflags", "+faststart", str(self.stem.with_suffix(".mp4"))],
                 stdin=subprocess.PIPE, stderr=subprocess.PIPE)
-        if self.proc is not None:
-            self.proc.stdin.write(rgb.tobytes())
+        if self.proc is not None and self.proc.stdin is not None:
+            try:
+                self.proc.stdin.write(rgb.tobytes())
+            except BrokenPipeError:  # ffmpeg gave up (e.g. no H.264 encoder): the GIF goes on, close() says why
+                self.proc.stdin = None
 
     def close(self) -> list:
         out = []
@@ -107,6 +110,12 @@ class Movie:
                                 duration=int(round(1000 / self.fps)), loop=0)
             out.append(gif)
         if self.proc is not None:
+            if self.proc.stdin is not None:
+                try:
+                    self.proc.stdin.close()
+                except BrokenPipeError:
+                    pass
+                self.proc.stdin = None
             _, err = self.proc.communicate()
             if self.proc.returncode == 0:
                 out.append(self.stem.with_suffix(".mp4"))

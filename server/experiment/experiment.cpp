@@ -661,7 +661,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   }
   if (capture && config.plots) plot_report(out);
   if (config.plots) {
-    run_plot_script("plot_animation.py", out);  // OUT/animation.gif
+    run_plot_script("plot_animation.py", out);  // OUT/animation.gif (.mp4; capture_animation.* too)
     run_plot_script("report_html.py", out);     // OUT/report.html: the report as one page
   }
   if (sc.failed()) gd::log().error("experiment: the simulation failed: {}", sc.failure());

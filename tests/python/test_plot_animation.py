@@ -4,6 +4,7 @@ it (float32 (F, N, 3)), the times in summary.json, and the trajectory CSV of the
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -111,3 +112,20 @@ def test_a_capture_runs_simulation_and_real_cloud_side_by_side(tmp_path):
     assert blue[:, left].sum() > 200 and orange[:, left].sum() < 0.05 * blue[:, left].sum()
     assert orange[:, mid].sum() > 200 and blue[:, mid].sum() < 0.05 * orange[:, mid].sum()
     assert blue[:, right].sum() > 100 and orange[:, right].sum() > 100
+
+
+def test_a_failing_ffmpeg_leaves_the_gif_and_says_why(tmp_path):
+    # An ffmpeg on PATH that refuses at once (as one without an H.264 encoder does): the GIF is
+    # still written, no MP4 is claimed, and stderr names the failure.
+    make_run(tmp_path)
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    fake = bin_dir / "ffmpeg"
+    fake.write_text("#!/bin/sh\necho 'Unknown encoder libx264' >&2\nexit 1\n")
+    fake.chmod(0o755)
+    env = dict(os.environ, PATH=f"{bin_dir}:{os.environ.get('PATH', '')}")
+    proc = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path)], capture_output=True, text=True, env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "animation.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+    assert "animation.mp4" not in proc.stdout
+    assert "ffmpeg failed" in proc.stderr and "libx264" in proc.stderr
