@@ -77,6 +77,7 @@ struct CaseResult {
   double bytes_per_vertex = 0;
   std::string backend;
   std::string preconditioner;  ///< the one the case ran with (auto resolved)
+  bool deterministic = false;  ///< SceneOptions::deterministic (--deterministic)
   std::string error;  ///< non-empty when the case failed
   bool contact = false;        ///< a self-contact case (fold/<N>)
   double contacts = 0;         ///< mean active self-contact pairs per timed step
@@ -104,6 +105,7 @@ CaseResult run_case(int target, Real side, int warmup, int steps, double max_sec
   if (!bench_scene.pins.empty()) scene->pin(bench_scene.pins);
   r.backend = scene->backend();
   r.preconditioner = gd::sim::preconditioner_name(opt);
+  r.deterministic = opt.deterministic;
   r.bytes_per_vertex = scene->bytes_per_vertex();
   std::fprintf(stderr, "[gd-bench] %s: %d vertices on %s (setup %.2f s); %d warm-up + %d timed steps\n",
                r.name.c_str(), r.vertices, r.backend.c_str(), seconds_since(t_setup), warmup, steps);
@@ -208,6 +210,7 @@ nlohmann::json to_json(const CaseResult& r) {
                       {"bytes_per_vertex", r.bytes_per_vertex},
                       {"backend", r.backend},
                       {"preconditioner", r.preconditioner},
+                      {"deterministic", r.deterministic},
                       {"contact", r.contact}};
   if (r.contact) {
     j["contacts"] = r.contacts;
@@ -275,6 +278,9 @@ int main(int argc, char** argv) {
                  "Solver backend (cpu-gpu-paths: the CPU running the CUDA backend's code paths, atomic adds)")
       ->check(CLI::IsMember({"cpu", "cuda", "auto", "cpu-gpu-paths"}))
       ->capture_default_str();
+  bool deterministic = false;
+  app.add_flag("--deterministic", deterministic,
+               "Assembly in a fixed order on the atomic backends (cuda, cpu-gpu-paths): SceneOptions::deterministic");
   app.add_option("--threads", threads, "CPU threads (0: OpenMP default)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
@@ -394,6 +400,7 @@ int main(int argc, char** argv) {
                   : backend_arg == "cpu-gpu-paths" ? gd::sim::BackendKind::kCpuGpuPaths
                                                    : gd::sim::BackendKind::kAuto;
     opt.threads = threads;
+    opt.deterministic = deterministic;
     if (precond_arg == "mas") opt.preconditioner = gd::sim::PreconditionerKind::kMas;
     if (precond_arg == "block-jacobi") opt.preconditioner = gd::sim::PreconditionerKind::kBlockJacobi;
     if (precond_arg == "auto") opt.preconditioner = gd::sim::PreconditionerKind::kAuto;

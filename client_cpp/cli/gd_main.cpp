@@ -178,6 +178,9 @@ int main(int argc, char** argv) {
   run->add_option("--shoulder-index", shoulders, "fixed-point fling pins: LEFT RIGHT vertex indices")->expected(2);
   run->add_option("--backend", backend, "cpu | cuda | auto")->capture_default_str();
   run->add_option("--threads", cfg.scene.threads, "CPU threads (0: all)");
+  run->add_flag("--deterministic", cfg.scene.deterministic,
+                "CUDA: assembly in a fixed order instead of atomic adds (the same steps bit for bit on every run; "
+                "slower); the CPU backend is deterministic either way");
   std::string contact_hessian = "projected";
   run->add_option("--contact-hessian", contact_hessian, "self-contact Hessian: gauss-newton | projected")
       ->capture_default_str();
@@ -284,7 +287,7 @@ int main(int argc, char** argv) {
       task_param_values[name] = value;
     }
     if (!server.empty() && *run) {
-      for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads",
+      for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
         if (run->count(local_only) > 0)

@@ -625,6 +625,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["failed"] = sc.failed();
   s["failure"] = sc.failure();
   s["backend"] = sc.backend();
+  s["deterministic"] = config.scene.deterministic;
   s["initial"] = {{"min_z", ini.min_z}, {"max_z", ini.max_z}, {"extent_x", ini.extent_x}, {"extent_y", ini.extent_y}};
   s["final"] = {{"min_z", fin.min_z}, {"max_z", fin.max_z}, {"mean_z", fin.mean_z}, {"p95_z", fin.p95_z},
                 {"extent_x", fin.extent_x}, {"extent_y", fin.extent_y}};

@@ -80,6 +80,7 @@ struct JobQueueOptions {
   long max_job_steps = 2'000'000;
   bool plots = false;               ///< draw the PNG plots of capture runs (needs Python + matplotlib)
   sim::BackendKind backend = sim::BackendKind::kCpu;
+  bool deterministic = false;  ///< SceneOptions::deterministic for every scene (--deterministic)
   /// Frames one StreamFrames subscription to a job queues for a slow reader (--max-queued-frames-mb).
   size_t max_queued_frame_bytes = size_t(16) << 20;
   /// Robot-mode jobs whose request sends no URDF run with this one (flag --robot-urdf; empty:

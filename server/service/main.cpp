@@ -58,6 +58,9 @@ int main(int argc, char** argv) {
   app.add_option("--data-dir", o.data_dir, "directory of the SQLite store, jobs and meshes")->required();
   app.add_option("--capture-root", o.capture_root, "jobs' captures are resolved under it (default DATA_DIR/captures)");
   app.add_option("--backend", backend, "cpu | cuda | auto")->check(CLI::IsMember({"cpu", "cuda", "auto"}))->capture_default_str();
+  app.add_flag("--deterministic", o.deterministic,
+               "CUDA: assembly in a fixed order instead of atomic adds, so a scene reset by seed takes the same "
+               "steps bit for bit (slower; the CPU backend is deterministic either way)");
   app.add_option("--threads", o.threads, "scene worker threads (0: hardware concurrency)")->check(CLI::NonNegativeNumber);
   app.add_option("--max-scenes", o.max_scenes, "scenes alive at once")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--max-vertices", o.max_vertices, "vertices per scene")->check(CLI::NonNegativeNumber)->capture_default_str();

@@ -520,6 +520,7 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     else t->options.dt = 0.01;
     if (spec.self_contact) t->options.self_contact = *spec.self_contact;
     t->options.backend = options_.backend;
+    t->options.deterministic = options_.deterministic;
     t->options.validate();
     t->grippers.mode = mode == "fixed_point" ? tasks::GraspMode::kFixedPoint : tasks::GraspMode::kPseudoGrasp;
     t->grippers.action = tasks::TaskKind::kGrasp;

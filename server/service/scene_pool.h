@@ -85,6 +85,7 @@ struct PoolOptions {
   /// slots and memory for good.
   double scene_lease_seconds = 0;
   sim::BackendKind backend = sim::BackendKind::kCpu;
+  bool deterministic = false;  ///< SceneOptions::deterministic for every scene (--deterministic)
   /// The arms of robot-mode scenes whose request sends no URDF (flag --robot-urdf; empty: such
   /// requests are refused). Loaded when the pool is built: a bad file stops the server there.
   std::string robot_urdf;

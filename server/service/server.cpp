@@ -162,6 +162,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     po.max_reply_bytes = max_bytes;
     po.scene_lease_seconds = o.scene_lease_seconds;
     po.backend = o.backend;
+    po.deterministic = o.deterministic;
     po.robot_urdf = o.robot_urdf;
     im.scenes = std::make_unique<ScenePool>(po);
     JobQueueOptions jo;
@@ -174,6 +175,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     jo.max_vertices = o.max_vertices;
     jo.plots = o.plots;
     jo.backend = o.backend;
+    jo.deterministic = o.deterministic;
     jo.robot_urdf = o.robot_urdf;
     im.jobs = std::make_unique<JobQueue>(jo, *im.store, *im.meshes);
   } catch (const std::exception& e) {

@@ -21,6 +21,7 @@ struct ServerOptions {
   std::string data_dir;              ///< required: gd.sqlite, jobs/, meshes/, captures/
   std::string capture_root;          ///< empty: data_dir/captures
   sim::BackendKind backend = sim::BackendKind::kCpu;
+  bool deterministic = false;  ///< SceneOptions::deterministic for every scene (--deterministic)
   int threads = 0;                   ///< scene worker threads (0: hardware concurrency)
   int max_scenes = 256;
   int max_vertices = 50000;

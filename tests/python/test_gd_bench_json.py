@@ -52,6 +52,20 @@ def test_preconditioner_flag_is_honoured():
     assert c["preconditioner"] == "mas"
 
 
+def test_deterministic_gpu_paths_repeat_their_iterations():
+    """--deterministic on the GPU's code paths (cpu-gpu-paths): reported, and two runs of the fold
+    (self-contact) take the same Newton and PCG iterations (positions at 1 and 2 threads are
+    compared bit for bit in tests/sim/backend/deterministic_gpu_paths_test.cpp)."""
+    args = ("--cases", "fold", "--backend", "cpu-gpu-paths", "--deterministic")
+    (a,) = run_bench(*args)
+    (b,) = run_bench(*args)
+    assert a["backend"] == "cpu-gpu-paths" and a["deterministic"] is True
+    assert a["contacts"] > 0
+    assert (a["newton_iters"], a["pcg_iters"]) == (b["newton_iters"], b["pcg_iters"])
+    (c,) = run_bench("--cases", "fold")
+    assert c["deterministic"] is False
+
+
 def test_load_steps_many_clients_on_a_real_server():
     """gd-bench load starts a gd-server beside it, steps one scene per client for the window and
     reports throughput, latency percentiles in order, no errors, and the server's memory."""

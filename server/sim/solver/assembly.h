@@ -54,14 +54,14 @@ double Solver<Exec>::evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessi
     }
     return ei;
   }, Exec::kParallelMinHeavy);
-  e += sum_elements(data_->tri_colors, V.nt, [=] GD_HD_LAMBDA(int t) {
+  e += sum_elements(data_->tri_colors, tri_order_, V.nt, [=] GD_HD_LAMBDA(int t) {
     Vec9 ge;
     Mat9 He;
     const double et = detail::triangle_terms(V, P, t, x, &ge, H ? &He : nullptr);
     scatter<3>(V, V.tris + 3 * t, V.tri_slots + 9 * t, ge, He, g, H);
     return et;
   });
-  e += sum_elements(data_->hinge_colors, V.nh, [=] GD_HD_LAMBDA(int h) {
+  e += sum_elements(data_->hinge_colors, hinge_order_, V.nh, [=] GD_HD_LAMBDA(int h) {
     Vec12 ge;
     if (P.bending_exact_projected) {
       Mat12 He;
@@ -133,6 +133,8 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
         if (live[c]) add_pair(V, L.v + 4 * c, GA + 48 * c, g, H, owner, owners);
       for (int k = 0; k < V.n_fr; ++k) add_pair(V, V.fr_v + 4 * k, GF + 48 * k, g, H, owner, owners);
     }, 2);
+  } else if (deterministic_) {  // each row in pair order, whatever the schedule
+    add_pairs_in_order(V, L, live, GA, GF, g, H);
   } else {  // every pair at once, atomic adds
     Exec::for_each(L.n, [=] GD_HD_LAMBDA(int c) {
       if (live[c]) add_pair(V, L.v + 4 * c, GA + 48 * c, g, H);
@@ -140,6 +142,47 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
     Exec::for_each(V.n_fr, [=] GD_HD_LAMBDA(int k) { add_pair(V, V.fr_v + 4 * k, GF + 48 * k, g, H); }, 0);
   }
   return e;
+}
+
+/// The pairs' adds of evaluate_pairs on an atomic policy with SceneOptions::deterministic: one
+/// key per (free vertex, pair corner), vertex in the high word and 4 x pair + corner in the low
+/// (friction pairs numbered after the contact pairs), sorted; then the first key of each vertex's
+/// run adds the whole run in order. Each row gets its adds in pair order, as the CPU's owner loop
+/// gives them, and no two threads write one row: the sums do not depend on the schedule.
+template <class Exec>
+void Solver<Exec>::add_pairs_in_order(const detail::View& V, const detail::PairView& L, const int* live,
+                                      const double* GA, const double* GF, double* g, double* H) {
+  const int na = L.n, np = L.n + V.n_fr;
+  if (np == 0) return;
+  constexpr uint64_t kNone = ~uint64_t{0};  // a corner that adds nothing (sorted last)
+  Exec::resize_for_overwrite(pair_keys_, 4 * static_cast<size_t>(np));
+  uint64_t* keys = Exec::ptr(pair_keys_);
+  const int* lv = L.v;
+  Exec::for_each(np, [=] GD_HD_LAMBDA(int p) {
+    const bool friction = p >= na;
+    const int* vs = friction ? V.fr_v + 4 * (p - na) : lv + 4 * p;
+    const bool adds = friction || live[p];
+    for (int a = 0; a < 4; ++a)
+      keys[4 * p + a] = adds && !V.fixed[vs[a]]
+                            ? static_cast<uint64_t>(vs[a]) << 32 | static_cast<uint64_t>(4 * p + a)
+                            : kNone;
+  });
+  Exec::sort(pair_keys_);
+  const int nk = 4 * np;
+  Exec::for_each(nk, [=] GD_HD_LAMBDA(int i) {
+    const uint64_t first = keys[i];
+    if (first == kNone || (i > 0 && keys[i - 1] >> 32 == first >> 32)) return;  // not a run's first key
+    const int v = static_cast<int>(first >> 32);
+    double* gv = g + 3 * v;
+    double* blk = H ? H + 9 * V.diag[v] : nullptr;
+    for (int j = i; j < nk && keys[j] != kNone && keys[j] >> 32 == first >> 32; ++j) {
+      const int q = static_cast<int>(keys[j] & 0xffffffffu), p = q >> 2, a = q & 3;
+      const double* gd = p < na ? GA + 48 * p : GF + 48 * (p - na);
+      for (int c = 0; c < 3; ++c) gv[c] += gd[3 * a + c];
+      if (blk)
+        for (int k = 0; k < 9; ++k) blk[k] += gd[12 + 9 * a + k];
+    }
+  });
 }
 
 /// Splits a pair's gradient and Hessian (Dirichlet rows/columns dropped): the six blocks above
@@ -219,7 +262,7 @@ GD_HD void Solver<Exec>::scatter_rank2(const detail::View& V, const int* vs, con
 /// Coloring); all at once with atomics on the GPU.
 template <class Exec>
 template <class F>
-double Solver<Exec>::sum_elements(const Coloring& coloring, int count, const F& f) {
+double Solver<Exec>::sum_elements(const Coloring& coloring, const ElementOrder& order, int count, const F& f) {
   if constexpr (Exec::kColoring) {
     GD_DEMAND(coloring.elements == count, "element colouring built for another mesh");
     const Coloring* C = &coloring;
@@ -239,6 +282,19 @@ double Solver<Exec>::sum_elements(const Coloring& coloring, int count, const F& 
     double e = 0;
     for (double v : chunk_energy_) e += v;
     return e;
+  } else if (deterministic_) {
+    // Colour by colour (no two elements of a colour share a vertex, so each add lands alone),
+    // the energies summed by one fixed-order reduction.
+    double* e = Exec::ptr(elem_e_);
+    const int* ids = Exec::ptr(order.elems);
+    for (size_t c = 0; c + 1 < order.offsets.size(); ++c) {
+      const int begin = order.offsets[c];
+      Exec::for_each(order.offsets[c + 1] - begin, [=] GD_HD_LAMBDA(int k) {
+        const int i = ids[begin + k];
+        e[i] = f(i);
+      }, Exec::kParallelMinHeavy);
+    }
+    return Exec::sum(count, [=] GD_HD_LAMBDA(int i) { return e[i]; });
   } else {
     return Exec::sum_effects(count, f, Exec::kParallelMinHeavy);
   }

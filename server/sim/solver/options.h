@@ -81,6 +81,13 @@ struct SceneOptions {
   BendingHessianKind bending_hessian = BendingHessianKind::kGaussNewton;
   BackendKind backend = BackendKind::kCpu;
   int threads = 0;                ///< CPU threads (0: OpenMP default)
+  /// Assembly whose sums do not depend on thread timing on the atomic backends (CUDA,
+  /// cpu-gpu-paths): element loops colour by colour (single-element colours) instead of atomic
+  /// adds, and the self-contact pairs' adds sorted by vertex and added in pair order. With it a
+  /// scene reset by seed takes the same steps bit for bit on the GPU too (the reductions are CUB's
+  /// fixed-order trees). Costs a launch per colour and a sort per evaluation. The CPU backend is
+  /// deterministic either way (chunk colouring, fixed-block sums).
+  bool deterministic = false;
 
   // --- rest shape -----------------------------------------------------------------------
   /// Use the mesh's pattern coordinates (UVs) for the rest shape when present; otherwise the

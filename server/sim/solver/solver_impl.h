@@ -57,6 +57,12 @@ class Solver final : public SolverBase {
     Exec::resize(vals_, 9 * static_cast<size_t>(d.blocks()));
     Exec::resize(pcg_s_, kPcgScalars);
     Exec::resize(hinge_grad_t_, 12 * static_cast<size_t>(d.hinge_count()));
+    if (!Exec::kColoring && opt.deterministic) {  // atomic policy asked for fixed-order sums
+      deterministic_ = true;
+      tri_order_.upload(color_elements(d.tris, 3, n_, 1));
+      hinge_order_.upload(color_elements(d.hinges, 4, n_, 1));
+      Exec::resize(elem_e_, static_cast<size_t>(std::max(d.triangles(), d.hinge_count())));
+    }
     precond_ = make_preconditioner<Exec>(opt, n_);
     // The Newton stopping rule predicts the next correction with a preconditioner that carries
     // smooth modes: PCG's own when it does (MAS), else a MAS instance kept for that alone.
@@ -245,8 +251,20 @@ class Solver final : public SolverBase {
                             const MatN<3 * K>& He, double* g, double* H);
   GD_HD static void scatter_rank2(const detail::View& V, const int* vs, const int* slots, const Vec12& ge,
                                   const detail::HingeHessian& He, double* g, double* H);
+  /// An element colouring of single elements on the backend (SceneOptions::deterministic on an
+  /// atomic policy): element ids colour by colour, the colours' offsets on the host.
+  struct ElementOrder {
+    Vec<int> elems;
+    std::vector<int> offsets;
+    void upload(const Coloring& c) {
+      Exec::upload(elems, c.chunks);
+      offsets = c.offsets;
+    }
+  };
   template <class F>
-  double sum_elements(const Coloring& coloring, int count, const F& f);
+  double sum_elements(const Coloring& coloring, const ElementOrder& order, int count, const F& f);
+  void add_pairs_in_order(const detail::View& V, const detail::PairView& L, const int* live, const double* GA,
+                          const double* GF, double* g, double* H);
 
   // Linear solve: matrix-vector product, contact couplings, PCG, direct (linear_solve.h)
   void spmv_dot_to(const Vec<double>& xs, Vec<double>& ys, double* xy);  ///< y = A x, and x·y into *xy
@@ -425,6 +443,13 @@ class Solver final : public SolverBase {
   CouplingMatrix cpl_h_;  ///< merge_pair_blocks' host result (its storage reused)
   std::vector<double> host_act_H_, host_fr_H_;
   std::vector<double> chunk_energy_;  ///< sum_elements: per chunk (CPU)
+  /// SceneOptions::deterministic on an atomic policy: the element loops' single-element colourings,
+  /// per-element energies (summed by one fixed-order reduction) and the pairs' sorted
+  /// (vertex, pair corner) keys (add_pairs_in_order).
+  bool deterministic_ = false;
+  ElementOrder tri_order_, hinge_order_;
+  Vec<double> elem_e_;
+  Vec<uint64_t> pair_keys_;
   double free_mass_ = 1.0;           ///< free_mass()
   Vec<int> cpl_row_ptr_, cpl_cols_;
   Vec<double> cpl_vals_;

@@ -207,6 +207,27 @@ TEST_F(CliTest, BroadPhaseReachesTheSceneAndTheSummaryAndFindsTheSamePairs) {
   EXPECT_NE(r.err.find("--broad-phase"), std::string::npos) << r.err;
 }
 
+// --deterministic reaches the scene and the summary; the CPU backend is deterministic either way,
+// so its run takes the same steps with the flag; a server decides it for itself.
+TEST_F(CliTest, DeterministicReachesTheSummaryAndLeavesTheCpuBackendsStepsAlone) {
+  const auto dir = fresh_dir("cli_deterministic");
+  const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
+                          "--no-plots --quiet --threads 1 --out ";
+  auto summary = [&](const std::string& name) { return nlohmann::json::parse(slurp(dir / name / "summary.json")); };
+  CliRun r = gd(run + (dir / "default").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  r = gd(run + (dir / "det").string() + " --deterministic");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto a = summary("default"), b = summary("det");
+  EXPECT_EQ(a.at("deterministic"), false);
+  EXPECT_EQ(b.at("deterministic"), true);
+  EXPECT_EQ(a.at("final"), b.at("final"));
+  EXPECT_EQ(a.at("pcg_per_step"), b.at("pcg_per_step"));
+  r = gd(server_flag() + " run --garment towel --task grasp --deterministic --out " + (dir / "remote").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--deterministic"), std::string::npos) << r.err;
+}
+
 // Robot mode: the URDF arms run a generated grasp locally (their solved joints written as
 // RGBench joints CSVs) and as a job with the URDF sent to the server; without a URDF (locally,
 // or on a server without --robot-urdf) it is refused with what to do.
