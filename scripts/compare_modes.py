@@ -24,15 +24,22 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
-def run(gd, out: Path, garment, vertices, task, mode, urdf, params, threads):
+def run(gd, out: Path, garment, vertices, task, mode, urdf, params, threads, garment_params=(), position=None,
+        grip_force=None):
     cmd = [gd, "run", "--garment", garment, "--task", task, "--mode", mode, "--threads", str(threads), "--quiet",
            "--no-plots", "--out", str(out)]
     if not garment.endswith(".obj"):
         cmd += ["--vertices", str(vertices)]
     if mode == "robot":
         cmd += ["--urdf", urdf]
+        if grip_force is not None:
+            cmd += ["--grip-force", str(grip_force)]
     for kv in params:
         cmd += ["--task-param", kv]
+    for kv in garment_params:
+        cmd += ["--garment-param", kv]
+    if position:
+        cmd += ["--garment-position", *[str(v) for v in position]]
     t0 = time.time()
     proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seconds = time.time() - t0
@@ -92,6 +99,10 @@ def main():
     p.add_argument("--tasks", default="grasp,fold,fling")
     p.add_argument("--task-param", action="append", default=None,
                    help="NAME=VALUE for both modes (default: lift_height=0.45 fling_height=0.45)")
+    p.add_argument("--garment-param", action="append", default=[], help="NAME=VALUE: a generated garment's size")
+    p.add_argument("--garment-position", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="where the garment goes (gd run --garment-position), m")
+    p.add_argument("--grip-force", type=float, help="robot mode: the fingers' squeeze, N (default: the URDF's)")
     p.add_argument("--jobs", type=int, default=2, help="runs at once (each on one thread)")
     p.add_argument("--out", default="out/modes")
     p.add_argument("--png", help="draw the final shapes here")
@@ -102,10 +113,12 @@ def main():
     jobs = [(task, mode) for task in args.tasks.split(",") for mode in ("pseudo", "robot")]
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(lambda tm: run(args.gd, out / f"{tm[0]}_{tm[1]}", args.garment, args.vertices, tm[0],
-                                            tm[1], args.urdf, params, 1), jobs))
+                                            tm[1], args.urdf, params, 1, args.garment_param, args.garment_position,
+                                            args.grip_force), jobs))
     print("| task | mode | ms/step | final max z (cm) | mean z (cm) | extent x, y (cm) | intersecting pairs (max) "
-          "| untangling runs | CD L1 robot->pseudo / pseudo->robot (cm) | HD (cm) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "| untangling runs | held at the end (left, right squeeze N) | CD L1 robot->pseudo / pseudo->robot (cm) "
+          "| HD (cm) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     table = []
     for task in args.tasks.split(","):
         pair = {r["mode"]: r for r in rows if r["task"] == task}
@@ -116,16 +129,18 @@ def main():
             r = pair.get(mode)
             s = r["summary"] if r else None
             if not s:
-                print(f"| {task} | {mode} | failed | | | | | | | |")
+                print(f"| {task} | {mode} | failed | | | | | | | | |")
                 continue
             fin = s.get("final", {})
             cd = hd = ""
             if m and mode == "robot":  # gd metrics --sim robot --real pseudo
                 cd = f"{100 * m['cd_l1_s2r']:.2f} / {100 * m['cd_l1_r2s']:.2f}"
                 hd = f"{100 * m['hd_s2r']:.2f} / {100 * m['hd_r2s']:.2f}"
+            arms = (s.get("robot") or {}).get("arms")
+            held = (f"{arms['left']['squeeze_final_n']:.1f}, {arms['right']['squeeze_final_n']:.1f}" if arms else "")
             print(f"| {task} | {mode} | {s.get('ms_per_step', 0):.0f} | {100 * fin.get('max_z', 0):.1f} | "
                   f"{100 * fin.get('mean_z', 0):.1f} | {100 * fin.get('extent_x', 0):.0f}, {100 * fin.get('extent_y', 0):.0f} "
-                  f"| {s.get('intersecting_pairs_max')} | {s.get('untangle_runs')} | {cd} | {hd} |")
+                  f"| {s.get('intersecting_pairs_max')} | {s.get('untangle_runs')} | {held} | {cd} | {hd} |")
             table.append({"task": task, "mode": mode, "summary_final": fin, "metrics_vs_pseudo": m if mode == "robot" else None,
                           "failed": s.get("failed"), "ms_per_step": s.get("ms_per_step")})
     if args.json:

@@ -157,6 +157,11 @@ int main(int argc, char** argv) {
                   "robot mode: friction of the finger pads on the cloth (< 0: the material's)")
       ->capture_default_str();
   run->add_option("--vertices", cfg.vertices, "target vertex count of a generated garment")->capture_default_str();
+  std::vector<double> garment_position;
+  run->add_option("--garment-position", garment_position,
+                  "X Y Z: where the garment frame's origin goes in the world, m (RGBench's init_pose; default 0.1 0 "
+                  "0.01, the collar end 10 cm in front of the arms' bases)")
+      ->expected(3);
   std::vector<std::string> garment_params;
   run->add_option("--garment-param", garment_params,
                   "a size of a generated garment, NAME=VALUE (repeatable; e.g. hood_length=0.25; names in docs/garments.md)");
@@ -287,7 +292,7 @@ int main(int argc, char** argv) {
       task_param_values[name] = value;
     }
     if (!server.empty() && *run) {
-      for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic",
+      for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic", "--garment-position",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
         if (run->count(local_only) > 0)
@@ -343,6 +348,8 @@ int main(int argc, char** argv) {
       else if (broad_phase == "lbvh") cfg.scene.broad_phase = gd::sim::BroadPhaseKind::kLbvh;
       else if (broad_phase == "auto") cfg.scene.broad_phase = gd::sim::BroadPhaseKind::kAuto;
       else throw gd::sim::InputError("unknown --broad-phase '" + broad_phase + "'; use auto, embree or lbvh");
+      if (garment_position.size() == 3)
+        cfg.garment_position = gd::sim::Vec3(garment_position[0], garment_position[1], garment_position[2]);
       if (backend == "cpu") cfg.scene.backend = gd::sim::BackendKind::kCpu;
       else if (backend == "cuda") cfg.scene.backend = gd::sim::BackendKind::kCuda;
       else if (backend == "auto") cfg.scene.backend = gd::sim::BackendKind::kAuto;

@@ -124,7 +124,8 @@ class Run {
         frame_interval_(frame_interval),
         progress_(progress),
         observe_(observe),
-        end_time_(end_time) {
+        end_time_(end_time),
+        robot_(dynamic_cast<const tasks::RobotController*>(controller_.get())) {
     record();
   }
 
@@ -183,7 +184,9 @@ class Run {
   void write_timeseries(const std::string& path) const {
     std::ofstream f(path);
     if (!f) throw InputError(fmt::format("cannot write '{}'", path));
-    f << "t,min_z,max_z,mean_z,extent_x,extent_y,kinetic,contacts,intersecting_pairs,newton_iters,pcg_iters,ms\n";
+    f << "t,min_z,max_z,mean_z,extent_x,extent_y,kinetic,contacts,intersecting_pairs,newton_iters,pcg_iters,ms";
+    if (robot_) f << ",left_gripper,right_gripper,left_squeeze_n,right_squeeze_n,left_table_lift,right_table_lift";
+    f << "\n";
     for (const std::string& r : rows_) f << r << "\n";
   }
 
@@ -196,6 +199,11 @@ class Run {
                                 s.min_z, s.max_z, s.mean_z, s.extent_x, s.extent_y, scene_->energies().kinetic,
                                 st.contacts, st.intersecting_pairs, st.newton_iters, st.pcg_iters,
                                 1e3 * st.seconds));
+    if (robot_) {  // robot mode: each hand's opening (m per finger), squeeze (N) and lift off the table (m)
+      const tasks::RobotArmState &l = robot_->state(tasks::Arm::kLeft), &r = robot_->state(tasks::Arm::kRight);
+      rows_.back() += fmt::format(",{:.6f},{:.6f},{:.4f},{:.4f},{:.6f},{:.6f}", l.gripper, r.gripper, l.squeeze,
+                                  r.squeeze, l.table_lift, r.table_lift);
+    }
     next_record_ = scene_->time() + frame_interval_;
     // Every anim_stride_-th frame for the animation; past kMaxAnimationFrames every other
     // frame kept is dropped and the stride doubles, so the frames stay evenly spaced.
@@ -236,6 +244,7 @@ class Run {
   ProgressFn progress_;
   StepObserver observe_;
   double end_time_;
+  const tasks::RobotController* robot_;  ///< the controller in robot mode (its arms' columns), else null
   double next_record_ = 0;
   int steps_ = 0, intersecting_max_ = 0, contacts_max_ = 0;
   double stepping_seconds_ = 0;
@@ -272,6 +281,11 @@ void ExperimentConfig::validate() const {
     throw InputError(fmt::format("unknown mode '{}'; use pseudo, fixed_point or robot", mode));
   if (mode == "robot") robot.validate();  // the URDF first of all
   if (out_dir.empty()) throw InputError("no output directory given (--out DIR)");
+  if (!garment_position.allFinite() || garment_position.z() <= 0 || std::abs(garment_position.x()) > 10 ||
+      std::abs(garment_position.y()) > 10 || garment_position.z() > 2)
+    throw InputError(fmt::format("garment position ({}, {}, {}) must be finite, above the table (z > 0, at most 2 m) "
+                                 "and within 10 m of the robots",
+                                 garment_position.x(), garment_position.y(), garment_position.z()));
   if (garment.empty()) throw InputError("no garment given: a garment type or an .obj path");
   if (!(frame_interval > 0) || !std::isfinite(frame_interval))
     throw InputError(fmt::format("frame_interval must be positive (got {})", frame_interval));
@@ -390,9 +404,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   const tasks::TaskKind kind = tasks::task_kind_from_name(config.task);
   const bool fixed_point = config.mode == "fixed_point";
 
-  // Garment, placed at RGBench's initial pose.
+  // Garment, placed at RGBench's initial pose (its position config.garment_position).
   garments::Garment garment = make_experiment_garment(config);
-  const Eigen::Isometry3d place = tasks::default_garment_pose();
+  Eigen::Isometry3d place = tasks::default_garment_pose();
+  place.translation() = config.garment_position;
   sim::Mesh mesh = garment.mesh;
   for (Vec3& p : mesh.x) p = place * p;
   const sim::Material base = sim::MaterialLibrary::load_default().get(config.material);
@@ -586,6 +601,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   if (!config.material_params.empty()) s["material_params"] = config.material_params;
   s["task"] = config.task;
   s["mode"] = config.mode;
+  s["garment_position"] = {config.garment_position.x(), config.garment_position.y(), config.garment_position.z()};
   s["trajectory"] = traj_source;
   // The generated task's parameters (defaults included); none for a trajectory file or capture.
   s["task_params"] = nlohmann::json::object();
@@ -651,6 +667,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     s["robot"] = {{"urdf", config.robot.urdf},
                   {"ik_samples", robot->ik_solved()},
                   {"ik_max_tilt_deg", robot->ik_max_tilt() * 180 / 3.14159265358979323846},
+                  {"hands_half_turned", {robot->hand_half_turned(tasks::Arm::kLeft), robot->hand_half_turned(tasks::Arm::kRight)}},
                   {"joints_clamped", robot->joints_clamped()},
                   {"joint_clamp_max", robot->joint_clamp_max()},
                   {"arms", arms}};

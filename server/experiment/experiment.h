@@ -50,6 +50,12 @@ struct ExperimentConfig {
   /// pseudo (jaw-radius grasp) | fixed_point (RGBench's) | robot (URDF arms, finger contact)
   std::string mode = "pseudo";
   int vertices = 2000;                   ///< target vertex count of a generated garment
+  /// Where the garment frame's origin is put in the world, m (RGBench's main.yaml init_pose
+  /// position; its fallback (0.1, 0, 0.01) puts the collar end 10 cm in front of the robots' bases
+  /// and the garment 1 cm above the table). Robot mode reaches top-down from about 5 to 45 cm in
+  /// front of a base at the table (docs/robot.md), so a garment placed farther out keeps its grasp
+  /// points within reach as the arms lift.
+  sim::Vec3 garment_position = tasks::default_garment_position();
   /// Sizes of a generated garment by GarmentParams field name (e.g. {"hood_length", 0.25});
   /// absent ones take the type's defaults (docs/garments.md).
   std::map<std::string, double> garment_params;

@@ -65,7 +65,8 @@ SyntheticCapture make_synthetic_capture(const ExperimentConfig& reference, const
     throw InputError("synthetic capture: fps > 0, points_per_frame >= 10, noise >= 0, dropout in [0, 1), "
                      "occlusion_radius >= 0 and camera_delay >= 0 are required");
   const garments::Garment garment = make_experiment_garment(reference);
-  const Eigen::Isometry3d place = tasks::default_garment_pose();
+  Eigen::Isometry3d place = tasks::default_garment_pose();
+  place.translation() = reference.garment_position;
   sim::Mesh mesh = garment.mesh;
   for (Vec3& p : mesh.x) p = place * p;
   tasks::DualArmTrajectory traj = reference.trajectory_file.empty()

@@ -29,6 +29,7 @@ void TaskParams::validate() const {
   positive(approach_duration, "approach_duration");
   positive(close_duration, "close_duration");
   finite(grasp_inset, "grasp_inset");
+  finite(grasp_inset_side, "grasp_inset_side");
   finite(grasp_depth, "grasp_depth");
   finite(lift_height, "lift_height");
   positive(lift_duration, "lift_duration");
@@ -66,6 +67,7 @@ constexpr TaskParamField kTaskParamFields[] = {
     {"approach_duration", &TaskParams::approach_duration},
     {"close_duration", &TaskParams::close_duration},
     {"grasp_inset", &TaskParams::grasp_inset},
+    {"grasp_inset_side", &TaskParams::grasp_inset_side},
     {"grasp_depth", &TaskParams::grasp_depth},
     {"lift_height", &TaskParams::lift_height},
     {"lift_duration", &TaskParams::lift_duration},
@@ -233,14 +235,20 @@ Setup setup(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskPa
   s.length = g.length;
   s.width = g.width;
   s.forward = T.linear() * Vec3::UnitX();
-  s.grasp_local = {lm.left_shoulder + p.grasp_inset * Vec3::UnitX(), lm.right_shoulder + p.grasp_inset * Vec3::UnitX()};
+  const Vec3 side = p.grasp_inset_side * Vec3::UnitY();  // towards the centre line: -y on the left, +y on the right
+  s.grasp_local = {lm.left_shoulder + p.grasp_inset * Vec3::UnitX() - side,
+                   lm.right_shoulder + p.grasp_inset * Vec3::UnitX() + side};
+  if (s.grasp_local[0].y() <= s.grasp_local[1].y())
+    throw InputError(fmt::format("task parameter grasp_inset_side {} m moves the grasp points across the garment's "
+                                 "centre line (they are {:.3f} m apart); keep it below half that",
+                                 p.grasp_inset_side, lm.left_shoulder.y() - lm.right_shoulder.y()));
   const Vec3 down = -std::max(0.0, p.grasp_depth) * Vec3::UnitZ();
   for (int a = 0; a < 2; ++a) s.grasp[a] = T * s.grasp_local[a] + down;
   s.shoulder_distance = (s.grasp[0] - s.grasp[1]).norm();
   // The hem: its landmarks when set (beyond the shoulders), else the garment's length.
   const double hem = 0.5 * (lm.left_hem.x() + lm.right_hem.x());
   s.hem_x = hem > 0.5 * (lm.left_shoulder.x() + lm.right_shoulder.x()) ? hem : g.length;
-  s.hem_local = {lm.left_hem - p.grasp_inset * Vec3::UnitX(), lm.right_hem - p.grasp_inset * Vec3::UnitX()};
+  s.hem_local = {lm.left_hem - p.grasp_inset * Vec3::UnitX() - side, lm.right_hem - p.grasp_inset * Vec3::UnitX() + side};
   for (int a = 0; a < 2; ++a) s.hem_grasp[a] = T * s.hem_local[a] + down;
   if (lm.has_hood) {
     if (!lm.left_hood.allFinite() || !lm.right_hood.allFinite() || !std::isfinite(lm.hood_fold_x))

@@ -43,6 +43,11 @@ struct TaskParams {
   double close_duration = 0.6;        ///< s for the gripper to close (or open)
   /// m added to each grasp point along garment +x (inwards from the collar edge); 0: the landmark.
   double grasp_inset = 0.0;
+  /// m each grasp point moves from the garment's side towards its centre line (garment y; the hem
+  /// corners too); 0: the landmark. A landmark on the side edge (a towel's corners) leaves one of
+  /// robot mode's fingers, which close along garment x, beside the cloth's corner rather than over
+  /// the cloth.
+  double grasp_inset_side = 0.0;
   /// m the grippers reach below each grasp point (world -z). Negative: automatic, 0 for the
   /// pseudo modes; robot mode (experiment) takes 5 mm, so the fingers go down to the table, whose
   /// clearance stops them (tasks/robot_arms.h), as a real gripper's fingertips touch it.

@@ -19,6 +19,9 @@ namespace {
 constexpr double kMaxFingerSpeed = 0.1;        ///< m/s: cap on the URDF's finger velocity limit
 constexpr double kIkPositionTolerance = 1e-3;  ///< m: how near inverse kinematics must put the tool
 constexpr double kIkJumpWarning = 0.5;         ///< rad between neighbouring samples that gets a warning
+/// rad: how much closer to a pose the hand turned half a turn must come before it is preferred
+/// (resolve()); a tie keeps the trajectory's own orientation.
+constexpr double kHalfTurnPreference = 1e-3;
 /// Default lowest pad point above the table, in contact distances. Lying cloth rests at half the
 /// contact distance: pads whose bottom is within ~0.3 of it catch the cloth with their faces'
 /// lower edges and bunch it up between them (0.6-0.8 grasp in tests/tasks/robot_arms_test.cpp);
@@ -166,9 +169,30 @@ ArmSample RobotController::resolve(Arm a, ArmSample s, const std::vector<double>
   }
   if (!s.position.allFinite() || !s.orientation.coeffs().allFinite())
     throw InputError(fmt::format("robot mode: the {} arm's sample at t={:.4f} s has a non-finite pose", arm_name(a), s.t));
-  Eigen::Isometry3d ee = base_pose(a).inverse() * make_pose(s.position, s.orientation.normalized());
-  ee.linear() = ee.linear() * options_.tool_to_ee;
-  const robot::IkResult r = m.ik_position_first(ee, seed, options_.max_tilt, kIkPositionTolerance);
+  const Eigen::Isometry3d tool = base_pose(a).inverse() * make_pose(s.position, s.orientation.normalized());
+  // The tool's pose, or the same turned half a turn about its approach axis: a parallel gripper's
+  // two fingers are interchangeable, so both hold the cloth alike, but one may lie outside the
+  // wrist's limits (the Piper's joint6 stops at -120 degrees: a left arm reaching across its
+  // base to the garment's corner could not square its fingers with the garment's edge, tilted
+  // the hand, lifted it off the table by a millimetre more and closed above the cloth). The
+  // arm's first solved pose decides (both tried; the turned one only when it comes closer), and
+  // the arm keeps that way round for the whole trajectory, so its wrist never flips in between.
+  auto solve = [&](bool turned) {
+    Eigen::Isometry3d ee = tool;
+    if (turned) ee.linear() = ee.linear() * Eigen::AngleAxisd(M_PI, Vec3::UnitZ()).toRotationMatrix();
+    ee.linear() = ee.linear() * options_.tool_to_ee;
+    return m.ik_position_first(ee, seed, options_.max_tilt, kIkPositionTolerance);
+  };
+  int& turned = half_turned_[static_cast<int>(a)];
+  robot::IkResult r;
+  if (turned < 0) {
+    const robot::IkResult plain = solve(false), half = solve(true);
+    const bool take_half = half.ok && (!plain.ok || half.rotation_error < plain.rotation_error - kHalfTurnPreference);
+    turned = take_half ? 1 : 0;
+    r = take_half ? half : plain;
+  } else {
+    r = solve(turned == 1);
+  }
   if (!r.ok)
     throw InputError(fmt::format("robot mode: the {} arm cannot reach its pose at t={:.3f} s (world position "
                                  "{:.3f}, {:.3f}, {:.3f}): {:.1f} mm and {:.2f} deg away at best; move the task "

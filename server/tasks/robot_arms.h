@@ -114,6 +114,10 @@ class RobotController final : public TaskController {
   int ik_solved() const { return ik_solved_; }
   /// Largest orientation error (rad) inverse kinematics had to accept.
   double ik_max_tilt() const { return ik_max_tilt_; }
+  /// Whether the arm holds its hand turned half a turn about the approach axis from the
+  /// trajectory's orientation (its wrist reaches that way round; fingers swapped), decided at its
+  /// first solved pose; false for arms driven by given joints.
+  bool hand_half_turned(Arm a) const { return half_turned_[static_cast<int>(a)] == 1; }
   /// Recorded samples whose joints lay outside the URDF's limits (beyond kJointLimitSlack) and
   /// were clamped to them, and the largest excess (rad or m).
   int joints_clamped() const { return joints_clamped_; }
@@ -141,6 +145,7 @@ class RobotController final : public TaskController {
   double grip_force_ = 0, finger_speed_ = 0;
   int ik_solved_ = 0;
   mutable double ik_max_tilt_ = 0;  ///< grows in resolve()
+  mutable std::array<int, 2> half_turned_{-1, -1};  ///< per arm: -1 undecided, 0 as given, 1 half a turn (resolve())
   int joints_clamped_ = 0;
   double joint_clamp_max_ = 0;
   bool attached_ = false;

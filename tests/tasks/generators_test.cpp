@@ -205,7 +205,7 @@ TEST(Generators, TaskParamsSetByNameChangeTheTask) {
   set_task_param(p, "fold_duration", p.fold_duration + 2.0);
   EXPECT_NEAR(make_fold(g, default_garment_pose(), p).end_time(), full + 2.0, 1e-9);
   // Every listed name is a field: setting each to 7 leaves a different struct each time.
-  ASSERT_EQ(task_param_names().size(), 27u);
+  ASSERT_EQ(task_param_names().size(), 28u);
   for (const std::string& name : task_param_names()) {
     TaskParams q;
     set_task_param(q, name, 7.0);
@@ -223,7 +223,7 @@ TEST(Generators, TaskParamsSetByNameChangeTheTask) {
   for (size_t k = 0; k < values.size(); ++k) EXPECT_EQ(values[k].first, task_param_names()[k]);
   EXPECT_EQ(std::find(values.begin(), values.end(), std::make_pair(std::string("fold_duration"), p.fold_duration)) -
                 values.begin(),
-            19);  // the 20th name
+            20);  // the 21st name
   try {
     set_task_param(p, "fold_speed", 1.0);
     FAIL() << "no error";
@@ -233,6 +233,34 @@ TEST(Generators, TaskParamsSetByNameChangeTheTask) {
   }
   set_task_param(p, "lift_duration", -1);  // the value is checked where the task is made
   EXPECT_THROW(make_grasp(g, default_garment_pose(), p), InputError);
+}
+
+// grasp_inset_side moves both grasp points (and the fold's hem corners) towards the centre line,
+// for robot mode's fingers (docs/robot.md); past the centre line it is refused.
+TEST(Generators, GraspInsetSideMovesTheGraspPointsTowardsTheCentreLine) {
+  const garments::Garment g = small_garment();
+  const Eigen::Isometry3d T = default_garment_pose();
+  TaskParams p;
+  set_task_param(p, "grasp_inset_side", 0.04);
+  const DualArmTrajectory plain = make_fold(g, T), inset = make_fold(g, T, p);
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    const double toward = a == Arm::kLeft ? -0.04 : 0.04;
+    const auto& ps = plain.arm(a).samples();
+    const auto& is = inset.arm(a).samples();
+    ASSERT_EQ(ps.size(), is.size());
+    for (size_t k = 0; k < ps.size(); ++k) {  // the whole path, the shoulders and the hem corners alike
+      EXPECT_NEAR(is[k].position.y() - ps[k].position.y(), toward, 1e-12) << k;
+      EXPECT_NEAR(is[k].position.x(), ps[k].position.x(), 1e-12) << k;
+    }
+  }
+  const double half = 0.5 * (g.landmarks.left_shoulder.y() - g.landmarks.right_shoulder.y());
+  set_task_param(p, "grasp_inset_side", half + 0.01);
+  try {
+    make_grasp(g, T, p);
+    FAIL() << "grasp points across the centre line were accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("grasp_inset_side"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Generators, BadInputIsAnInputError) {

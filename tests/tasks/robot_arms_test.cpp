@@ -210,6 +210,42 @@ TEST(RobotArms, GeneratedPosesBecomeJointsWithinReachAndUnreachableOnesAreRefuse
   EXPECT_THROW(RobotController(lift_trajectory(), none), sim::InputError);  // no URDF given
 }
 
+// A left hand reaching across its base (a small towel's corner, 14 cm to its right) squares its
+// fingers with the garment's edge only turned half a turn: as the trajectory asks, the wrist
+// (joint6, down to -120 degrees) would stop 3.7 degrees short and tilt the hand. The arm's first
+// pose takes the half turn, exactly top down, and keeps it along the whole path; the right hand,
+// in front of its own base, reaches as asked.
+TEST(RobotArms, AHandTurnsHalfATurnWhereItsWristCannotReachTheOrientationAsked) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  RobotOptions ro;
+  ro.urdf = piper_urdf();
+  DualArmTrajectory path;
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    std::vector<ArmSample> samples;
+    for (const double t : {0.0, 0.5, 1.0}) {
+      ArmSample s;
+      s.t = t;
+      s.orientation = top_down_orientation();
+      s.gripper = kGripperOpen;
+      s.position = Vec3(0.19, a == Arm::kLeft ? 0.11 : -0.11, t < 0.5 ? 0.08 : -0.0045);
+      samples.push_back(s);
+    }
+    path.arm(a) = ArmTrajectory(samples, arm_name(a));
+  }
+  RobotController c(path, ro);
+  EXPECT_TRUE(c.hand_half_turned(Arm::kLeft));
+  EXPECT_FALSE(c.hand_half_turned(Arm::kRight));
+  EXPECT_LT(c.ik_max_tilt(), 1e-3) << "the hands point straight down";
+  const auto& js = c.trajectory().left.samples();
+  for (size_t k = 1; k < js.size(); ++k) EXPECT_LT(std::abs(js[k].joints[5] - js[k - 1].joints[5]), 0.2) << k;
+  // The fingers close along the same line either way round: the pads' centres lie on the world x
+  // axis through the hand, 2 x 3.5 cm apart when open.
+  const auto pads = c.finger_poses(Arm::kLeft, js.back().joints, kGripperOpen);
+  const Vec3 across = pads[0].translation() - pads[1].translation();
+  EXPECT_NEAR(std::abs(across.x()), 0.07, 2e-3);
+  EXPECT_LT(std::hypot(across.y(), across.z()), 2e-3);
+}
+
 // Given joints and the URDF's limits: recorded ones (a real arm's) are clamped and counted, a
 // command beyond them (the service's) is refused naming the joint; within the slack both are
 // clamped quietly.

@@ -2,6 +2,7 @@
 // files written and exit codes (0 ok, 1 failed, 2 bad input, 3 unreachable/RPC error).
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -245,6 +246,28 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   EXPECT_GT(s.at("robot").at("ik_samples").get<int>(), 100);
   EXPECT_LT(s.at("robot").at("ik_max_tilt_deg").get<double>(), 120.0);
   EXPECT_DOUBLE_EQ(s.at("task_params").at("grasp_depth").get<double>(), 0.005);  // down to the table
+  EXPECT_EQ(s.at("robot").at("hands_half_turned").size(), 2u);
+  // The time series carries each hand's opening (within the finger's travel), squeeze and lift
+  // off the table, and the hands close.
+  std::ifstream ts(dir / "local" / "timeseries.csv");
+  std::string ts_header, ts_row;
+  std::getline(ts, ts_header);
+  EXPECT_NE(ts_header.find(",left_gripper,right_gripper,left_squeeze_n,right_squeeze_n,left_table_lift,right_table_lift"),
+            std::string::npos) << ts_header;
+  double narrowest = 1;
+  while (std::getline(ts, ts_row)) {
+    std::vector<double> c;
+    std::stringstream cells_ts(ts_row);
+    for (std::string v; std::getline(cells_ts, v, ',');) c.push_back(std::stod(v));
+    ASSERT_EQ(c.size(), 18u);
+    for (int k : {12, 13}) {
+      EXPECT_GE(c[k], 0.0);
+      EXPECT_LE(c[k], 0.035 + 1e-9);
+      narrowest = std::min(narrowest, c[k]);
+    }
+    EXPECT_TRUE(std::isfinite(c[14]) && std::isfinite(c[15]));
+  }
+  EXPECT_LT(narrowest, 0.005) << "m: the hands close";
   // The left arm's joints CSV: RGBench's header, six joint angles that are not all zero.
   std::ifstream joints(dir / "local" / "joints" / "left_arm_joint_states_and_end_pose.csv");
   std::string header, row;
@@ -270,6 +293,36 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   r = gd(server_flag() + " run --garment towel --task grasp --mode robot --out " + (dir / "remote_no_urdf").string());
   EXPECT_NE(r.rc, 0);
   EXPECT_NE(r.err.find("--robot-urdf"), std::string::npos) << r.err;
+}
+
+// --garment-position moves the garment (RGBench's init_pose): the initial mesh starts where asked
+// and the summary records it; a server places jobs itself.
+TEST_F(CliTest, GarmentPositionPlacesTheGarment) {
+  const auto dir = fresh_dir("cli_position");
+  const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
+                          "--no-self-contact --no-plots --quiet --threads 1 --out ";
+  CliRun r = gd(run + (dir / "moved").string() + " --garment-position 0.3 0.05 0.02");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto s = nlohmann::json::parse(slurp(dir / "moved" / "summary.json"));
+  EXPECT_EQ(s.at("garment_position"), nlohmann::json::array({0.3, 0.05, 0.02}));
+  std::ifstream obj(dir / "moved" / "initial.obj");
+  double lo_x = 1e9, lo_y = 1e9, hi_y = -1e9;
+  for (std::string line; std::getline(obj, line);) {
+    if (line.rfind("v ", 0) != 0) continue;
+    std::stringstream v(line.substr(2));
+    double x, y, z;
+    v >> x >> y >> z;
+    lo_x = std::min(lo_x, x), lo_y = std::min(lo_y, y), hi_y = std::max(hi_y, y);
+  }
+  EXPECT_NEAR(lo_x, 0.3, 1e-6);               // the towel's near edge (its frame's x = 0)
+  EXPECT_NEAR(0.5 * (lo_y + hi_y), 0.05, 1e-6);  // centred on y = 0.05
+  r = gd(run + (dir / "bad").string() + " --garment-position 0.3 0 -0.1");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("garment position"), std::string::npos) << r.err;
+  r = gd(server_flag() + " run --garment towel --task grasp --garment-position 0.3 0 0.01 --out " +
+         (dir / "remote").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--garment-position"), std::string::npos) << r.err;
 }
 
 TEST_F(CliTest, GarmentParamSizesTheGarmentLocallyAndAsAJob) {
