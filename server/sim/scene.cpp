@@ -225,12 +225,13 @@ bool Scene::do_step(bool quasi_static) {
     stats_ = solver_->step(kin, quasi_static);
     solver_->get_positions(x);
     solver_->get_velocities(v);
-  } catch (const BackendError& e) {  // the device failed this scene's step; the process goes on
+  } catch (const std::exception& e) {  // the device failed this scene's step, or the state went
+    // bad inside it (a stage refusing a non-finite position); the scene fails, the process goes on
     failed_ = true;
     failure_ = std::string(e.what()) + " at t=" + std::to_string(time_ + options_.dt) + " s";
     try {
       if (!x0.empty() && !v0.empty()) solver_->set_state(x0, v0);
-    } catch (const BackendError&) {
+    } catch (const std::exception&) {
       failure_ += "; the previous state could not be restored";
     }
     gd::log().error("scene failed: {}", failure_);

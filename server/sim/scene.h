@@ -8,8 +8,9 @@
 ///   for (int i = 0; i < 400; ++i) scene->step();
 ///   auto x = scene->positions();
 ///
-/// A state that turns non-finite marks the scene failed (failed(), failure()); later steps
-/// are refused. Nothing in here aborts the process on bad input.
+/// A state that turns non-finite, a device that fails, or any error raised inside a step marks
+/// the scene failed (failed(), failure()) with its last good state kept; later steps are refused.
+/// Nothing in here aborts the process on bad input.
 
 #include <Eigen/Geometry>
 #include <functional>

@@ -24,11 +24,14 @@ void Solver<Exec>::select_contacts() {
 
 /// Candidates along the Newton step x -> x + dx (for CCD and the line search). A step whose
 /// query would flood the pair budget is halved first (SelfContact::find_within_budget), dx too.
+/// False (nothing done) when dx is not finite: a linear solve that broke down (a robot's pinch
+/// pressed to 1e-16 m once gave one), which the broad phase would refuse as bad input.
 template <class Exec>
-void Solver<Exec>::find_contacts_along_step() {
-  if (!self_) return;
+bool Solver<Exec>::find_contacts_along_step() {
+  if (!self_) return true;
   Exec::download(host_x_, x_);
   Exec::download(host_dx_, dx_);
+  if (!std::all_of(host_dx_.begin(), host_dx_.end(), [](double v) { return std::isfinite(v); })) return false;
   for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] += host_x_[k];  // the step's end
   if (self_->find_within_budget(host_x_, &host_dx_) > 0) {
     for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] -= host_x_[k];
@@ -36,6 +39,7 @@ void Solver<Exec>::find_contacts_along_step() {
   }
   self_->select_active(host_x_, kin_fixed_host_);
   upload_candidates();
+  return true;
 }
 
 template <class Exec>

@@ -133,7 +133,13 @@ class Solver final : public SolverBase {
       timed(T.precond, [&] { prepare_linear_solve(); });            // PCG's preconditioner
       timed(T.stopping, [&] { order_estimator(); });                // the stopping rule's, ordered at x
       timed(T.pcg, [&] { st.pcg_iters += solve_linear(scale); });   // dx = -H^-1 g (inexact)
-      timed(T.contacts, [&] { find_contacts_along_step(); });       // broad phase on the motion x -> x + dx
+      bool direction_finite = true;
+      timed(T.contacts, [&] { direction_finite = find_contacts_along_step(); });  // broad phase on x -> x + dx
+      if (!direction_finite) {                                      // a linear solve that broke down
+        gd::log().warn("newton {}: the Newton direction is not finite", k);
+        st.finite = false;
+        break;
+      }
       double alpha_max = 1, alpha = 0;
       timed(T.ccd, [&] { alpha_max = max_step(); });                // CCD: largest safe fraction of dx
       timed(T.line_search, [&] { alpha = line_search(alpha_max, e0, &st.energy_evals); });  // Armijo backtracking
@@ -221,7 +227,7 @@ class Solver final : public SolverBase {
 
   // Self-contact pair lists, barrier stiffness, intersection check (contact_stage.h)
   void select_contacts();
-  void find_contacts_along_step();
+  bool find_contacts_along_step();
   void upload_candidates();
   void upload_friction();
   void adapt_barrier_stiffness(double min_distance);

@@ -15,6 +15,7 @@
 #include "sim/scene.h"
 #include "sim/solver/solver.h"
 #include "sim/stacked_sheets.h"
+#include "sim/tight_solve.h"
 
 namespace gd::sim {
 namespace {
@@ -89,13 +90,7 @@ TEST(DeterministicGpuPaths, CudaRepeatsItselfBitForBit) {
 // deterministic paths take the CPU backend's steps to rounding.
 TEST(DeterministicGpuPaths, MatchTheCpuBackendToRounding) {
   const Mesh m = two_sheets();
-  SceneOptions tight;
-  tight.pcg_tol = 1e-11;
-  tight.pcg_max_iters = 5000;
-  tight.pcg_newton_fraction = 0;
-  tight.newton_max_iters = 20;
-  tight.newton_tol = 1e-8;
-  tight.newton_rtol = tight.newton_atol = 0;
+  const SceneOptions tight = test::tight_solve();
   SceneOptions det = tight;
   det.backend = BackendKind::kCpuGpuPaths;
   det.deterministic = true;

@@ -20,24 +20,18 @@
 #include "sim/scene.h"
 #include "sim/solver/solver.h"
 #include "sim/stacked_sheets.h"
+#include "sim/tight_solve.h"
 
 namespace gd::sim {
 namespace {
 
 Material cotton() { return MaterialLibrary::load_default().get("cotton"); }
 
-/// Solver settings under which a step's result does not depend on the linear solver's path:
-/// PCG to a relative residual of 1e-11 and Newton to 1e-8 m/s, on two threads (so the atomic
-/// adds race).
+/// Solver settings under which a step's result does not depend on the linear solver's path
+/// (test::tight_solve), on two threads (so the atomic adds race).
 SceneOptions tight(bool self_contact) {
-  SceneOptions o;
+  SceneOptions o = test::tight_solve();
   o.self_contact = self_contact;
-  o.pcg_tol = 1e-11;
-  o.pcg_max_iters = 5000;
-  o.pcg_newton_fraction = 0;
-  o.newton_max_iters = 20;
-  o.newton_tol = 1e-8;
-  o.newton_rtol = o.newton_atol = 0;
   o.threads = 2;
   return o;
 }
