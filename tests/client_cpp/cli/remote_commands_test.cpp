@@ -392,7 +392,8 @@ TEST_F(CliTest, TaskParamChangesTheGeneratedTaskLocallyAndAsAJob) {
     const auto tp = nlohmann::json::parse(slurp(dir / name / "summary.json")).at("task_params");
     EXPECT_DOUBLE_EQ(tp.at("hold_duration").get<double>(), 5.0) << name;
     EXPECT_DOUBLE_EQ(tp.at("time_scale").get<double>(), 0.5) << name;
-    EXPECT_EQ(tp.size(), 27u) << name;
+    EXPECT_EQ(tp.size(), 28u) << name;
+    EXPECT_DOUBLE_EQ(tp.at("grasp_inset_side").get<double>(), 0.0) << name;
     EXPECT_DOUBLE_EQ(tp.at("grasp_depth").get<double>(), 0.0) << name;  // "auto": 0 in pseudo mode
   }
   // An unknown name, or a bad value, locally and on the server: 2, naming it.
