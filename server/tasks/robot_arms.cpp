@@ -307,7 +307,12 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     const ArmSample s = traj_.arm(a).sample(t_end);
     // The mean push on the two pads along each pad's opening direction (its link's z).
     double squeeze = 0;
-    for (int f = 0; f < 2; ++f) squeeze += 0.5 * forces[2 * ai + f].dot(poses_->pose[2 * ai + f][1].linear().col(2));
+    bool pressed = false;  // cloth pushes some pad's inner face apart
+    for (int f = 0; f < 2; ++f) {
+      const double push = forces[2 * ai + f].dot(poses_->pose[2 * ai + f][1].linear().col(2));
+      squeeze += 0.5 * push;
+      pressed = pressed || push > 0;
+    }
     st.squeeze = squeeze;
     // A position-controlled, force-limited finger joint.
     const double command = std::clamp(s.gripper, 0.0, model_->gripper_max());
@@ -333,8 +338,11 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     } else {
       g = std::min(command, g + finger_speed_ * dt);
     }
-    // Never so near that the pads' faces meet with cloth between them (no room left for it).
-    if (squeeze > 0) g = std::max(g, 0.25 * dhat);
+    // Never so near that the pads' faces meet with cloth between them (no room left for it). Cloth
+    // pressing one pad's inner face counts even when cloth wrapped round the other pad's outer face
+    // pulls the mean squeeze below zero (a towel turned over in a fold or a fling: the fingers then
+    // closed to 0 on the cloth between them and trapped it inside a pad).
+    if (pressed) g = std::max(g, 0.25 * dhat);
     const bool closing = command < 0.5 * model_->gripper_max();  // a grasp or release event
     if (closing != closing_[ai]) {
       events_.push_back({t0, a, closing, {}});

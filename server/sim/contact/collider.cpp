@@ -350,18 +350,39 @@ Vec3 Collider::project_out(const Vec3& x_world, double t, Real gap) const {
 }
 
 void Collider::project_out(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap) const {
+  project_batch(x, skip, t, gap, nullptr, t, gap);
+}
+
+void Collider::project_out(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap,
+                           const std::vector<double>& start, double t_start, Real floor) const {
+  check_gap(floor);
+  if (start.size() != x->size())
+    throw InputError("Collider::project_out: " + std::to_string(x->size()) + " coordinates but " +
+                     std::to_string(start.size()) + " at the start");
+  project_batch(x, skip, t, gap, &start, t_start, floor);
+}
+
+void Collider::project_batch(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap,
+                             const std::vector<double>* start, double t_start, Real floor) const {
   check_gap(gap);
   if (x->size() != 3 * skip.size())
     throw InputError("Collider::project_out: " + std::to_string(x->size()) + " coordinates but " +
                      std::to_string(skip.size()) + " skip flags");
   const Eigen::Isometry3d P = checked_pose(t);
+  const Eigen::Isometry3d P0 = start ? checked_pose(t_start) : P;
   const int n = static_cast<int>(skip.size());
   double* xs = x->data();
+  const double* x0 = start ? start->data() : nullptr;
 #pragma omp parallel for schedule(static) if (n >= 2048)
   for (int i = 0; i < n; ++i) {
     const Vec3 p(xs[3 * i], xs[3 * i + 1], xs[3 * i + 2]);
     if (skip[i] || !p.allFinite()) continue;
-    const Vec3 q = project_out(p, P, gap);
+    Real gi = gap;
+    if (x0) {  // never farther out than the point's clearance at the start (at least `floor`)
+      const Vec3 p0(x0[3 * i], x0[3 * i + 1], x0[3 * i + 2]);
+      if (p0.allFinite()) gi = std::min(gap, std::max(floor, query(p0, P0).distance));
+    }
+    const Vec3 q = project_out(p, P, gi);
     for (int k = 0; k < 3; ++k) xs[3 * i + k] = q[k];
   }
 }

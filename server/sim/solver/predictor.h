@@ -150,15 +150,20 @@ void Solver<Exec>::end_step() {
 }
 
 /// A collider may move into the cloth during the step: Newton starts from a guess with every
-/// free vertex at least dhat/2 outside each collider's end pose. Where two colliders squeeze
+/// free vertex outside each collider's end pose by dhat/2, or by its clearance at the step's start
+/// where that was less (at least 1e-3 dhat): cloth a pad already presses moves with the pad instead
+/// of being lifted off it, which in a pinch would move the layer under the pad that far towards
+/// the layer beneath and through it (docs/robot.md, "Pinched layers"). Where two colliders squeeze
 /// cloth (gripper pads) moving a vertex out of one can move it into the other: then the
 /// projections repeat with half the gap, up to three times.
 template <class Exec>
 void Solver<Exec>::project_out_of_colliders() {
   Exec::download(host_x_, x_);
+  Exec::download(host_xt_, x_t_);
   double gap = 0.5 * P_.dhat;
   for (int round = 0; round < 4; ++round, gap *= 0.5) {
-    for (const Collider& c : *colliders_) c.project_out(&host_x_, kin_fixed_host_, col_t1_, gap);
+    for (const Collider& c : *colliders_)
+      c.project_out(&host_x_, kin_fixed_host_, col_t1_, gap, host_xt_, col_t0_, kClearanceFloor * P_.dhat);
     if (colliders_->size() < 2 || !inside_a_collider(host_x_)) break;
   }
   Exec::upload(x_, host_x_);

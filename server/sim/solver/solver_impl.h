@@ -193,6 +193,7 @@ class Solver final : public SolverBase {
   void set_colliders(const std::vector<Collider>& colliders, double t0, double t1) override {
     colliders_ = &colliders;
     col_t1_ = t1;
+    col_t0_ = t0;
     n_col_ = static_cast<int>(colliders.size());
     if (n_col_ == 0) return;
     const PackedColliders packed = pack_colliders(colliders);
@@ -413,10 +414,12 @@ class Solver final : public SolverBase {
   static constexpr double kKappaScaleMax = 1e4;  // adaptive barrier stiffness: at most this x
   /// adapt_barrier_stiffness halves the stiffness when every active pair is this far apart (x dhat).
   static constexpr double kRelaxGapFraction = 0.5;
+  static constexpr double kClearanceFloor = 1e-3;  // project_out_of_colliders: least clearance kept, in dhat
   static constexpr double kPressedGapFloors = 10;  // stiffen_pressed_pairs: gap in CCD floors
   // kinematic colliders (host objects owned by the Scene; packed copies on the backend)
   const std::vector<Collider>* colliders_ = nullptr;
   double col_t1_ = 0;
+  double col_t0_ = 0;
   int n_col_ = 0;
   Vec<ColliderShape> col_shape_;
   Vec<Vec3> col_vertices_;

@@ -12,8 +12,11 @@ namespace gd::sim {
 template <class Exec>
 double Solver<Exec>::max_step() { return std::min({table_ccd_bound(), self_ccd_bound(), collider_step_bound()}); }
 
-/// Conservative bound against colliders (distance is 1-Lipschitz): no free vertex moves more
-/// than 90% of its distance to a collider's surface in one step.
+/// Conservative bound against colliders: no free vertex closes more than 90% of its distance to
+/// a collider's surface in one step. The distance to a convex set (box, capsule, plane) is a convex
+/// function, so d(x + a dx) >= d(x) + a n.dx (n its gradient, the outward normal): only the motion
+/// towards the surface is bounded, and cloth pressed against a pad slides along it or leaves it
+/// freely. A mesh may be non-convex: there the distance's 1-Lipschitz bound, |dx| <= 0.9 d, holds.
 template <class Exec>
 double Solver<Exec>::collider_step_bound() {
   if (n_col_ == 0) return 1.0;
@@ -29,8 +32,16 @@ double Solver<Exec>::collider_step_bound() {
       const double* q = V.col_pose + 24 * c;
       const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
       const Vec3 t1(q[21], q[22], q[23]);
-      const Real d = collider_world_distance(detail::load3(x, i), R1, t1, V.col_shape[c], &V.col_mesh, nullptr, nullptr);
-      worst = fmax(worst, d > 0 ? len / (0.9 * d) : 1e12);
+      Vec3 n;
+      const Real d = collider_world_distance(detail::load3(x, i), R1, t1, V.col_shape[c], &V.col_mesh, &n, nullptr);
+      if (!(d > 0)) {
+        worst = 1e12;
+      } else if (V.col_shape[c].type == ColliderType::kMesh) {
+        worst = fmax(worst, len / (0.9 * d));
+      } else {
+        const Real dn = n.dot(detail::load3(dx, i));
+        if (dn < 0) worst = fmax(worst, -dn / (0.9 * d));
+      }
     }
     return worst;
   }, Exec::kParallelMinHeavy);

@@ -828,5 +828,44 @@ TEST(ColliderProjectOut, TheBatchFormMatchesPointByPointAndSkipsWhatItIsTold) {
   EXPECT_THROW(c.project_out(&y, skip, 0.0, -1.0), InputError);
 }
 
+
+// With the points' start positions, a point goes out to min(gap, its clearance at the start, at
+// least the floor): a box moving 0.6 mm into cloth it presses at 0.1 mm carries that cloth at 0.1
+// mm (the clearance kept) instead of lifting it off to the 0.5 mm gap; a point that started
+// farther out than the gap goes to the gap as before; one that started touching goes to the floor;
+// a point the moved box does not reach stays where it is.
+TEST(ColliderProjectOut, KeepsEachPointsClearanceFromTheStartWhereItWasLess) {
+  Collider c = Collider::box(Vec3(0.02, 0.02, 0.005));
+  // The box rises 0.6 mm from t = 0 to t = 1 (its top face from z = 0 to z = 0.6 mm).
+  c.set_pose([](double t) { return Eigen::Isometry3d(Eigen::Translation3d(Vec3(0, 0, -0.005 + 0.6e-3 * t))); });
+  const Real gap = 0.5e-3, floor = 1e-6;
+  // Start heights above the top face: pressed (0.1 mm), outside the gap (0.8 mm), touching (0),
+  // far (3 mm), and one beside the box (x = 5 cm), 0.1 mm up.
+  const std::vector<Vec3> start = {{0, 0, 0.1e-3}, {0.01, 0, 0.8e-3}, {0, 0.01, 0}, {0.005, 0.005, 3e-3},
+                                   {0.05, 0, 0.1e-3}};
+  std::vector<double> x0, x;
+  for (const Vec3& p : start)
+    for (int k = 0; k < 3; ++k) x0.push_back(p[k]);
+  x = x0;  // the predictor left the points where they were
+  const std::vector<int> skip(start.size(), 0);
+  c.project_out(&x, skip, 1.0, gap, x0, 0.0, floor);
+  auto z = [&](int i) { return x[3 * i + 2]; };
+  EXPECT_NEAR(z(0), 0.6e-3 + 0.1e-3, 1e-12) << "pressed cloth keeps its 0.1 mm";
+  EXPECT_NEAR(z(1), 0.6e-3 + gap, 1e-12) << "a point from outside the gap goes to the gap";
+  EXPECT_NEAR(z(2), 0.6e-3 + floor, 1e-12) << "a touching point goes to the floor";
+  EXPECT_EQ(z(3), 3e-3) << "out of reach";
+  EXPECT_EQ(z(4), 0.1e-3) << "beside the box";
+  for (size_t i = 0; i < start.size(); ++i) {
+    EXPECT_EQ(x[3 * i], x0[3 * i]) << i;  // moved along the top face's normal only
+    EXPECT_EQ(x[3 * i + 1], x0[3 * i + 1]) << i;
+  }
+  // Without the start the same call lifts the pressed point off to the gap.
+  std::vector<double> y = x0;
+  c.project_out(&y, skip, 1.0, gap);
+  EXPECT_NEAR(y[2], 0.6e-3 + gap, 1e-12);
+  EXPECT_THROW(c.project_out(&y, skip, 1.0, gap, std::vector<double>(3), 0.0, floor), InputError);
+  EXPECT_THROW(c.project_out(&y, skip, 1.0, gap, x0, 0.0, -1.0), InputError);
+}
+
 }  // namespace
 }  // namespace gd::sim
