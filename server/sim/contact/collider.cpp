@@ -379,6 +379,7 @@ void Collider::project_batch(std::vector<double>* x, const std::vector<int>& ski
     if (skip[i] || !p.allFinite()) continue;
     Real gi = gap;
     if (x0) {  // never farther out than the point's clearance at the start (at least `floor`)
+      if (query(p, P).distance >= gap) continue;  // out of reach whatever its start
       const Vec3 p0(x0[3 * i], x0[3 * i + 1], x0[3 * i + 2]);
       if (p0.allFinite()) gi = std::min(gap, std::max(floor, query(p0, P0).distance));
     }
