@@ -93,6 +93,7 @@ int Scene::add_collider(Collider collider) {
   collider.checked_pose(time_);  // InputError names the time
   colliders_.push_back(std::move(collider));
   collider_ids_.push_back(next_group_++);
+  collider_reached_.push_back(1.0);
   return collider_ids_.back();
 }
 
@@ -102,6 +103,7 @@ void Scene::remove_collider(int id) {
   const auto k = it - collider_ids_.begin();
   collider_ids_.erase(it);
   colliders_.erase(colliders_.begin() + k);
+  collider_reached_.erase(collider_reached_.begin() + k);
 }
 
 std::vector<Vec3> Scene::collider_forces(const std::vector<int>& ids) {
@@ -117,6 +119,16 @@ std::vector<Vec3> Scene::collider_forces(const std::vector<int>& ids) {
   solver_->set_colliders(colliders_, time_, time_);
   const std::vector<double> f = solver_->collider_forces();
   for (size_t a = 0; a < index.size(); ++a) out[a] = Vec3(f[3 * index[a]], f[3 * index[a] + 1], f[3 * index[a] + 2]);
+  return out;
+}
+
+std::vector<double> Scene::collider_reached(const std::vector<int>& ids) const {
+  std::vector<double> out;
+  for (const int id : ids) {
+    const auto it = std::find(collider_ids_.begin(), collider_ids_.end(), id);
+    if (it == collider_ids_.end()) throw InputError("collider_reached: no collider with id " + std::to_string(id));
+    out.push_back(collider_reached_[static_cast<size_t>(it - collider_ids_.begin())]);
+  }
   return out;
 }
 
@@ -246,6 +258,7 @@ bool Scene::do_step(bool quasi_static) {
     return false;
   }
   time_ += options_.dt;
+  collider_reached_ = solver_->collider_reached();
   if (stats_.untangled) ++untangle_runs_;
   flood_halvings_ += stats_.flood_halvings;
   gd::log().debug("step t={:.3f}: newton {} pcg {} min_alpha {:.3g} |dx|/dt {:.3g} contacts {} candidates {} "

@@ -71,6 +71,11 @@ class Scene {
   /// friction not included (SolverBase::collider_forces). What a force-limited gripper finger
   /// feels. Unknown ids throw InputError.
   std::vector<Vec3> collider_forces(const std::vector<int>& ids);
+  /// How much of its motion over the last step each of these colliders made: 1, or less where a
+  /// yielding collider (Collider::set_yielding) stopped short because the cloth could not get out
+  /// of its way in time. Its pose function should then start the next step from the pose it
+  /// reached (tasks::RobotController does). 1 before the first step. Unknown ids throw InputError.
+  std::vector<double> collider_reached(const std::vector<int>& ids) const;
 
   // --- kinematic (Dirichlet) vertices --------------------------------------------------
   /// Attaches vertices to a rigid motion: each follows pose(t) * pose(t_now)^-1 * x_now.
@@ -122,6 +127,7 @@ class Scene {
   std::vector<Group> groups_;
   std::vector<Collider> colliders_;
   std::vector<int> collider_ids_;
+  std::vector<double> collider_reached_;  ///< per collider: fraction of the last step's motion made
   int next_group_ = 1;
   double time_ = 0;
   bool failed_ = false;

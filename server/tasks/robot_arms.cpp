@@ -276,6 +276,7 @@ void RobotController::attach(sim::Scene& scene) {
       std::shared_ptr<PadPoses> poses = poses_;
       c.set_pose([poses, k](double time) { return poses->at(k, time); });
       c.set_friction(mu);
+      c.set_yielding(true);  // stops short where the cloth it pushes cannot get out of the way in time
       // The barrier's stiffness as calibrated for the table balances a vertex's weight at half
       // the contact distance; a pad must carry the grip force there instead, spread over the
       // cloth under its face: the grip force over the weight of that much cloth.
@@ -298,9 +299,15 @@ void RobotController::update(sim::Scene& scene, double t_end) {
   Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
   offset.translation() = pad.center;
   const double dt = t_end - t0;
+  const std::vector<int> pads = {state_[0].colliders[0], state_[0].colliders[1], state_[1].colliders[0],
+                                 state_[1].colliders[1]};
+  // Each pad where it got to: one that stopped short of its pose last step (the cloth it pushed
+  // could not get out of the way in time) starts this step from there.
+  const std::vector<double> reached = scene.collider_reached(pads);
+  for (int k = 0; k < 4; ++k)
+    if (reached[k] < 1.0) poses_->pose[k][1] = poses_->at(k, poses_->t0 + reached[k] * (poses_->t1 - poses_->t0));
   // The cloth's push on the four pads now, in one pass over the cloth.
-  const std::vector<Vec3> forces = scene.collider_forces(
-      {state_[0].colliders[0], state_[0].colliders[1], state_[1].colliders[0], state_[1].colliders[1]});
+  const std::vector<Vec3> forces = scene.collider_forces(pads);
   for (Arm a : {Arm::kLeft, Arm::kRight}) {
     const int ai = static_cast<int>(a);
     RobotArmState& st = state_[ai];
@@ -335,8 +342,18 @@ void RobotController::update(sim::Scene& scene, double t_end) {
       if (squeeze > 0.1 * grip_force_)
         step = std::min(step, prev_[ai].stiffness > 0 ? 0.5 * std::abs(error) / prev_[ai].stiffness : 0.05 * dhat);
       g = error >= 0 ? std::max(command, g - step) : std::min(model_->gripper_max(), g + step);
-    } else {
-      g = std::min(command, g + finger_speed_ * dt);
+    } else if (command > g) {
+      // Opening against cloth that presses the pads' outer faces inwards (cloth folded round the
+      // fingers, or lying beside them on the table): the same joint, so the same force limit. Full
+      // speed while the push is below 10% of the limit, then steps of 5% of the contact distance
+      // (the barrier's force rises from 0 to any value within it); the fingers stop at the limit and
+      // give way (close) above it, down to the floor below. A kinematic pad that opened regardless
+      // pressed the cloth it swept against the table and the layers beneath with hundreds of
+      // newtons, until the cloth ended inside a pad (docs/robot.md, "Opening against the cloth").
+      const double resist = std::max(0.0, -squeeze);
+      double step = finger_speed_ * dt;
+      if (resist > 0.1 * grip_force_) step = std::min(step, 0.05 * dhat);
+      g = resist <= grip_force_ ? std::min(command, g + step) : std::max(0.0, g - step);
     }
     // Never so near that the pads' faces meet with cloth between them (no room left for it). Cloth
     // pressing one pad's inner face counts even when cloth wrapped round the other pad's outer face

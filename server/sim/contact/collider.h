@@ -450,6 +450,13 @@ class Collider {
   /// (tasks/robot_arms.h: the grip force over the weight of the cloth under a pad).
   void set_stiffness_scale(Real scale);
   Real stiffness_scale() const { return kappa_scale_; }
+  /// A yielding collider's pose is a target it may fall short of within a step: where the cloth
+  /// cannot get out of its way in time (a gripper pad pushing a stack of pinched layers, which the
+  /// predictor can only move one layer at a time), the solver stops it part of the way, where the
+  /// step's starting guess is outside it, and reports how far it got (Scene::collider_reached); its
+  /// owner starts the next step from there. Default false: the pose function is followed exactly.
+  void set_yielding(bool yielding) { yielding_ = yielding; }
+  bool yielding() const { return yielding_; }
 
   /// Signed distance, closest point and normal of a world point at time t (checked_pose).
   ColliderQuery query(const Vec3& x_world, double t) const;
@@ -496,6 +503,7 @@ class Collider {
   PoseFunction pose_;
   Real mu_ = 0;
   Real kappa_scale_ = 1;
+  bool yielding_ = false;
 };
 
 /// Packed shapes and mesh triangles of several colliders, e.g. for upload to a device: shapes[i]

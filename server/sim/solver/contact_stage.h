@@ -188,8 +188,9 @@ std::string Solver<Exec>::infinite_terms() {
 
 template <class Exec>
 bool Solver<Exec>::inside_a_collider(const std::vector<double>& x) const {
-  for (const Collider& c : *colliders_) {
-    const Eigen::Isometry3d pose = c.checked_pose(col_t1_);
+  for (int k = 0; k < n_col_; ++k) {
+    const Collider& c = (*colliders_)[k];
+    const Eigen::Isometry3d& pose = col_end_[k];
     for (int i = 0; i < n_; ++i) {
       if (kin_fixed_host_[i]) continue;
       const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);

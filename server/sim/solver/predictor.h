@@ -93,7 +93,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     }
     detail::store3(x, i, xt + step);
   });
-  if (n_col_ > 0) project_out_of_colliders();  // a collider may have moved into the cloth
+  if (n_col_ > 0) project_out_of_colliders(false);  // a collider may have moved into the cloth
   if (self_) {
     // One broad phase on the predictor's motion x_t -> x: its candidates hold every pair within
     // dhat at x_t too (a swept box contains the box at x_t), so the contacts at the start of
@@ -111,7 +111,12 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     copy(x_t_, x_);
     const double alpha = std::min(self_ccd_bound(), table_ccd_bound());
     axpy(alpha < 1.0 ? 0.9 * alpha : 1.0, dx_, x_);
-    if (alpha < 1.0 && n_col_ > 0) project_out_of_colliders();  // the scaled motion may stop short inside one
+    // The scaled motion may stop short inside a collider, and a vertex squeezed between two may be
+    // left inside one by the projection itself.
+    if (n_col_ > 0 && (alpha < 1.0 || (Exec::download(host_x_, x_), inside_a_collider(host_x_)))) {
+      stop_yielding_colliders();        // a yielding one (a gripper pad) stops where the cloth is
+      project_out_of_colliders(true);   // out of the others, unguarded by CCD
+    }
   }
 }
 
@@ -155,18 +160,123 @@ void Solver<Exec>::end_step() {
 /// of being lifted off it, which in a pinch would move the layer under the pad that far towards
 /// the layer beneath and through it (docs/robot.md, "Pinched layers"). Where two colliders squeeze
 /// cloth (gripper pads) moving a vertex out of one can move it into the other: then the
-/// projections repeat with half the gap, up to three times.
+/// projections repeat with half the gap, up to three times. skip_clear: the first round leaves out
+/// the yielding colliders the guess is clear of (stop_yielding_colliders: stopped short or not,
+/// the guess is outside by the clearance floor, and a vertex moved back out to its clearance at the
+/// step's start would move unguarded by CCD); the later rounds take every collider (moving a
+/// vertex out of another may have moved it into one).
 template <class Exec>
-void Solver<Exec>::project_out_of_colliders() {
+void Solver<Exec>::project_out_of_colliders(bool skip_clear) {
   Exec::download(host_x_, x_);
   Exec::download(host_xt_, x_t_);
   double gap = 0.5 * P_.dhat;
   for (int round = 0; round < 4; ++round, gap *= 0.5) {
-    for (const Collider& c : *colliders_)
-      c.project_out(&host_x_, kin_fixed_host_, col_t1_, gap, host_xt_, col_t0_, kClearanceFloor * P_.dhat);
+    for (int k = 0; k < n_col_; ++k)
+      if (!(skip_clear && round == 0 && col_clear_[k]))
+        (*colliders_)[k].project_out(&host_x_, kin_fixed_host_, col_t1_, gap, host_xt_, col_t0_,
+                                     kClearanceFloor * P_.dhat);
     if (colliders_->size() < 2 || !inside_a_collider(host_x_)) break;
   }
   Exec::upload(x_, host_x_);
+}
+
+/// After CCD scaled the predictor's motion back, the guess may lie inside a collider's end pose.
+/// Moving it out again is not guarded by CCD: where a gripper pad presses a stack of pinched
+/// layers, the layer under the pad went onto the layer beneath (they met at 1e-17 m, Newton's step
+/// fraction fell to 0 and the fail-safe ran, step after step; docs/robot.md, "Pads that stop
+/// short"). A yielding collider stops short instead, at the largest fraction s of its motion over
+/// the step (bisection, to 1/4096) at which every free vertex of the guess keeps half the clearance
+/// it had from the collider at the step's start (capped at dhat/4, at least the clearance floor). The guess may have to go back too: the guess and the colliders
+/// go back together along their paths, x_t + b (x - x_t) (its CCD-checked path: every point of it is
+/// free of crossings) and the pose at b of the step's motion, to the largest b at which the guess
+/// clears them all; then each collider goes on from b as far as that guess allows. The backend's
+/// poses, x_, col_reached_ and col_clear_ follow. The barrier then pushes the whole stack in the
+/// Newton solve, and the collider's owner starts the next step where it stopped
+/// (Scene::collider_reached).
+template <class Exec>
+void Solver<Exec>::stop_yielding_colliders() {
+  Exec::download(host_x_, x_);
+  Exec::download(host_xt_, x_t_);
+  const double floor = kClearanceFloor * P_.dhat;
+  auto pose_at = [&](int k, double s) { return (*colliders_)[k].checked_pose(col_t0_ + s * (col_t1_ - col_t0_)); };
+  // The clearance each vertex must keep from yielding collider k: half of what it had at the step's
+  // start (at most dhat/2, at least the floor). A pad pressing cloth that cannot get away closes the
+  // gap by at most half per step: the barrier's force rises step by step, and Newton never starts
+  // from cloth pressed onto a pad far closer than the last step left it.
+  std::vector<std::vector<double>> keep(n_col_);
+  for (int k = 0; k < n_col_; ++k) {
+    if (!(*colliders_)[k].yielding()) continue;
+    keep[k].assign(n_, 0.0);
+    const Eigen::Isometry3d start = pose_at(k, 0.0);
+    for (int i = 0; i < n_; ++i) {
+      const Vec3 p(host_xt_[3 * i], host_xt_[3 * i + 1], host_xt_[3 * i + 2]);
+      keep[k][i] = std::max(floor, 0.5 * std::min(0.5 * P_.dhat, (*colliders_)[k].query(p, start).distance));
+    }
+  }
+  // Whether the guess moved a fraction b of the way from x_t keeps its clearance from collider k at `pose`.
+  auto clear = [&](int k, const Eigen::Isometry3d& pose, double b) {
+    for (int i = 0; i < n_; ++i) {
+      if (kin_fixed_host_[i]) continue;
+      Vec3 p;
+      for (int r = 0; r < 3; ++r) p[r] = host_xt_[3 * i + r] + b * (host_x_[3 * i + r] - host_xt_[3 * i + r]);
+      if ((*colliders_)[k].query(p, pose).distance < keep[k][i]) return false;
+    }
+    return true;
+  };
+  std::vector<int> stop;
+  for (int k = 0; k < n_col_; ++k)
+    if ((*colliders_)[k].yielding() && !clear(k, col_end_[k], 1.0)) stop.push_back(k);
+  if (stop.empty()) {
+    for (int k = 0; k < n_col_; ++k) col_clear_[k] = (*colliders_)[k].yielding();
+    return;
+  }
+  // The guess and the stopped colliders go back together along their paths (x_t + u (x - x_t), the
+  // pose at u of the step's motion): at u = 0 both are where the last step ended, clear of each
+  // other; cloth the predictor moves along with a pad stays clear of it all the way. A yielding
+  // collider the guess that went back is no longer clear of joins them, until none is left.
+  auto clear_together = [&](double u) {
+    return std::all_of(stop.begin(), stop.end(), [&](int k) { return clear(k, pose_at(k, u), u); });
+  };
+  double b = 1.0;
+  for (bool grew = true; grew;) {
+    if (!clear_together(0.0)) {  // x_t itself is inside one: no stop helps, the projection moves it out
+      gd::log().debug("yielding colliders: the step's start is inside one; projecting instead");
+      return;
+    }
+    double lo = 0, hi = 1;
+    for (int it = 0; it < 12; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (clear_together(mid) ? lo : hi) = mid;
+    }
+    b = lo;
+    grew = false;
+    for (int k = 0; k < n_col_; ++k)
+      if ((*colliders_)[k].yielding() && std::find(stop.begin(), stop.end(), k) == stop.end() &&
+          !clear(k, col_end_[k], b)) {
+        stop.push_back(k);
+        grew = true;
+      }
+  }
+  for (int k = 0; k < n_col_; ++k) col_clear_[k] = (*colliders_)[k].yielding();
+  for (const int k : stop) {  // then each as far on as the guess at b allows
+    double lo = b, hi = 1;
+    for (int it = 0; it < 12; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (clear(k, pose_at(k, mid), b) ? lo : hi) = mid;
+    }
+    col_reached_[k] = lo;
+    col_end_[k] = pose_at(k, lo);
+    double* q = col_pose_host_.data() + 24 * k + 12;
+    for (int r = 0; r < 3; ++r)
+      for (int j = 0; j < 3; ++j) q[3 * r + j] = col_end_[k].linear()(r, j);
+    for (int r = 0; r < 3; ++r) q[9 + r] = col_end_[k].translation()[r];
+    gd::log().debug("collider {} stops at {:.3f} of its motion (guess at {:.3f} of its path)", k, lo, b);
+  }
+  Exec::upload(col_pose_, col_pose_host_);
+  if (b < 1.0) {
+    for (size_t j = 0; j < host_x_.size(); ++j) host_x_[j] = host_xt_[j] + b * (host_x_[j] - host_xt_[j]);
+    Exec::upload(x_, host_x_);
+  }
 }
 
 }  // namespace gd::sim

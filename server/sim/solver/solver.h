@@ -119,6 +119,9 @@ class SolverBase {
   /// frame (the sum over free vertices of the barrier's gradient; friction not included). What
   /// a force-limited gripper finger feels (robot mode).
   virtual std::vector<double> collider_forces() = 0;
+  /// Per collider of the last set_colliders: the fraction of its motion over the last step that it
+  /// made, 1 unless a yielding collider (Collider::set_yielding) stopped short.
+  virtual std::vector<double> collider_reached() const = 0;
   /// Largest |stretch strain| (warp or weft) over all triangles.
   virtual double max_strain() = 0;
   /// Bytes of solver state held by the backend (device memory on CUDA).

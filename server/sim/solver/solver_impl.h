@@ -195,6 +195,9 @@ class Solver final : public SolverBase {
     col_t1_ = t1;
     col_t0_ = t0;
     n_col_ = static_cast<int>(colliders.size());
+    col_reached_.assign(n_col_, 1.0);
+    col_clear_.assign(n_col_, 0);
+    col_end_.clear();
     if (n_col_ == 0) return;
     const PackedColliders packed = pack_colliders(colliders);
     std::vector<double> poses, mu, kappa;
@@ -205,6 +208,7 @@ class Solver final : public SolverBase {
           for (int k = 0; k < 3; ++k) poses.push_back(p.linear()(r, k));
         for (int r = 0; r < 3; ++r) poses.push_back(p.translation()[r]);
       }
+      col_end_.push_back(c.checked_pose(t1));
       mu.push_back(c.friction());
       kappa.push_back(c.stiffness_scale());
     }
@@ -212,6 +216,7 @@ class Solver final : public SolverBase {
     Exec::upload(col_vertices_, packed.vertices);
     Exec::upload(col_tris_, packed.triangles);
     Exec::upload(col_pose_, poses);
+    col_pose_host_ = std::move(poses);
     Exec::upload(col_mu_, mu);
     Exec::upload(col_kappa_, kappa);
   }
@@ -316,12 +321,14 @@ class Solver final : public SolverBase {
   // Energies, strain and memory for reports (diagnostics.h)
   EnergyReport energies() override;
   std::vector<double> collider_forces() override;
+  std::vector<double> collider_reached() const override { return col_reached_; }
   /// Which barriers are infinite at x_ (a diagnostic for a failed step): vertices inside each
   /// collider's end pose or below the table, and the closest self-contact pair.
   std::string infinite_terms();
   /// Whether a free vertex of x (host, 3 per vertex) lies on or inside a collider's end pose.
   bool inside_a_collider(const std::vector<double>& x) const;
-  void project_out_of_colliders();  ///< predictor.h
+  void project_out_of_colliders(bool skip_clear);  ///< predictor.h
+  void stop_yielding_colliders();                    ///< predictor.h
   double max_strain() override;
   size_t bytes() const override;
 
@@ -421,6 +428,12 @@ class Solver final : public SolverBase {
   double col_t1_ = 0;
   double col_t0_ = 0;
   int n_col_ = 0;
+  /// Per collider: the fraction of its motion made this step (< 1: a yielding one stopped short)
+  /// and its end pose there; the poses as uploaded (R0, t0, R1, t1 row-major, 24 per collider).
+  std::vector<double> col_reached_;
+  std::vector<char> col_clear_;  ///< stop_yielding_colliders: the guess is clear of it (no projection)
+  std::vector<Eigen::Isometry3d> col_end_;
+  std::vector<double> col_pose_host_;
   Vec<ColliderShape> col_shape_;
   Vec<Vec3> col_vertices_;
   Vec<Eigen::Vector3i> col_tris_;

@@ -7,8 +7,9 @@
 
 #include <cmath>
 
-#include "sim/scene.h"
 #include "sim/mesh.h"
+#include "sim/scene.h"
+#include "sim/solver/two_layers.h"
 
 namespace gd::sim {
 namespace {
@@ -24,24 +25,10 @@ struct PinchRun {
 // the pads rise at `speed` (ramped in over 0.05 s) until t = `seconds`.
 PinchRun pinch_and_lift(double gap_in_dhat, double clearance_in_dhat, double speed, double seconds) {
   const Material cotton = MaterialLibrary::load_default().get("cotton");
-  SceneOptions o;
-  o.dt = 1.0 / 200;
-  o.table = false;
-  o.air_density = 0;
-  o.self_contact = true;
+  const SceneOptions o = testing_layers::pinch_options();
   const double dhat = effective_contact_distance(o, cotton.thickness);
   const double W = 0.04, L = 0.06, grip = 0.02, gap = gap_in_dhat * dhat;
-  // Two copies of one rectangle, turned into the xz plane.
-  const Mesh layer = make_rect(W, L, 0.004);
-  Mesh mesh = layer;
-  const int n = static_cast<int>(layer.x.size());
-  mesh.x.insert(mesh.x.end(), layer.x.begin(), layer.x.end());
-  mesh.uv.insert(mesh.uv.end(), layer.uv.begin(), layer.uv.end());
-  for (const Eigen::Vector3i& t : layer.tris) mesh.tris.push_back(t + Eigen::Vector3i::Constant(n));
-  for (int i = 0; i < 2 * n; ++i) {
-    const Vec3 p = mesh.x[i];
-    mesh.x[i] = Vec3(p.x(), i < n ? 0.5 * gap : -0.5 * gap, 0.5 + p.y());
-  }
+  const Mesh mesh = testing_layers::two_hanging_layers(W, L, gap);
   auto scene = Scene::create(mesh, cotton, o);
   const double half_opening = 0.5 * gap + clearance_in_dhat * dhat;
   const double start = 0.05, ramp = 0.05;
