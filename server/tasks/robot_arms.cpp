@@ -63,17 +63,28 @@ void RobotOptions::validate(bool need_urdf) const {
 struct RobotController::PadPoses {
   double t0 = 0, t1 = 0;
   std::array<std::array<Eigen::Isometry3d, 2>, 4> pose;  ///< [arm * 2 + finger][start, end]
+  std::array<Eigen::Isometry3d, 4> target;                ///< where each pad was asked to be at t1
 
   Eigen::Isometry3d at(int pad, double t) const {
-    const Eigen::Isometry3d& a = pose[pad][0];
-    const Eigen::Isometry3d& b = pose[pad][1];
     const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
-    Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-    out.linear() = Eigen::Quaterniond(a.linear()).slerp(u, Eigen::Quaterniond(b.linear())).normalized().toRotationMatrix();
-    out.translation() = (1 - u) * a.translation() + u * b.translation();
-    return out;
+    return blend_pose(pose[pad][0], pose[pad][1], u);
   }
 };
+
+Eigen::Isometry3d blend_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double u) {
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = Eigen::Quaterniond(a.linear()).slerp(u, Eigen::Quaterniond(b.linear())).normalized().toRotationMatrix();
+  out.translation() = (1 - u) * a.translation() + u * b.translation();
+  return out;
+}
+
+Eigen::Isometry3d pad_catch_up(const Eigen::Isometry3d& at, const Eigen::Isometry3d& last_target,
+                               const Eigen::Isometry3d& target, double max_extra) {
+  const double own = (target.translation() - last_target.translation()).norm();
+  const double move = (target.translation() - at.translation()).norm();
+  const double reach = own + max_extra;
+  return move > reach ? blend_pose(at, target, reach / move) : target;
+}
 
 RobotController::RobotController(DualArmTrajectory traj, RobotOptions options)
     : RobotController(std::move(traj), options, [&] {
@@ -272,6 +283,7 @@ void RobotController::attach(sim::Scene& scene) {
       Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
       offset.translation() = pad.center;
       poses_->pose[k] = {fp[f] * offset, fp[f] * offset};
+      poses_->target[k] = fp[f] * offset;
       sim::Collider c = sim::Collider::box(pad.half_extents);
       std::shared_ptr<PadPoses> poses = poses_;
       c.set_pose([poses, k](double time) { return poses->at(k, time); });
@@ -382,9 +394,15 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     st.table_lift = so.table ? std::max(0.0, so.table_height + clearance - lowest) : 0.0;
     for (int f = 0; f < 2; ++f) {
       end[f].translation().z() += st.table_lift;
-      auto& p = poses_->pose[2 * ai + f];
-      p[0] = p[1];
-      p[1] = end[f];
+      const int k = 2 * ai + f;
+      auto& p = poses_->pose[k];
+      p[0] = p[1];  // where the pad got to (short of its target where it stopped: Scene::collider_reached)
+      // A pad that fell behind catches up by at most half a contact distance per step beyond its
+      // target's own motion: making up the whole lag in one step pressed the cloth that had held
+      // it back with hundreds of newtons, and the fling lost the towel (docs/robot.md, "Pads that
+      // stop short").
+      p[1] = pad_catch_up(p[0], poses_->target[k], end[f], 0.5 * dhat);
+      poses_->target[k] = end[f];
     }
   }
   poses_->t0 = t0;

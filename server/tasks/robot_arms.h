@@ -16,7 +16,9 @@
 /// * Fingers: a box pad per finger (robot::ArmModelOptions::pad), a kinematic collider posed by
 ///   forward kinematics every step, with Coulomb friction against the cloth. Between the poses
 ///   at a step's start and end a pad moves by linear interpolation of its position and SLERP
-///   of its orientation.
+///   of its orientation. Pads yield (sim::Collider::set_yielding): one that stopped short of its
+///   pose, where the cloth it pushed could not get out of the way in time, starts the next step
+///   where it got to and catches up by at most half a contact distance per step (pad_catch_up).
 /// * Gripper: a position-controlled, force-limited prismatic joint. The commanded opening comes
 ///   from the trajectory; while closing, the fingers move at most `finger_speed` and, once the
 ///   cloth pushes back (the mean of the two pads' barrier forces along their opening directions,
@@ -40,6 +42,18 @@
 #include "tasks/trajectory.h"
 
 namespace gd::tasks {
+
+/// A pose a fraction u of the way from a to b: positions interpolated linearly, orientations by
+/// SLERP (how a pad moves over a step).
+Eigen::Isometry3d blend_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double u);
+
+/// Where a gripper pad that stopped short of its target (sim::Collider::set_yielding) is sent for
+/// the coming step: from `at`, where it got to, towards `target`, by at most the target's own
+/// motion since the last step (`last_target` to `target`) plus `max_extra` (m), along blend_pose.
+/// A pad on its target follows it exactly; one that fell behind catches up by at most `max_extra`
+/// per step instead of making up the whole lag in one step.
+Eigen::Isometry3d pad_catch_up(const Eigen::Isometry3d& at, const Eigen::Isometry3d& last_target,
+                               const Eigen::Isometry3d& target, double max_extra);
 
 struct RobotOptions {
   std::string urdf;                 ///< path of the arms' URDF (required unless a model is given)
