@@ -350,26 +350,32 @@ Vec3 Collider::project_out(const Vec3& x_world, double t, Real gap) const {
 }
 
 void Collider::project_out(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap) const {
-  project_batch(x, skip, t, gap, nullptr, t, gap);
+  const Eigen::Isometry3d P = checked_pose(t);
+  project_batch(x, skip, P, gap, nullptr, P, gap);
 }
 
 void Collider::project_out(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap,
                            const std::vector<double>& start, double t_start, Real floor) const {
+  project_out(x, skip, checked_pose(t), gap, start, checked_pose(t_start), floor);
+}
+
+void Collider::project_out(std::vector<double>* x, const std::vector<int>& skip, const Eigen::Isometry3d& pose,
+                           Real gap, const std::vector<double>& start, const Eigen::Isometry3d& start_pose,
+                           Real floor) const {
   check_gap(floor);
   if (start.size() != x->size())
     throw InputError("Collider::project_out: " + std::to_string(x->size()) + " coordinates but " +
                      std::to_string(start.size()) + " at the start");
-  project_batch(x, skip, t, gap, &start, t_start, floor);
+  project_batch(x, skip, pose, gap, &start, start_pose, floor);
 }
 
-void Collider::project_batch(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap,
-                             const std::vector<double>* start, double t_start, Real floor) const {
+void Collider::project_batch(std::vector<double>* x, const std::vector<int>& skip, const Eigen::Isometry3d& P,
+                             Real gap, const std::vector<double>* start, const Eigen::Isometry3d& P0,
+                             Real floor) const {
   check_gap(gap);
   if (x->size() != 3 * skip.size())
     throw InputError("Collider::project_out: " + std::to_string(x->size()) + " coordinates but " +
                      std::to_string(skip.size()) + " skip flags");
-  const Eigen::Isometry3d P = checked_pose(t);
-  const Eigen::Isometry3d P0 = start ? checked_pose(t_start) : P;
   const int n = static_cast<int>(skip.size());
   double* xs = x->data();
   const double* x0 = start ? start->data() : nullptr;

@@ -453,8 +453,8 @@ class Collider {
   /// A yielding collider's pose is a target it may fall short of within a step: where the cloth
   /// cannot get out of its way in time (a gripper pad pushing a stack of pinched layers, which the
   /// predictor can only move one layer at a time), the solver stops it part of the way, where the
-  /// step's starting guess is outside it, and reports how far it got (Scene::collider_reached); its
-  /// owner starts the next step from there. Default false: the pose function is followed exactly.
+  /// step's starting guess keeps half the clearance it had from it at the step's start, and reports
+  /// how far it got (Scene::collider_reached); its owner starts the next step from there. Default false: the pose function is followed exactly.
   void set_yielding(bool yielding) { yielding_ = yielding; }
   bool yielding() const { return yielding_; }
 
@@ -488,6 +488,10 @@ class Collider {
   /// lie closer (tests/sim/contact/collider_test.cpp). Throws InputError for a bad gap, floor or size.
   void project_out(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap,
                    const std::vector<double>& start, double t_start, Real floor) const;
+  /// The same at given poses (`pose` for x, `start_pose` for the start): where the solver stopped a
+  /// yielding collider short of its pose function's.
+  void project_out(std::vector<double>* x, const std::vector<int>& skip, const Eigen::Isometry3d& pose, Real gap,
+                   const std::vector<double>& start, const Eigen::Isometry3d& start_pose, Real floor) const;
 
   /// Displacement (m) from time t0 to t1 of the collider's surface point closest to x_world at t0.
   Vec3 surface_displacement(const Vec3& x_world, double t0, double t1) const;
@@ -496,8 +500,8 @@ class Collider {
   struct MeshData;
   Collider() = default;
   Vec3 project_out(const Vec3& x_world, const Eigen::Isometry3d& pose, Real gap) const;
-  void project_batch(std::vector<double>* x, const std::vector<int>& skip, double t, Real gap,
-                     const std::vector<double>* start, double t_start, Real floor) const;
+  void project_batch(std::vector<double>* x, const std::vector<int>& skip, const Eigen::Isometry3d& P, Real gap,
+                     const std::vector<double>* start, const Eigen::Isometry3d& P0, Real floor) const;
   ColliderShape shape_;
   std::shared_ptr<const MeshData> mesh_;
   PoseFunction pose_;

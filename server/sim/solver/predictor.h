@@ -162,9 +162,10 @@ void Solver<Exec>::end_step() {
 /// cloth (gripper pads) moving a vertex out of one can move it into the other: then the
 /// projections repeat with half the gap, up to three times. skip_clear: the first round leaves out
 /// the yielding colliders the guess is clear of (stop_yielding_colliders: stopped short or not,
-/// the guess is outside by the clearance floor, and a vertex moved back out to its clearance at the
-/// step's start would move unguarded by CCD); the later rounds take every collider (moving a
-/// vertex out of another may have moved it into one).
+/// the guess keeps half its clearance from them, and a vertex moved back out to its clearance at
+/// the step's start would move unguarded by CCD); the later rounds take every collider (moving a
+/// vertex out of another may have moved it into one). Each collider at its end pose as the solver
+/// has it (col_end_: where a yielding one stopped).
 template <class Exec>
 void Solver<Exec>::project_out_of_colliders(bool skip_clear) {
   Exec::download(host_x_, x_);
@@ -173,8 +174,8 @@ void Solver<Exec>::project_out_of_colliders(bool skip_clear) {
   for (int round = 0; round < 4; ++round, gap *= 0.5) {
     for (int k = 0; k < n_col_; ++k)
       if (!(skip_clear && round == 0 && col_clear_[k]))
-        (*colliders_)[k].project_out(&host_x_, kin_fixed_host_, col_t1_, gap, host_xt_, col_t0_,
-                                     kClearanceFloor * P_.dhat);
+        (*colliders_)[k].project_out(&host_x_, kin_fixed_host_, col_end_[k], gap, host_xt_,
+                                     (*colliders_)[k].checked_pose(col_t0_), kClearanceFloor * P_.dhat);
     if (colliders_->size() < 2 || !inside_a_collider(host_x_)) break;
   }
   Exec::upload(x_, host_x_);

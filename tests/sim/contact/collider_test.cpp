@@ -865,6 +865,12 @@ TEST(ColliderProjectOut, KeepsEachPointsClearanceFromTheStartWhereItWasLess) {
   EXPECT_NEAR(y[2], 0.6e-3 + gap, 1e-12);
   EXPECT_THROW(c.project_out(&y, skip, 1.0, gap, std::vector<double>(3), 0.0, floor), InputError);
   EXPECT_THROW(c.project_out(&y, skip, 1.0, gap, x0, 0.0, -1.0), InputError);
+  // At given poses (a yielding collider stopped part of the way): the box stopped at t = 0.5, its
+  // top face at 0.3 mm.
+  std::vector<double> w = x0;
+  c.project_out(&w, skip, c.checked_pose(0.5), gap, x0, c.checked_pose(0.0), floor);
+  EXPECT_NEAR(w[2], 0.3e-3 + 0.1e-3, 1e-12) << "pressed cloth keeps its 0.1 mm from the stopped face";
+  EXPECT_NEAR(w[3 * 2 + 2], 0.3e-3 + floor, 1e-12);
 }
 
 }  // namespace
