@@ -266,6 +266,7 @@ int main(int argc, char** argv) {
   double self_friction = -1, table_friction = -1, friction_eps = -1, compression_ratio = -1;
   std::string contact_hessian_arg = "default";
   std::string bending_hessian_arg = "default";
+  std::string table_cut_arg = "on";
   std::string broad_phase_arg = "auto";
   std::string linear_solver_arg = "pcg";
   app.add_flag("--json", json, "Print one JSON array of results on stdout (and nothing else)");
@@ -329,6 +330,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--bending-hessian", bending_hessian_arg, "Bending Hessian")
       ->check(CLI::IsMember({"default", "gauss-newton", "projected-exact"}))
+      ->capture_default_str();
+  app.add_option("--table-cut", table_cut_arg,
+                 "Landing steps limited by the table's CCD bound may cut each vertex's motion towards the table "
+                 "on its own (off: the whole step scaled by the most constrained vertex)")
+      ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   app.add_option("--linear-solver", linear_solver_arg,
                  "Linear solver of each Newton iteration (direct: sparse LDLT, to tell the Newton iteration's own "
@@ -422,6 +428,7 @@ int main(int argc, char** argv) {
     if (bending_hessian_arg == "projected-exact") opt.bending_hessian = gd::sim::BendingHessianKind::kProjectedExact;
     if (broad_phase_arg == "lbvh") opt.broad_phase = gd::sim::BroadPhaseKind::kLbvh;
     if (broad_phase_arg == "embree") opt.broad_phase = gd::sim::BroadPhaseKind::kEmbree;
+    opt.table_cut = table_cut_arg == "on";
     if (linear_solver_arg == "direct") opt.linear_solver = gd::sim::LinearSolverKind::kDirect;
     opt.validate();
     return opt;

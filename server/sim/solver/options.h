@@ -107,6 +107,11 @@ struct SceneOptions {
   bool table = true;
   Real table_height = 0.0;        ///< m
   Real table_friction = 0.266;    ///< Coulomb coefficient (RGBench's fitted ground friction)
+  /// While cloth lands, a Newton step limited by the table's CCD bound may instead cut each
+  /// vertex's motion towards the table to 90% of its own height, when that lets the step go at
+  /// least twice as far and Armijo accepts it at once (solver/step_bounds.h, table_cut_step;
+  /// docs/physics.md, "Landing steps"). false: the whole step scaled by the most constrained vertex.
+  bool table_cut = true;
   Real contact_distance = 0.0;    ///< barrier activation distance dhat, m (0: max(thickness, 1 mm))
   Real friction_eps_v = 1e-3;     ///< m/s: below this slip speed friction is smoothed (static regime)
 

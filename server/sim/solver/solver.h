@@ -64,6 +64,7 @@ struct StepStats {
   /// at the last one checked, m/s.
   double residual0 = 0, residual = 0;
   int energy_evals = 0;        ///< evaluations of the objective (line search)
+  int table_cuts = 0;          ///< Newton iterations whose step took the per-vertex table cut (step_bounds.h)
   bool finite = true;          ///< false when the objective was not finite (the step is void)
   int contacts = 0;            ///< active self-contact pairs (closer than the contact distance)
   /// Smallest distance over the active self-contact pairs at the end of the step, m (infinity

@@ -53,7 +53,7 @@ class Solver final : public SolverBase {
     Exec::upload(hinge_slots_, d.hinge_slots);
     Exec::upload(x_, d.x);
     Exec::upload(v_, d.v);
-    for (auto* vec : {&x_t_, &v_t_, &g_, &g_trial_, &dx_, &r_, &z_, &p_, &ap_, &x_trial_}) Exec::resize(*vec, 3 * n_);
+    for (auto* vec : {&x_t_, &v_t_, &g_, &g_trial_, &dx_, &dx_full_, &r_, &z_, &p_, &ap_, &x_trial_}) Exec::resize(*vec, 3 * n_);
     Exec::resize(vals_, 9 * static_cast<size_t>(d.blocks()));
     Exec::resize(pcg_s_, kPcgScalars);
     Exec::resize(hinge_grad_t_, 12 * static_cast<size_t>(d.hinge_count()));
@@ -142,7 +142,7 @@ class Solver final : public SolverBase {
       }
       double alpha_max = 1, alpha = 0;
       timed(T.ccd, [&] { alpha_max = max_step(); });                // CCD: largest safe fraction of dx
-      timed(T.line_search, [&] { alpha = line_search(alpha_max, e0, &st.energy_evals); });  // Armijo backtracking
+      timed(T.line_search, [&] { alpha = step_length(alpha_max, e0, &st); });  // table cut or Armijo backtracking
       gradient_known = accept_step(alpha);                          // x += alpha dx
       st.newton_iters = k + 1;
       st.min_alpha = std::min(st.min_alpha, alpha);
@@ -297,6 +297,8 @@ class Solver final : public SolverBase {
   double collider_step_bound();
   double table_ccd_bound();
   double self_ccd_bound();
+  double step_length(double alpha_max, double e0, StepStats* st);
+  double table_cut_step(double alpha_max, double e0, int* evals);
   double line_search(double alpha_max, double e0, int* evals);
 
   // Vector operations over 3n values (vector_ops.h)
@@ -407,7 +409,7 @@ class Solver final : public SolverBase {
   Vec<StretchShearRest> tri_rest_;
   Vec<HingeRest> hinge_rest_;
   Vec<double> f_ext_;
-  Vec<double> x_, v_, x_t_, v_t_, g_, dx_, r_, z_, p_, ap_, x_trial_, vals_, kin_target_, hinge_grad_t_;
+  Vec<double> x_, v_, x_t_, v_t_, g_, dx_, dx_full_, r_, z_, p_, ap_, x_trial_, vals_, kin_target_, hinge_grad_t_;
   std::unique_ptr<Preconditioner<Exec>> precond_;
   std::unique_ptr<MultilevelAdditiveSchwarz<Exec>> estimator_;  ///< MAS for the stopping rule when PCG's is not
   bool estimator_pending_ = false;  ///< estimator_ is ordered for the current matrix but not built
