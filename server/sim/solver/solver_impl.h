@@ -488,6 +488,7 @@ class Solver final : public SolverBase {
   bool precond_ready_ = false;  ///< precond_ was set up in this step (not with the direct solver)
   /// The step fraction of the line search's accepted trial (accept_step swaps it in).
   double last_trial_alpha_ = -1;
+  double table_bound_ = 1;  ///< the table's CCD bound on the current dx (max_step), for table_cut_step
   Vec<double> g_trial_, cand_gd_;  ///< gradient at the trial point; candidate pairs' gradients
   Vec<double> cand_d2_;            ///< per candidate: squared distance at the last evaluation without Hessian
   std::vector<double> host_d2_;    ///< its host copy (backends with their own memory)

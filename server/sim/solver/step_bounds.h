@@ -8,9 +8,13 @@
 
 namespace gd::sim {
 
-/// Largest step fraction along dx that keeps the state free of crossings (CCD).
+/// Largest step fraction along dx that keeps the state free of crossings (CCD); the table's own
+/// bound is kept in table_bound_.
 template <class Exec>
-double Solver<Exec>::max_step() { return std::min({table_ccd_bound(), self_ccd_bound(), collider_step_bound()}); }
+double Solver<Exec>::max_step() {
+  table_bound_ = table_ccd_bound();  // kept for table_cut_step
+  return std::min({table_bound_, self_ccd_bound(), collider_step_bound()});
+}
 
 /// Conservative bound against colliders: no free vertex closes more than 90% of its distance to
 /// a collider's surface in one step. The distance to a convex set (box, capsule, plane) is a convex
@@ -122,7 +126,7 @@ double Solver<Exec>::step_length(double alpha_max, double e0, StepStats* st) {
 template <class Exec>
 double Solver<Exec>::table_cut_step(double alpha_max, double e0, int* evals) {
   if (!P_.table || !opt_.table_cut) return -1;
-  const double table_bound = table_ccd_bound();
+  const double table_bound = table_bound_;  // max_step's, for this dx
   if (!(table_bound < 1.0) || table_bound > alpha_max) return -1;  // not what limits the step
   copy(dx_, dx_full_);
   const detail::View V = view();
