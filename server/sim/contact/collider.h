@@ -454,7 +454,8 @@ class Collider {
   /// cannot get out of its way in time (a gripper pad pushing a stack of pinched layers, which the
   /// predictor can only move one layer at a time), the solver stops it part of the way, where the
   /// step's starting guess keeps half the clearance it had from it at the step's start, and reports
-  /// how far it got (Scene::collider_reached); its owner starts the next step from there. Default false: the pose function is followed exactly.
+  /// how far it got (Scene::collider_reached); its owner starts the next step from there. Default
+  /// false: the pose function is followed exactly.
   void set_yielding(bool yielding) { yielding_ = yielding; }
   bool yielding() const { return yielding_; }
 
