@@ -13,12 +13,19 @@
 ///     second child to arrive compute the union and go on (the first stops).
 ///  4. Queries: one stack traversal per query box, twice: counts, a prefix sum into offsets, then
 ///     the pairs written in traversal order (no atomics: the same output on every thread count).
+///     Policies with kSinglePassQueries (the CPU's, which can grow lists) traverse once: the
+///     queries in contiguous chunks, each chunk's pairs in a list of its own, the lists then
+///     concatenated in order (the same output).
 ///
 /// Overlap is the broad phase's test on closed boxes (touching counts): a query reports exactly
 /// the boxes it overlaps that its filter accepts. Units are whatever the boxes are in.
 
+#include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <limits>
+#include <numeric>
+#include <vector>
 
 #include "sim/hd.h"
 
@@ -270,6 +277,14 @@ class Lbvh {
     const float* leaf_box = Exec::ptr(leaf_box_);
     const int* order = Exec::ptr(order_);
     const int* node_max = self_above && n_ > 1 ? Exec::ptr(node_max_) : nullptr;
+    if constexpr (Exec::kSinglePassQueries) {
+      auto visit = [=](int q, const auto& emit) {
+        lbvh::traverse(qb + 6 * q, n, left, right, node_box, leaf_box, order, [&](int k) {
+          if (accept(q, k)) emit((static_cast<uint64_t>(static_cast<uint32_t>(q)) << 32) | static_cast<uint32_t>(k));
+        }, node_max, self_above ? q : -1);
+      };
+      return query_single_pass(queries, visit, out, max_total);
+    }
     Exec::resize_for_overwrite(offsets_, static_cast<size_t>(queries) + 1);
     int64_t* offsets = Exec::ptr(offsets_);  // 64-bit: a flooded query can count past 2^31 pairs
     Exec::for_each(queries + 1, [=] GD_HD_LAMBDA(int q) {
@@ -300,6 +315,59 @@ class Lbvh {
   int size() const { return n_; }
 
  private:
+  /// query() in one traversal per query (policies with kSinglePassQueries): visit(q, emit) calls
+  /// emit(key) for each of query q's keys in traversal order. The queries are cut into
+  /// kQueryChunks contiguous chunks (a count independent of the threads, so the output is too),
+  /// each filling its own list; the lists are concatenated in chunk order. Past max_total the
+  /// keys are counted and no longer kept (each chunk checks the shared count every kFlushEvery
+  /// keys), so a flooded query holds at most max_total + kQueryChunks * kFlushEvery keys.
+  template <class Visit>
+  int64_t query_single_pass(int queries, const Visit& visit, Vec<uint64_t>* out, int64_t max_total) {
+    constexpr int kQueryChunks = 64;
+    constexpr int64_t kFlushEvery = 1024;
+    const int chunks = queries < kQueryChunks ? queries : kQueryChunks;
+    chunk_keys_.resize(static_cast<size_t>(chunks));
+    chunk_count_.assign(static_cast<size_t>(chunks) + 1, 0);
+    std::atomic<int64_t> kept{0};
+    // As the two-pass loops: on the calling thread below kParallelMinHeavy queries.
+    const int parallel_min = queries >= Exec::kParallelMinHeavy ? 1 : chunks + 1;
+    Exec::for_each(chunks, [&](int c) {
+      std::vector<uint64_t>& keys = chunk_keys_[static_cast<size_t>(c)];
+      keys.clear();
+      int64_t count = 0, unflushed = 0;
+      bool keep = true;
+      const int lo = static_cast<int>(static_cast<int64_t>(queries) * c / chunks);
+      const int hi = static_cast<int>(static_cast<int64_t>(queries) * (c + 1) / chunks);
+      for (int q = lo; q < hi; ++q)
+        visit(q, [&](uint64_t key) {
+          ++count;
+          if (!keep) return;
+          keys.push_back(key);
+          if (++unflushed == kFlushEvery) {
+            keep = kept.fetch_add(unflushed, std::memory_order_relaxed) + unflushed <= max_total;
+            unflushed = 0;
+          }
+        });
+      chunk_count_[static_cast<size_t>(c)] = count;
+    }, parallel_min);
+    std::exclusive_scan(chunk_count_.begin(), chunk_count_.end(), chunk_count_.begin(), int64_t{0});
+    const int64_t total = chunk_count_.back();
+    if (total > max_total) {
+      Exec::resize_for_overwrite(*out, 0);
+      return total;
+    }
+    Exec::resize_for_overwrite(*out, static_cast<size_t>(total));
+    uint64_t* o = Exec::ptr(*out);
+    Exec::for_each(chunks, [&](int c) {
+      const std::vector<uint64_t>& keys = chunk_keys_[static_cast<size_t>(c)];
+      std::copy(keys.begin(), keys.end(), o + chunk_count_[static_cast<size_t>(c)]);
+    }, parallel_min);
+    return total;
+  }
+
+  std::vector<std::vector<uint64_t>> chunk_keys_;  ///< query_single_pass: each chunk's keys
+  std::vector<int64_t> chunk_count_;               ///< query_single_pass: chunk offsets
+
   int n_ = 0;
   Vec<uint64_t> keys_;
   Vec<int> order_, left_, right_, parent_node_, parent_leaf_, arrivals_;

@@ -617,6 +617,55 @@ TEST(BroadPhase, LbvhGpuPathsQueriesReportExactlyTheOverlappingBoxes) {
   }
 }
 
+/// The CPU policy's single-pass queries (Lbvh::query_single_pass: chunks of queries growing their
+/// own lists) give the two-pass output of the GPU's paths key for key, in the same order, at 1
+/// and 2 threads; past max_total both return the full count and an empty output, however many
+/// chunks were still storing when the shared count went over.
+TEST(BroadPhase, LbvhSinglePassQueriesMatchTheTwoPassOutputAndFloodCount) {
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<float> boxes, queries;
+  for (int i = 0; i < 3000; ++i) {
+    float c[3], h = 0.05f * u(rng);
+    for (float& v : c) v = u(rng);
+    for (int d = 0; d < 3; ++d) boxes.push_back(c[d] - h);
+    for (int d = 0; d < 3; ++d) boxes.push_back(c[d] + h);
+  }
+  for (int q = 0; q < 2500; ++q) {  // more than kParallelMinHeavy queries: the chunks run in parallel
+    float c[3], h = 0.08f * u(rng);
+    for (float& v : c) v = u(rng);
+    for (int d = 0; d < 3; ++d) queries.push_back(c[d] - h);
+    for (int d = 0; d < 3; ++d) queries.push_back(c[d] + h);
+  }
+  static_assert(CpuExec::kSinglePassQueries && !CpuGpuPathsExec::kSinglePassQueries);
+  auto odd = [](int q, int k) { return (q + k) % 3 != 0; };  // a filter, as the broad phase's
+  Lbvh<CpuGpuPathsExec> two_pass;
+  two_pass.build(3000, boxes);
+  std::vector<uint64_t> expected;
+  const int64_t total = two_pass.query(2500, queries, odd, &expected);
+  ASSERT_EQ(total, static_cast<int64_t>(expected.size()));
+  ASSERT_GT(total, 10000);
+  for (int threads : {1, 2}) {
+    set_omp_threads(threads);
+    Lbvh<CpuExec> one_pass;
+    one_pass.build(3000, boxes);
+    std::vector<uint64_t> got;
+    EXPECT_EQ(one_pass.query(2500, queries, odd, &got), total);
+    EXPECT_EQ(got, expected) << threads << " threads";
+    for (int64_t limit : {int64_t{0}, int64_t{100}, total / 2, total - 1}) {
+      std::vector<uint64_t> flooded{1, 2, 3}, flooded_two_pass{1, 2, 3};
+      EXPECT_EQ(one_pass.query(2500, queries, odd, &flooded, limit), total) << limit;
+      EXPECT_EQ(two_pass.query(2500, queries, odd, &flooded_two_pass, limit), total) << limit;
+      EXPECT_TRUE(flooded.empty()) << limit;
+      EXPECT_TRUE(flooded_two_pass.empty()) << limit;
+    }
+    std::vector<uint64_t> at_limit;
+    EXPECT_EQ(one_pass.query(2500, queries, odd, &at_limit, total), total);
+    EXPECT_EQ(at_limit, expected);
+  }
+  set_omp_threads(2);
+}
+
 /// A self query (the built boxes as queries, self_above): each overlapping pair once, as
 /// (lower index, higher index), whichever subtrees the index bound skips.
 template <class Exec>

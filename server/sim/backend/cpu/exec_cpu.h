@@ -34,6 +34,9 @@ struct CpuExec {
   /// (lbvh_broad_phase.h); policies without it sort and unpack them on the backend and copy the
   /// result back in one piece.
   static constexpr bool kHostPairs = true;
+  /// The LBVH's queries traverse once, each chunk of queries growing its own list
+  /// (Lbvh::query_single_pass); policies without it count, then write (two traversals).
+  static constexpr bool kSinglePassQueries = true;
 
   template <class T>
   using Vector = std::vector<T>;
@@ -191,6 +194,7 @@ struct CpuGpuPathsExec : CpuExec {
   static constexpr bool kColoring = false;
   static constexpr bool kHostMerge = false;  ///< as CudaExec
   static constexpr bool kHostPairs = false;  ///< as CudaExec
+  static constexpr bool kSinglePassQueries = false;  ///< as CudaExec
   static constexpr int kPcgCheckEvery = 8;  ///< as CudaExec
   /// Add into memory other threads may add into at the same time.
   static inline void add(double* p, double v) { std::atomic_ref<double>(*p).fetch_add(v, std::memory_order_relaxed); }

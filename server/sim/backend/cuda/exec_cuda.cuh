@@ -50,6 +50,7 @@ struct CudaExec {
   static constexpr bool kHostMemory = false;  ///< device vectors: host-side stages copy them
   static constexpr bool kHostMerge = false;   ///< contact couplings merged on the device
   static constexpr bool kHostPairs = false;   ///< broad-phase pairs sorted and unpacked on the device
+  static constexpr bool kSinglePassQueries = false;  ///< LBVH queries count, then write (lbvh.h)
 
   template <class T>
   using Vector = thrust::device_vector<T>;
