@@ -156,6 +156,11 @@ int main(int argc, char** argv) {
   run->add_option("--finger-friction", cfg.robot.finger_friction,
                   "robot mode: friction of the finger pads on the cloth (< 0: the material's)")
       ->capture_default_str();
+  run->add_option("--urdf-package-path", cfg.robot.arm.package_paths,
+                  "robot mode: a directory where the URDF's package://NAME/... meshes are found (DIR/NAME/... or DIR "
+                  "named NAME); the links with collision geometry found collide with the cloth (repeatable)");
+  run->add_flag("!--no-link-colliders", cfg.robot.link_colliders,
+                "robot mode: the finger pads alone collide with the cloth, not the arms' links");
   run->add_option("--vertices", cfg.vertices, "target vertex count of a generated garment")->capture_default_str();
   std::vector<double> garment_position;
   run->add_option("--garment-position", garment_position,
@@ -294,7 +299,8 @@ int main(int argc, char** argv) {
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic", "--garment-position",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--no-plots", "--mesh-every",
-                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius"})
+                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf-package-path",
+                                     "--no-link-colliders"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

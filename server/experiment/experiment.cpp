@@ -670,6 +670,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                   {"hands_half_turned", {robot->hand_half_turned(tasks::Arm::kLeft), robot->hand_half_turned(tasks::Arm::kRight)}},
                   {"joints_clamped", robot->joints_clamped()},
                   {"joint_clamp_max", robot->joint_clamp_max()},
+                  {"link_colliders", robot->state(tasks::Arm::kLeft).link_colliders.size() +
+                                         robot->state(tasks::Arm::kRight).link_colliders.size()},
+                  {"link_meshes_not_found", robot->arm_model().skipped_meshes()},
                   {"arms", arms}};
   }
   {

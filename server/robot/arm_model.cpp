@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -65,6 +66,9 @@ struct ArmModel::Impl {
   double gripper_max = 0;
   JointLimits finger_limits;
   std::vector<std::string> links;
+  std::vector<LinkShape> shapes;
+  std::vector<std::string> skipped_meshes;
+  std::vector<std::string> hand_links;
 
   KDL::JntArray tree_q(const Eigen::VectorXd& q, double gripper) const {
     KDL::JntArray out(tree.getNrOfJoints());
@@ -226,6 +230,24 @@ ArmModel ArmModel::from_string(const std::string& xml, const std::string& source
   }
   if (impl->arm_joints.empty())
     throw InputError(where + "no movable joint between '" + options.base_link + "' and '" + options.ee_link + "'");
+  // The hand: the last arm joint's child link and the links below it.
+  const auto last = model->getJoint(impl->arm_joints.back());
+  for (const auto& [name, link] : model->links_) {
+    for (urdf::LinkConstSharedPtr l = link; l; l = l->getParent())
+      if (last && l->name == last->child_link_name) {
+        impl->hand_links.push_back(name);
+        break;
+      }
+  }
+  // The links' collision shapes; relative mesh paths from the URDF file's directory.
+  std::error_code ec;
+  const std::string urdf_dir =
+      std::filesystem::is_regular_file(source, ec) ? std::filesystem::path(source).parent_path().string() : "";
+  try {
+    impl->shapes = read_link_shapes(*model, urdf_dir, options.package_paths, &impl->skipped_meshes, options.read_meshes);
+  } catch (const InputError& e) {
+    throw InputError(where + e.what());
+  }
   return ArmModel(std::move(impl));
 }
 
@@ -238,6 +260,11 @@ double ArmModel::gripper_max() const { return impl_->gripper_max; }
 const JointLimits& ArmModel::finger_limits() const { return impl_->finger_limits; }
 const std::array<std::string, 2>& ArmModel::finger_links() const { return impl_->finger_links; }
 std::vector<std::string> ArmModel::link_names() const { return impl_->links; }
+const std::vector<LinkShape>& ArmModel::link_shapes() const { return impl_->shapes; }
+const std::vector<std::string>& ArmModel::skipped_meshes() const { return impl_->skipped_meshes; }
+bool ArmModel::is_hand_link(const std::string& link) const {
+  return std::find(impl_->hand_links.begin(), impl_->hand_links.end(), link) != impl_->hand_links.end();
+}
 
 Eigen::Isometry3d ArmModel::link_pose(const std::string& link, const Eigen::VectorXd& q, double gripper) const {
   std::lock_guard<std::recursive_mutex> lock(impl_->kdl_mu);

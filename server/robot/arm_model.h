@@ -26,6 +26,8 @@
 #include <string>
 #include <vector>
 
+#include "robot/link_shapes.h"
+
 namespace gd::robot {
 
 /// A box-shaped finger pad in its finger link's frame (the URDF here names no collision
@@ -45,6 +47,13 @@ struct ArmModelOptions {
   /// thick on the outer side of the frame origin (link z, the finger's opening direction), so the
   /// two pads' inner faces meet at a gripper value of 0.
   FingerPad pad{Eigen::Vector3d(0, -0.02, 0.004), Eigen::Vector3d(0.01, 0.02, 0.004)};
+  /// Directories where `package://NAME/...` mesh URIs of the links' collision geometry are looked
+  /// for (robot/link_shapes.h): DIR/NAME/... or, for a DIR named NAME, DIR/.... A mesh found
+  /// nowhere is left out (skipped_meshes()); RGBench's Piper URDF names meshes it does not ship.
+  std::vector<std::string> package_paths;
+  /// Whether mesh files named by the URDF are read at all. The service sets false for a URDF a
+  /// client sends, so that a request cannot make the server open files of its choosing.
+  bool read_meshes = true;
 };
 
 struct JointLimits {
@@ -89,6 +98,15 @@ class ArmModel {
   const std::array<std::string, 2>& finger_links() const;
   /// Every link of the URDF.
   std::vector<std::string> link_names() const;
+  /// The links' collision shapes the URDF gives and that were found (robot/link_shapes.h), read
+  /// at load: the fingers' too (robot mode holds cloth with its own pads and leaves those out).
+  const std::vector<LinkShape>& link_shapes() const;
+  /// Mesh URIs of the URDF's collision geometry found on no package path (left out).
+  const std::vector<std::string>& skipped_meshes() const;
+  /// Whether `link` is part of the hand: the child link of the last arm joint and every link
+  /// below it (Piper: link6, gripper_base, link7, link8). Robot mode lifts the hand as a whole
+  /// where a pad would go below the table.
+  bool is_hand_link(const std::string& link) const;
 
   /// Pose of `link` in the base frame for arm joints q (arm_dofs() values) and gripper value g
   /// (clamped to [0, gripper_max()]). Throws InputError for an unknown link or a wrong-sized q.

@@ -122,8 +122,9 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
     if (spec.robot.urdf_xml.empty()) {
       cfg->robot.urdf = options_.robot_urdf;
     } else {
+      cfg->robot.arm.read_meshes = false;  // a client's URDF: the server opens no file it names
       try {
-        (void)robot::ArmModel::from_string(spec.robot.urdf_xml, "robot.urdf");
+        (void)robot::ArmModel::from_string(spec.robot.urdf_xml, "robot.urdf", cfg->robot.arm);
       } catch (const InputError& e) {
         return Status::InvalidArgument(fmt::format("robot settings: {}", e.what()));
       }

@@ -402,7 +402,9 @@ Status ScenePool::robot_arms(const RobotSpec& spec, std::shared_ptr<const robot:
     options->urdf = options_.robot_urdf;
   } else {
     try {
-      *arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::from_string(spec.urdf_xml, "robot.urdf"));
+      robot::ArmModelOptions arm;
+      arm.read_meshes = false;  // a client's URDF: the server opens no file it names
+      *arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::from_string(spec.urdf_xml, "robot.urdf", arm));
     } catch (const InputError& e) {
       return Status::InvalidArgument(fmt::format("robot settings: {}", e.what()));
     }

@@ -71,6 +71,17 @@ struct RobotController::PadPoses {
   }
 };
 
+/// The links' colliders' poses at a step's start and end (attach_links, update).
+struct RobotController::LinkPoses {
+  double t0 = 0, t1 = 0;
+  std::vector<std::array<Eigen::Isometry3d, 2>> pose;  ///< per link collider: [start, end]
+
+  Eigen::Isometry3d at(int k, double t) const {
+    const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
+    return blend_pose(pose[k][0], pose[k][1], u);
+  }
+};
+
 Eigen::Isometry3d blend_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double u) {
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
   out.linear() = Eigen::Quaterniond(a.linear()).slerp(u, Eigen::Quaterniond(b.linear())).normalized().toRotationMatrix();
@@ -95,7 +106,7 @@ RobotController::RobotController(DualArmTrajectory traj, RobotOptions options)
 RobotController::RobotController(DualArmTrajectory traj, RobotOptions options,
                                  std::shared_ptr<const robot::ArmModel> model)
     : traj_(std::move(traj)), options_(std::move(options)), model_(std::move(model)),
-      poses_(std::make_shared<PadPoses>()) {
+      poses_(std::make_shared<PadPoses>()), link_poses_(std::make_shared<LinkPoses>()) {
   GD_DEMAND(model_ != nullptr, "RobotController needs an arm model");
   options_.validate(false);
   const robot::ArmModel& m = *model_;
@@ -297,7 +308,46 @@ void RobotController::attach(sim::Scene& scene) {
       st.colliders[f] = scene.add_collider(std::move(c));
     }
   }
+  if (options_.link_colliders) attach_links(scene, mu);
   attached_ = true;
+}
+
+Eigen::Isometry3d RobotController::shape_pose(Arm a, const robot::LinkShape& s, const Eigen::VectorXd& q, double g,
+                                              double lift) const {
+  Eigen::Isometry3d p = base_pose(a) * model_->link_pose(s.link, q, g) * s.origin;
+  if (model_->is_hand_link(s.link)) p.translation().z() += lift;
+  return p;
+}
+
+void RobotController::attach_links(sim::Scene& scene, double mu) {
+  const double t = scene.time();
+  link_poses_->t0 = link_poses_->t1 = t;
+  const auto& fingers = model_->finger_links();
+  const std::vector<robot::LinkShape>& shapes = model_->link_shapes();
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    RobotArmState& st = state_[static_cast<int>(a)];
+    const Eigen::VectorXd q = to_vector(st.joints);
+    for (int i = 0; i < static_cast<int>(shapes.size()); ++i) {
+      const robot::LinkShape& s = shapes[i];
+      if (s.link == fingers[0] || s.link == fingers[1]) continue;  // the pads hold the cloth
+      sim::Collider c = s.kind == robot::LinkShape::Kind::kBox      ? sim::Collider::box(s.half_extents)
+                        : s.kind == robot::LinkShape::Kind::kSphere ? sim::Collider::capsule(s.radius, 0)
+                                                                     : sim::Collider::mesh(s.vertices, s.triangles);
+      const int k = static_cast<int>(link_poses_->pose.size());
+      const Eigen::Isometry3d p = shape_pose(a, s, q, st.gripper, 0);
+      link_poses_->pose.push_back({p, p});
+      std::shared_ptr<LinkPoses> poses = link_poses_;
+      c.set_pose([poses, k](double time) { return poses->at(k, time); });
+      c.set_friction(mu);
+      gd::log().debug("robot mode: {} arm link {}: {} ({} triangles)", arm_name(a), s.link, s.source, s.triangles.size());
+      st.link_colliders.push_back(scene.add_collider(std::move(c)));
+      link_shape_of_.emplace_back(a, i);
+    }
+  }
+  if (!link_shape_of_.empty())
+    gd::log().info("robot mode: {} link colliders from the URDF's collision geometry", link_shape_of_.size());
+  for (const std::string& uri : model_->skipped_meshes())
+    gd::log().debug("robot mode: link mesh {} not found on the package path; that link has no collider", uri);
 }
 
 void RobotController::update(sim::Scene& scene, double t_end) {
@@ -407,6 +457,17 @@ void RobotController::update(sim::Scene& scene, double t_end) {
   }
   poses_->t0 = t0;
   poses_->t1 = t_end;
+  // The links at the step's end, the hand lifted with its pads.
+  const std::vector<robot::LinkShape>& shapes = model_->link_shapes();
+  for (size_t k = 0; k < link_shape_of_.size(); ++k) {
+    const auto [a, i] = link_shape_of_[k];
+    const RobotArmState& st = state_[static_cast<int>(a)];
+    auto& p = link_poses_->pose[k];
+    p[0] = p[1];
+    p[1] = shape_pose(a, shapes[i], to_vector(st.joints), st.gripper, st.table_lift);
+  }
+  link_poses_->t0 = t0;
+  link_poses_->t1 = t_end;
 }
 
 }  // namespace gd::tasks

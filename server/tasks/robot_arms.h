@@ -73,6 +73,12 @@ struct RobotOptions {
   /// (the position is always reached within 1 mm); the Piper cannot point straight down high
   /// above the table.
   double max_tilt = 2.1;
+  /// The arms' links collide with the cloth where the URDF gives them collision geometry that
+  /// was found (robot::ArmModel::link_shapes; meshes on arm.package_paths): every link's shapes
+  /// but the fingers' (the pads hold the cloth), each a kinematic collider posed by forward
+  /// kinematics every step, with the pads' friction; the hand's lifted with the pads off the
+  /// table. false: the pads alone (RGBench's Piper URDF without its meshes gives no shapes).
+  bool link_colliders = true;
   /// Rotation from the trajectory's tool frame to the end-effector link (IK targets only). Piper
   /// default: link7 y = tool z (approach), link7 z = tool x (closing direction).
   Eigen::Matrix3d tool_to_ee = (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished();
@@ -89,6 +95,7 @@ struct RobotArmState {
   double squeeze = 0;               ///< N: the cloth's mean push on the two pads at the step's start
   double table_lift = 0;            ///< m the hand was raised to stay off the table
   std::array<int, 2> colliders{-1, -1};  ///< the pads' scene collider ids
+  std::vector<int> link_colliders;       ///< the links' scene collider ids (RobotOptions::link_colliders)
 };
 
 class RobotController final : public TaskController {
@@ -149,13 +156,19 @@ class RobotController final : public TaskController {
 
  private:
   struct PadPoses;
+  struct LinkPoses;
   void attach(sim::Scene& scene);
+  void attach_links(sim::Scene& scene, double mu);
+  /// World pose of link shape `s` of arm `a` at joints q and opening g, the hand raised by `lift`.
+  Eigen::Isometry3d shape_pose(Arm a, const robot::LinkShape& s, const Eigen::VectorXd& q, double g, double lift) const;
 
   DualArmTrajectory traj_;
   RobotOptions options_;
   std::shared_ptr<const robot::ArmModel> model_;
   std::array<RobotArmState, 2> state_;
   std::shared_ptr<PadPoses> poses_;  ///< shared with the colliders' pose functions
+  std::shared_ptr<LinkPoses> link_poses_;  ///< the same for the links' colliders
+  std::vector<std::pair<Arm, int>> link_shape_of_;  ///< per link collider: its arm and link shape
   double grip_force_ = 0, finger_speed_ = 0;
   int ik_solved_ = 0;
   mutable double ik_max_tilt_ = 0;  ///< grows in resolve()

@@ -5,11 +5,14 @@
 #include "tasks/robot_arms.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 
 #include "robot/arm_model.h"
 #include "tasks/task_test_util.h"
@@ -326,6 +329,133 @@ TEST(RobotArms, JointsOutsideTheUrdfLimitsAreClampedWhenRecordedAndRefusedWhenCo
   }
   cmd.joints = s[3].joints;
   EXPECT_DOUBLE_EQ(c.resolve(Arm::kLeft, cmd, s[0].joints).joints[0], lim[0].lower);
+}
+
+// --- The arm's links ---------------------------------------------------------------------------
+
+namespace links {
+
+/// A two-joint arm whose first link carries `geometry` centred 15 cm along it: with the joints at
+/// 0, a horizontal beam along world x at the arm's base y, 10 cm above the table.
+std::string beam_urdf(const std::string& geometry) {
+  return R"(<?xml version="1.0"?>
+<robot name="beam">
+  <link name="base_link"/>
+  <link name="l1"><collision><origin xyz="0.15 0 0" rpy="0 0 0"/><geometry>)" + geometry + R"(</geometry></collision></link>
+  <link name="l2"/><link name="hand"/><link name="fa"/><link name="fb"/>
+  <joint name="j1" type="revolute"><parent link="base_link"/><child link="l1"/>
+    <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0.3 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>
+  <joint name="j3" type="fixed"><parent link="l2"/><child link="hand"/><origin xyz="0.2 0 0" rpy="0 0 0"/></joint>
+  <joint name="fj1" type="prismatic"><parent link="hand"/><child link="fa"/>
+    <origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="0" upper="0.04" effort="10" velocity="1"/></joint>
+  <joint name="fj2" type="prismatic"><parent link="hand"/><child link="fb"/>
+    <origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-0.04" upper="0" effort="10" velocity="1"/></joint>
+</robot>)";
+}
+
+/// An ASCII STL of the box [-h, h] (12 outward triangles).
+void write_box_stl(const std::filesystem::path& path, const Vec3& h) {
+  std::ofstream f(path);
+  f << "solid beam\n";
+  auto corner = [&](int i) { return Vec3((i & 1 ? 1 : -1) * h.x(), (i & 2 ? 1 : -1) * h.y(), (i & 4 ? 1 : -1) * h.z()); };
+  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& q : quads)
+    for (const auto& tri : {std::array<int, 3>{q[0], q[1], q[2]}, std::array<int, 3>{q[0], q[2], q[3]}}) {
+      f << " facet normal 0 0 0\n  outer loop\n";
+      for (int k : tri) f << "   vertex " << corner(k).x() << " " << corner(k).y() << " " << corner(k).z() << "\n";
+      f << "  endloop\n endfacet\n";
+    }
+  f << "endsolid beam\n";
+}
+
+struct Landing {
+  double max_z = 0;         ///< m: the cloth's highest point after it has fallen
+  double inside_beam = 0;   ///< vertices strictly inside the beam's box
+  int intersecting = 0;     ///< most intersecting triangle pairs after any step
+  int link_colliders = 0;
+};
+
+/// A 10 x 10 cm cotton square dropped from 20 cm onto the left arm's beam (4 cm tall, its top at
+/// 12 cm), the arms still, for 0.6 s.
+Landing drop_on_beam(const std::string& geometry, const std::vector<std::string>& package_paths, bool link_colliders,
+                     const Vec3& shift = Vec3::Zero()) {
+  sim::Mesh m = sim::make_rect(0.1, 0.1, 0.01);
+  for (Vec3& p : m.x) p = Vec3(0.15 + p.x() - 0.05, base_offset(Arm::kLeft).y() + p.y() - 0.05, 0.2) + shift;
+  sim::SceneOptions o = task_options();
+  o.dt = 0.005;
+  o.self_contact = true;
+  auto scene = make_scene(m, o);
+  RobotOptions ro;
+  ro.urdf = "beam.urdf";
+  ro.arm.ee_link = "hand";
+  ro.arm.finger_joints = {"fj1", "fj2"};
+  ro.arm.package_paths = package_paths;
+  ro.link_colliders = link_colliders;
+  auto model = std::make_shared<const robot::ArmModel>(robot::ArmModel::from_string(beam_urdf(geometry), "beam", ro.arm));
+  std::vector<ArmSample> still;
+  for (const double t : {0.0, 1.0}) {
+    ArmSample s;
+    s.t = t;
+    s.joints = {0.0, 0.0};
+    s.gripper = 0.02;
+    still.push_back(s);
+  }
+  DualArmTrajectory traj;
+  traj.left = ArmTrajectory(still, "left");
+  traj.right = ArmTrajectory(still, "right");
+  RobotController c(traj, ro, model);
+  Landing out;
+  EXPECT_TRUE(run_until(*scene, c, 0.6, [&](const sim::StepStats& st) {
+    out.intersecting = std::max(out.intersecting, st.intersecting_pairs);
+  }));
+  out.link_colliders = static_cast<int>(c.state(Arm::kLeft).link_colliders.size() + c.state(Arm::kRight).link_colliders.size());
+  const auto x = scene->positions();
+  out.max_z = testing::max_z(x);
+  for (const Vec3& p : x) {  // the beam: x 0..0.3, y 0.22..0.28, z 0.08..0.12
+    const Vec3 q = p - Vec3(0.15, base_offset(Arm::kLeft).y(), 0.1);
+    if (std::abs(q.x()) < 0.15 && std::abs(q.y()) < 0.03 && std::abs(q.z()) < 0.02) out.inside_beam += 1;
+  }
+  return out;
+}
+
+}  // namespace links
+
+TEST(RobotArms, ClothFallingOnAnArmsLinkRestsOnItAsABoxOrAsAnStlMesh) {
+  namespace fs = std::filesystem;
+  const fs::path d = fs::temp_directory_path() / ("gd_beam_" + std::to_string(::getpid()));
+  fs::create_directories(d / "beam_description");
+  links::write_box_stl(d / "beam_description" / "beam.stl", Vec3(0.15, 0.03, 0.02));
+  const std::string box = R"(<box size="0.3 0.06 0.04"/>)";
+  const std::string mesh = R"(<mesh filename="package://beam_description/beam.stl"/>)";
+  // The square centred over the beam, and 1 cm off along and across it.
+  for (const Vec3& shift : {Vec3(0, 0, 0), Vec3(0.01, -0.01, 0)}) {
+    std::vector<double> heights;
+    for (const std::string& geometry : {box, mesh}) {
+      SCOPED_TRACE(::testing::Message() << geometry << " shift " << shift.transpose());
+      const links::Landing l = links::drop_on_beam(geometry, {d.string()}, true, shift);
+      EXPECT_EQ(l.link_colliders, 2);  // one beam per arm
+      // Draped over the beam: the middle rests on its top (12 cm, within the contact distance),
+      // the sides hang; nothing went into the beam or through itself.
+      EXPECT_GT(l.max_z, 0.12);
+      EXPECT_LT(l.max_z, 0.125);
+      EXPECT_EQ(l.inside_beam, 0);
+      EXPECT_EQ(l.intersecting, 0);
+      std::printf("%s shift (%g, %g): highest point %.2f mm\n", geometry.c_str(), shift.x(), shift.y(), 1e3 * l.max_z);
+      heights.push_back(l.max_z);
+    }
+    // The STL box's hull collides as the box does (its CCD bound the convex one too).
+    EXPECT_NEAR(heights[1], heights[0], 1e-4);
+  }
+  // Without the links (or without the mesh on the package path) the square falls to the table.
+  const links::Landing pads_only = links::drop_on_beam(box, {d.string()}, false);
+  EXPECT_EQ(pads_only.link_colliders, 0);
+  EXPECT_LT(pads_only.max_z, 0.01);
+  const links::Landing no_mesh = links::drop_on_beam(mesh, {}, true);
+  EXPECT_EQ(no_mesh.link_colliders, 0);
+  EXPECT_LT(no_mesh.max_z, 0.01);
+  fs::remove_all(d);
 }
 
 }  // namespace

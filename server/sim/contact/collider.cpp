@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <sstream>
@@ -231,6 +232,21 @@ Collider Collider::mesh(std::vector<Vec3> vertices, std::vector<Eigen::Vector3i>
   c.shape_.type = ColliderType::kMesh;
   c.shape_.mesh_first_tri = 0;
   c.shape_.mesh_tri_count = static_cast<int>(data->tris.size());
+  // Convex: closed, and every vertex on or behind every face's plane (outward faces).
+  bool convex = data->closed;
+  for (size_t k = 0; convex && k < data->tris.size(); ++k) {
+    const auto& t = data->tris[k];
+    const Vec3 n = data->outward * (data->vertices[t[1]] - data->vertices[t[0]]).cross(data->vertices[t[2]] - data->vertices[t[0]]);
+    const Real tol = Real(1e-9) * diag * n.norm();
+    for (const Vec3& v : data->vertices)
+      if (n.dot(v - data->vertices[t[0]]) > tol) {
+        convex = false;
+        break;
+      }
+  }
+  c.shape_.mesh_convex = convex;
+  c.shape_.mesh_center = bbox.center();  // the box around every triangle (the far cull)
+  c.shape_.mesh_half = (0.5 * bbox.sizes()).cwiseMax(Real(1e-12));
   c.mesh_ = std::move(data);
   return c;
 }
@@ -302,7 +318,8 @@ Real Collider::local_distance(const Vec3& p, bool signed_mesh, Vec3* grad, Mat3*
   if (signed_mesh && m.closed) {
     if (d == Real(0)) {
       g *= m.outward;  // on the surface: the outward face normal
-    } else if (std::fabs(m.winding(p)) > Real(0.5)) {
+    } else if (((p - shape_.mesh_center).cwiseAbs() - shape_.mesh_half).maxCoeff() <= 0 &&  // outside its box: outside
+               std::fabs(m.winding(p)) > Real(0.5)) {
       d = -d;
       g = -g;
       if (hess) *hess = -*hess;
@@ -384,6 +401,7 @@ void Collider::project_batch(std::vector<double>* x, const std::vector<int>& ski
     const Vec3 p(xs[3 * i], xs[3 * i + 1], xs[3 * i + 2]);
     if (skip[i] || !p.allFinite()) continue;
     Real gi = gap;
+    if (distance_bound(p, P) >= gap) continue;  // far from a mesh: out of reach
     if (x0) {  // never farther out than the point's clearance at the start (at least `floor`)
       if (query(p, P).distance >= gap) continue;  // out of reach whatever its start
       const Vec3 p0(x0[3 * i], x0[3 * i + 1], x0[3 * i + 2]);
@@ -394,7 +412,18 @@ void Collider::project_batch(std::vector<double>* x, const std::vector<int>& ski
   }
 }
 
+Real Collider::distance_bound(const Vec3& x_world, const Eigen::Isometry3d& pose) const {
+  if (shape_.type != ColliderType::kMesh) return -std::numeric_limits<Real>::infinity();
+  const Vec3 p = pose.linear().transpose() * (x_world - pose.translation());
+  return ((p - shape_.mesh_center).cwiseAbs() - shape_.mesh_half).cwiseMax(Real(0)).norm();
+}
+
+bool Collider::inside(const Vec3& x_world, const Eigen::Isometry3d& pose) const {
+  return !(distance_bound(x_world, pose) > 0) && query(x_world, pose).distance <= 0;
+}
+
 Vec3 Collider::project_out(const Vec3& x_world, const Eigen::Isometry3d& P, Real gap) const {
+  if (distance_bound(x_world, P) >= gap) return x_world;  // far from a mesh: nothing to do
   const Mat3 R = P.linear();
   Vec3 p = R.transpose() * (x_world - P.translation());
   Vec3 g;

@@ -70,6 +70,18 @@ struct ColliderShape {
   Real plane_offset = 0;             ///< plane: n · p = plane_offset on the plane (m)
   int mesh_first_tri = 0;            ///< mesh: first triangle in ColliderMeshView::triangles
   int mesh_tri_count = 0;            ///< mesh: number of triangles
+  /// mesh: the box around every triangle (local frame, centre and half extents; half extents 0:
+  /// none). A point farther than mesh_cull outside it gets its distance to the box, a lower bound
+  /// of the mesh's, instead of a pass over the triangles: exact for a barrier whose contact
+  /// distance is at most mesh_cull, and safe for CCD (the point is at least that far from the
+  /// mesh). The solver sets mesh_cull to twice the contact distance; infinity (the default) never
+  /// culls.
+  Vec3 mesh_center = Vec3::Zero();
+  Vec3 mesh_half = Vec3::Zero();
+  Real mesh_cull = Real(INFINITY);
+  /// mesh: closed and convex (a URDF link's hull): outside it the distance is a convex function,
+  /// so CCD bounds only the motion towards it, as for a box (solver/step_bounds.h).
+  bool mesh_convex = false;
 };
 
 /// Triangle storage of mesh colliders (device or host pointers). Triangle k has the vertices
@@ -278,6 +290,15 @@ GD_HD Real collider_local_distance(const Vec3& p, const ColliderShape& shape, co
         if (hess) hess->setZero();
         return Real(INFINITY);
       }
+      if (shape.mesh_half.maxCoeff() > 0) {  // far outside the bounding box: its distance is enough
+        const Vec3 out = ((p - shape.mesh_center).cwiseAbs() - shape.mesh_half).cwiseMax(Real(0));
+        const Real r = out.norm();
+        if (r > shape.mesh_cull) {
+          if (grad) *grad = (p - shape.mesh_center).cwiseSign().cwiseProduct(out) / r;
+          if (hess) hess->setZero();
+          return r;
+        }
+      }
       return mesh_distance(p, *mesh, shape.mesh_first_tri, shape.mesh_tri_count, grad, hess);
   }
 }
@@ -458,6 +479,14 @@ class Collider {
   /// false: the pose function is followed exactly.
   void set_yielding(bool yielding) { yielding_ = yielding; }
   bool yielding() const { return yielding_; }
+
+  /// A lower bound of the distance of a world point at `pose`, found without a query: for a mesh
+  /// its distance to the box around the mesh (0 inside the box), -infinity for other shapes. The
+  /// checks that only ask whether a point is clear of a mesh collider skip the query with it.
+  Real distance_bound(const Vec3& x_world, const Eigen::Isometry3d& pose) const;
+  /// Whether a world point is inside or on the surface (query(...).distance <= 0), skipping the
+  /// query for a point outside a mesh's box.
+  bool inside(const Vec3& x_world, const Eigen::Isometry3d& pose) const;
 
   /// Signed distance, closest point and normal of a world point at time t (checked_pose).
   ColliderQuery query(const Vec3& x_world, double t) const;

@@ -194,7 +194,7 @@ bool Solver<Exec>::inside_a_collider(const std::vector<double>& x) const {
     for (int i = 0; i < n_; ++i) {
       if (kin_fixed_host_[i]) continue;
       const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
-      if (c.query(p, pose).distance <= 0) return true;
+      if (c.inside(p, pose)) return true;
     }
   }
   return false;

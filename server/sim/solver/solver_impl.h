@@ -199,7 +199,8 @@ class Solver final : public SolverBase {
     col_clear_.assign(n_col_, 0);
     col_end_.clear();
     if (n_col_ == 0) return;
-    const PackedColliders packed = pack_colliders(colliders);
+    PackedColliders packed = pack_colliders(colliders);
+    for (ColliderShape& s : packed.shapes) s.mesh_cull = 2 * P_.dhat;  // meshes: the far cull (collider.h)
     std::vector<double> poses, mu, kappa;
     for (const Collider& c : colliders) {
       for (const double t : {t0, t1}) {

@@ -20,7 +20,8 @@ double Solver<Exec>::max_step() {
 /// a collider's surface in one step. The distance to a convex set (box, capsule, plane) is a convex
 /// function, so d(x + a dx) >= d(x) + a n.dx (n its gradient, the outward normal): only the motion
 /// towards the surface is bounded, and cloth pressed against a pad slides along it or leaves it
-/// freely. A mesh may be non-convex: there the distance's 1-Lipschitz bound, |dx| <= 0.9 d, holds.
+/// freely; so for a convex mesh (a URDF link's hull). Another mesh may be non-convex: there the
+/// distance's 1-Lipschitz bound, |dx| <= 0.9 d, holds.
 template <class Exec>
 double Solver<Exec>::collider_step_bound() {
   if (n_col_ == 0) return 1.0;
@@ -40,7 +41,7 @@ double Solver<Exec>::collider_step_bound() {
       const Real d = collider_world_distance(detail::load3(x, i), R1, t1, V.col_shape[c], &V.col_mesh, &n, nullptr);
       if (!(d > 0)) {
         worst = 1e12;
-      } else if (V.col_shape[c].type == ColliderType::kMesh) {
+      } else if (V.col_shape[c].type == ColliderType::kMesh && !V.col_shape[c].mesh_convex) {
         worst = fmax(worst, len / (0.9 * d));
       } else {
         const Real dn = n.dot(detail::load3(dx, i));

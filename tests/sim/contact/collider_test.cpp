@@ -329,6 +329,60 @@ TEST(ColliderDistance, ClosedBoxMeshMatchesBox) {
     }
 }
 
+TEST(ColliderDistance, MeshFarCullIsExactNearTheMeshAndALowerBoundBeyondIt) {
+  std::mt19937 rng(14);
+  const Vec3 h(0.1, 0.05, 0.02);
+  std::vector<Vec3> v;
+  std::vector<Tri> t;
+  box_mesh(h, &v, &t);
+  for (Vec3& p : v) p += Vec3(0.3, -0.2, 0.1);  // off the local origin: the cull box is the mesh's
+  const Collider c = Collider::mesh(v, t);
+  EXPECT_TRUE(c.shape().mesh_convex);
+  EXPECT_TRUE(c.shape().mesh_center.isApprox(Vec3(0.3, -0.2, 0.1)));
+  EXPECT_TRUE(c.shape().mesh_half.isApprox(h));
+  ColliderShape culled = c.shape(), full = c.shape();
+  culled.mesh_cull = 0.02;  // as the solver sets it: twice a 1 cm contact distance
+  const ColliderMeshView view{c.mesh_vertices().data(), c.mesh_triangles().data()};
+  int near = 0, far = 0;
+  for (int it = 0; it < 2000; ++it) {
+    const Vec3 p = Vec3(0.3, -0.2, 0.1) + test::random_vec3(rng).cwiseProduct(h + Vec3::Constant(0.1));
+    Vec3 gc, gf;
+    Mat3 Hc, Hf;
+    const Real dc = collider_local_distance(p, culled, &view, &gc, &Hc);
+    const Real df = collider_local_distance(p, full, &view, &gf, &Hf);
+    ASSERT_EQ(df, mesh_distance(p, view, 0, 12, nullptr, nullptr));  // infinity never culls
+    if (df <= 0.02) {  // within the cull distance: the mesh's own distance and derivatives
+      ++near;
+      EXPECT_EQ(dc, df);
+      EXPECT_EQ(gc, gf);
+      EXPECT_EQ(Hc, Hf);
+    } else {
+      EXPECT_LE(dc, df + 1e-15);  // beyond it: a lower bound that stays beyond the cull distance
+      EXPECT_GT(dc, 0.02 - 1e-15);
+      if (dc < df) ++far;
+      EXPECT_NEAR(gc.norm(), 1.0, 1e-12);
+    }
+    // The energy of a barrier within the cull distance is the same either way (zero beyond it).
+    const Real e_c = point_collider_energy(p, Mat3::Identity(), Vec3::Zero(), culled, 0, 0.01, 1.0, nullptr, nullptr,
+                                           HessianKind::kProjected, &view);
+    const Real e_f = point_collider_energy(p, Mat3::Identity(), Vec3::Zero(), full, 0, 0.01, 1.0, nullptr, nullptr,
+                                           HessianKind::kProjected, &view);
+    EXPECT_EQ(e_c, e_f);
+  }
+  EXPECT_GT(near, 100);
+  EXPECT_GT(far, 100);  // the lower bound was used
+  // A non-convex mesh (two boxes' surfaces, an L) is flagged so: CCD keeps the Lipschitz bound.
+  std::vector<Vec3> v2;
+  std::vector<Tri> t2;
+  box_mesh(h, &v2, &t2);
+  std::vector<Vec3> v3 = v2;
+  for (Vec3& p : v3) p += Vec3(0.15, 0.08, 0);
+  const std::vector<Tri> first = t2;
+  for (const Tri& tri : first) t2.push_back(tri + Tri::Constant(8));
+  v2.insert(v2.end(), v3.begin(), v3.end());
+  EXPECT_FALSE(Collider::mesh(v2, t2).shape().mesh_convex);
+}
+
 TEST(ColliderDistance, MeshBvhMatchesBruteForce) {
   std::mt19937 rng(5);
   std::vector<Vec3> v;
