@@ -13,6 +13,7 @@
 #include <map>
 
 #include "robot/arm_model.h"
+#include "robot/urdf_test_util.h"
 #include "sim/demand.h"
 
 namespace gd::robot {
@@ -32,23 +33,6 @@ fs::path temp_dir(const std::string& name) {
   fs::remove_all(d);
   fs::create_directories(d);
   return d;
-}
-
-/// An ASCII STL of the box [-h, h] (12 triangles, outward).
-void write_box_stl(const fs::path& path, const Eigen::Vector3d& h) {
-  std::ofstream f(path);
-  f << "solid box\n";
-  auto corner = [&](int i) {
-    return Eigen::Vector3d((i & 1 ? 1 : -1) * h.x(), (i & 2 ? 1 : -1) * h.y(), (i & 4 ? 1 : -1) * h.z());
-  };
-  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& q : quads)
-    for (const auto& tri : {std::array<int, 3>{q[0], q[1], q[2]}, std::array<int, 3>{q[0], q[2], q[3]}}) {
-      f << " facet normal 0 0 0\n  outer loop\n";
-      for (int k : tri) f << "   vertex " << corner(k).x() << " " << corner(k).y() << " " << corner(k).z() << "\n";
-      f << "  endloop\n endfacet\n";
-    }
-  f << "endsolid box\n";
 }
 
 TEST(LinkShapes, ConvexHullOfACubesPointsIsTwelveOutwardTriangles) {
@@ -88,7 +72,7 @@ TEST(LinkShapes, MeshUrisResolveUnderThePackagePathAndTheUrdfsDirectory) {
   const fs::path d = temp_dir("uri");
   fs::create_directories(d / "share" / "arm_description" / "meshes");
   const fs::path mesh = d / "share" / "arm_description" / "meshes" / "l1.stl";
-  write_box_stl(mesh, Eigen::Vector3d(0.01, 0.01, 0.01));
+  testing::write_box_stl(mesh, Eigen::Vector3d(0.01, 0.01, 0.01));
   const std::string uri = "package://arm_description/meshes/l1.stl";
   EXPECT_EQ(resolve_mesh_uri(uri, "", {(d / "elsewhere").string(), (d / "share").string()}), mesh.string());
   EXPECT_EQ(resolve_mesh_uri(uri, "", {(d / "share" / "arm_description").string()}), mesh.string());  // DIR named NAME
@@ -102,10 +86,9 @@ TEST(LinkShapes, MeshUrisResolveUnderThePackagePathAndTheUrdfsDirectory) {
   fs::remove_all(d);
 }
 
-/// A two-joint arm with a gripper whose links carry every kind of URDF collision geometry.
+/// The test arm (robot/urdf_test_util.h) with every kind of URDF collision geometry on its links.
 std::string geometry_urdf(const std::string& finger_mesh) {
-  return R"(<?xml version="1.0"?>
-<robot name="shapes">
+  return testing::two_joint_arm_urdf(R"(
   <link name="base_link"/>
   <link name="l1"><collision><origin xyz="0.15 0 0" rpy="0 0 1.5707963267948966"/>
     <geometry><box size="0.1 0.2 0.3"/></geometry></collision></link>
@@ -113,17 +96,7 @@ std::string geometry_urdf(const std::string& finger_mesh) {
     <geometry><cylinder radius="0.02" length="0.2"/></geometry></collision></link>
   <link name="hand"><collision><geometry><sphere radius="0.03"/></geometry></collision></link>
   <link name="fa"><collision><geometry><mesh filename="package://testpkg/meshes/pad.stl" scale="2 2 2"/></geometry></collision></link>
-  <link name="fb"><collision><geometry><mesh filename=")" + finger_mesh + R"("/></geometry></collision></link>
-  <joint name="j1" type="revolute"><parent link="base_link"/><child link="l1"/>
-    <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
-    <origin xyz="0.3 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>
-  <joint name="j3" type="fixed"><parent link="l2"/><child link="hand"/><origin xyz="0.2 0 0" rpy="0 0 0"/></joint>
-  <joint name="fj1" type="prismatic"><parent link="hand"/><child link="fa"/>
-    <origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="10" velocity="1"/></joint>
-  <joint name="fj2" type="prismatic"><parent link="hand"/><child link="fb"/>
-    <origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="0 1 0"/><limit lower="-0.04" upper="0" effort="10" velocity="1"/></joint>
-</robot>)";
+  <link name="fb"><collision><geometry><mesh filename=")" + finger_mesh + R"("/></geometry></collision></link>)");
 }
 
 ArmModelOptions geometry_options(const fs::path& packages) {
@@ -137,7 +110,7 @@ ArmModelOptions geometry_options(const fs::path& packages) {
 TEST(LinkShapes, UrdfCollisionGeometryBecomesLinkShapes) {
   const fs::path d = temp_dir("urdf");
   fs::create_directories(d / "testpkg" / "meshes");
-  write_box_stl(d / "testpkg" / "meshes" / "pad.stl", Eigen::Vector3d(0.01, 0.005, 0.02));
+  testing::write_box_stl(d / "testpkg" / "meshes" / "pad.stl", Eigen::Vector3d(0.01, 0.005, 0.02));
   const ArmModel arm =
       ArmModel::from_string(geometry_urdf("package://missing_pkg/meshes/fb.stl"), "shapes", geometry_options(d));
   ASSERT_EQ(arm.link_shapes().size(), 4u);  // fb's mesh is nowhere on the package path
@@ -197,7 +170,7 @@ TEST(LinkShapes, UrdfCollisionGeometryBecomesLinkShapes) {
 TEST(LinkShapes, AMeshFileThatCannotBeReadIsAnInputErrorNamingIt) {
   const fs::path d = temp_dir("bad");
   fs::create_directories(d / "testpkg" / "meshes");
-  write_box_stl(d / "testpkg" / "meshes" / "pad.stl", Eigen::Vector3d(0.01, 0.005, 0.02));
+  testing::write_box_stl(d / "testpkg" / "meshes" / "pad.stl", Eigen::Vector3d(0.01, 0.005, 0.02));
   std::ofstream(d / "testpkg" / "meshes" / "broken.stl") << "this is not a mesh\n";
   try {
     ArmModel::from_string(geometry_urdf("package://testpkg/meshes/broken.stl"), "shapes", geometry_options(d));

@@ -15,6 +15,7 @@
 #include <fstream>
 
 #include "robot/arm_model.h"
+#include "robot/urdf_test_util.h"
 #include "tasks/task_test_util.h"
 #include "sim/demand.h"
 
@@ -335,39 +336,14 @@ TEST(RobotArms, JointsOutsideTheUrdfLimitsAreClampedWhenRecordedAndRefusedWhenCo
 
 namespace links {
 
-/// A two-joint arm whose first link carries `geometry` centred 15 cm along it: with the joints at
-/// 0, a horizontal beam along world x at the arm's base y, 10 cm above the table.
+/// The test arm (robot/urdf_test_util.h) whose first link carries `geometry` centred 15 cm along
+/// it: with the joints at 0, a horizontal beam along world x at the arm's base y, 10 cm above the
+/// table.
 std::string beam_urdf(const std::string& geometry) {
-  return R"(<?xml version="1.0"?>
-<robot name="beam">
+  return robot::testing::two_joint_arm_urdf(R"(
   <link name="base_link"/>
   <link name="l1"><collision><origin xyz="0.15 0 0" rpy="0 0 0"/><geometry>)" + geometry + R"(</geometry></collision></link>
-  <link name="l2"/><link name="hand"/><link name="fa"/><link name="fb"/>
-  <joint name="j1" type="revolute"><parent link="base_link"/><child link="l1"/>
-    <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
-    <origin xyz="0.3 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>
-  <joint name="j3" type="fixed"><parent link="l2"/><child link="hand"/><origin xyz="0.2 0 0" rpy="0 0 0"/></joint>
-  <joint name="fj1" type="prismatic"><parent link="hand"/><child link="fa"/>
-    <origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="0" upper="0.04" effort="10" velocity="1"/></joint>
-  <joint name="fj2" type="prismatic"><parent link="hand"/><child link="fb"/>
-    <origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-0.04" upper="0" effort="10" velocity="1"/></joint>
-</robot>)";
-}
-
-/// An ASCII STL of the box [-h, h] (12 outward triangles).
-void write_box_stl(const std::filesystem::path& path, const Vec3& h) {
-  std::ofstream f(path);
-  f << "solid beam\n";
-  auto corner = [&](int i) { return Vec3((i & 1 ? 1 : -1) * h.x(), (i & 2 ? 1 : -1) * h.y(), (i & 4 ? 1 : -1) * h.z()); };
-  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& q : quads)
-    for (const auto& tri : {std::array<int, 3>{q[0], q[1], q[2]}, std::array<int, 3>{q[0], q[2], q[3]}}) {
-      f << " facet normal 0 0 0\n  outer loop\n";
-      for (int k : tri) f << "   vertex " << corner(k).x() << " " << corner(k).y() << " " << corner(k).z() << "\n";
-      f << "  endloop\n endfacet\n";
-    }
-  f << "endsolid beam\n";
+  <link name="l2"/><link name="hand"/><link name="fa"/><link name="fb"/>)");
 }
 
 struct Landing {
@@ -426,7 +402,7 @@ TEST(RobotArms, ClothFallingOnAnArmsLinkRestsOnItAsABoxOrAsAnStlMesh) {
   namespace fs = std::filesystem;
   const fs::path d = fs::temp_directory_path() / ("gd_beam_" + std::to_string(::getpid()));
   fs::create_directories(d / "beam_description");
-  links::write_box_stl(d / "beam_description" / "beam.stl", Vec3(0.15, 0.03, 0.02));
+  robot::testing::write_box_stl(d / "beam_description" / "beam.stl", Vec3(0.15, 0.03, 0.02));
   const std::string box = R"(<box size="0.3 0.06 0.04"/>)";
   const std::string mesh = R"(<mesh filename="package://beam_description/beam.stl"/>)";
   // The square centred over the beam, and 1 cm off along and across it.
