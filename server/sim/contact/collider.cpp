@@ -232,8 +232,11 @@ Collider Collider::mesh(std::vector<Vec3> vertices, std::vector<Eigen::Vector3i>
   c.shape_.type = ColliderType::kMesh;
   c.shape_.mesh_first_tri = 0;
   c.shape_.mesh_tri_count = static_cast<int>(data->tris.size());
-  // Convex: closed, and every vertex on or behind every face's plane (outward faces).
-  bool convex = data->closed;
+  // Convex: closed, and every vertex on or behind every face's plane (outward faces). The test is
+  // O(vertices x faces): meshes of more than kConvexTestTriangles faces are taken as non-convex
+  // (the safe CCD bound), which a URDF link's hull of a few hundred faces never is.
+  constexpr size_t kConvexTestTriangles = 4096;
+  bool convex = data->closed && data->tris.size() <= kConvexTestTriangles;
   for (size_t k = 0; convex && k < data->tris.size(); ++k) {
     const auto& t = data->tris[k];
     const Vec3 n = data->outward * (data->vertices[t[1]] - data->vertices[t[0]]).cross(data->vertices[t[2]] - data->vertices[t[0]]);

@@ -79,8 +79,9 @@ struct ColliderShape {
   Vec3 mesh_center = Vec3::Zero();
   Vec3 mesh_half = Vec3::Zero();
   Real mesh_cull = Real(INFINITY);
-  /// mesh: closed and convex (a URDF link's hull): outside it the distance is a convex function,
-  /// so CCD bounds only the motion towards it, as for a box (solver/step_bounds.h).
+  /// mesh: closed and convex (a URDF link's hull; tested for meshes of at most 4096 triangles):
+  /// outside it the distance is a convex function, so CCD bounds only the motion towards it, as
+  /// for a box (solver/step_bounds.h).
   bool mesh_convex = false;
 };
 
