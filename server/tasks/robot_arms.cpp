@@ -59,16 +59,21 @@ void RobotOptions::validate(bool need_urdf) const {
     throw InputError("robot finger pad: half extents must be finite and > 0, the centre finite");
 }
 
+namespace {
+/// A collider's pose at time t of a step [t0, t1] from its poses at the start and end (blend_pose).
+Eigen::Isometry3d pose_over_step(const std::array<Eigen::Isometry3d, 2>& p, double t0, double t1, double t) {
+  const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
+  return blend_pose(p[0], p[1], u);
+}
+}  // namespace
+
 /// Each pad's pose at the start and end of the coming step (shared with the colliders).
 struct RobotController::PadPoses {
   double t0 = 0, t1 = 0;
   std::array<std::array<Eigen::Isometry3d, 2>, 4> pose;  ///< [arm * 2 + finger][start, end]
   std::array<Eigen::Isometry3d, 4> target;                ///< where each pad was asked to be at t1
 
-  Eigen::Isometry3d at(int pad, double t) const {
-    const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
-    return blend_pose(pose[pad][0], pose[pad][1], u);
-  }
+  Eigen::Isometry3d at(int pad, double t) const { return pose_over_step(pose[pad], t0, t1, t); }
 };
 
 /// The links' colliders' poses at a step's start and end (attach_links, update).
@@ -76,10 +81,7 @@ struct RobotController::LinkPoses {
   double t0 = 0, t1 = 0;
   std::vector<std::array<Eigen::Isometry3d, 2>> pose;  ///< per link collider: [start, end]
 
-  Eigen::Isometry3d at(int k, double t) const {
-    const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
-    return blend_pose(pose[k][0], pose[k][1], u);
-  }
+  Eigen::Isometry3d at(int k, double t) const { return pose_over_step(pose[k], t0, t1, t); }
 };
 
 Eigen::Isometry3d blend_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double u) {
