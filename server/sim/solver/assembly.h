@@ -10,6 +10,21 @@
 namespace gd::sim {
 
 namespace detail {
+/// Asks the CPU to fetch the K x K Hessian blocks at `slots` (the next element's, while this one
+/// computes): the element loops' adds wait on those loads, not on arithmetic (drape/20000, one
+/// thread: assembly 32 -> 26 ms per step). Nothing on the GPU.
+template <int K>
+GD_HD void prefetch_blocks(const double* H, const int* slots) {
+#if !defined(__CUDA_ARCH__)
+  for (int k = 0; k < K * K; ++k) {
+    __builtin_prefetch(H + 9 * slots[k], 1, 3);
+    __builtin_prefetch(H + 9 * slots[k] + 8, 1, 3);  // a 72-byte block may straddle two lines
+  }
+#else
+  (void)H, (void)slots;
+#endif
+}
+
 /// Which of `owners` threads adds into vertex v's rows (add_pair on the CPU): blocks of 64
 /// consecutive vertices dealt round robin, so that contacts gathered in one part of the mesh
 /// still spread over the threads.
@@ -55,6 +70,7 @@ double Solver<Exec>::evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessi
     return ei;
   }, Exec::kParallelMinHeavy);
   e += sum_elements(data_->tri_colors, tri_order_, V.nt, [=] GD_HD_LAMBDA(int t) {
+    if (H && t + 1 < V.nt) detail::prefetch_blocks<3>(H, V.tri_slots + 9 * (t + 1));
     Vec9 ge;
     Mat9 He;
     const double et = detail::triangle_terms(V, P, t, x, &ge, H ? &He : nullptr);
@@ -62,6 +78,7 @@ double Solver<Exec>::evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessi
     return et;
   });
   e += sum_elements(data_->hinge_colors, hinge_order_, V.nh, [=] GD_HD_LAMBDA(int h) {
+    if (H && h + 1 < V.nh) detail::prefetch_blocks<4>(H, V.hinge_slots + 16 * (h + 1));
     Vec12 ge;
     if (P.bending_exact_projected) {
       Mat12 He;
@@ -271,6 +288,15 @@ double Solver<Exec>::sum_elements(const Coloring& coloring, const ElementOrder& 
     // thread count (an OpenMP reduction would sum in an order that depends on it).
     chunk_energy_.resize(coloring.chunks.size());
     double* ce = chunk_energy_.data();
+    if (omp_threads() == 1 && coloring.serial.size() == coloring.chunks.size()) {
+      // One thread: the chunks in Coloring::serial's order (the colour sweep's bits, mesh order's
+      // cache reuse: 20k-vertex assembly 1.4x faster).
+      for (int slot : coloring.serial) {
+        double s = 0;
+        for (int i = C->first(chunks[slot]); i < C->last(chunks[slot]); ++i) s += f(i);
+        ce[slot] = s;
+      }
+    } else
     for (int c = 0; c < coloring.colors(); ++c) {
       const int begin = coloring.offsets[c];
       Exec::for_each(coloring.offsets[c + 1] - begin, [=](int k) {

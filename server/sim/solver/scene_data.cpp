@@ -53,6 +53,57 @@ void scale_along_edge(const Eigen::Vector3i& tri, int a, int b, Real ratio, Vec2
   for (int k = 0; k < 3; ++k) p[k] = o + M * (p[k] - o);
 }
 
+/// Coloring::serial: chunks in mesh order, each preceded (depth first) by the chunks of lower
+/// colour it shares a vertex with that have not run yet.
+std::vector<int> serial_chunk_order(const Coloring& c, const std::vector<int>& elems, int k, int vertices,
+                                    const std::vector<int>& color, const std::vector<int>& slot) {
+  const int nc = static_cast<int>(color.size());
+  // Chunks at each vertex (CSR), to find a chunk's neighbours.
+  std::vector<int> start(static_cast<size_t>(vertices) + 1, 0);
+  for (int q = 0; q < nc; ++q)
+    for (int e = c.first(q); e < c.last(q); ++e)
+      for (int a = 0; a < k; ++a) ++start[elems[k * e + a] + 1];
+  for (int v = 0; v < vertices; ++v) start[v + 1] += start[v];
+  std::vector<int> at(start.back()), fill(start.begin(), start.end() - 1);
+  for (int q = 0; q < nc; ++q)
+    for (int e = c.first(q); e < c.last(q); ++e)
+      for (int a = 0; a < k; ++a) at[fill[elems[k * e + a]]++] = q;
+  std::vector<int> order;
+  order.reserve(nc);
+  std::vector<char> done(nc, 0);
+  // Iterative depth-first walk: a chunk is emitted once every lower-colour neighbour has been.
+  std::vector<int> stack;
+  for (int root = 0; root < nc; ++root) {
+    if (done[root]) continue;
+    stack.push_back(root);
+    while (!stack.empty()) {
+      const int q = stack.back();
+      if (done[q]) {
+        stack.pop_back();
+        continue;
+      }
+      bool ready = true;
+      for (int e = c.first(q); e < c.last(q) && ready; ++e)
+        for (int a = 0; a < k && ready; ++a) {
+          const int v = elems[k * e + a];
+          for (int j = start[v]; j < start[v + 1]; ++j) {
+            const int p = at[j];
+            if (color[p] < color[q] && !done[p]) {
+              stack.push_back(p);  // colours strictly fall along the stack: no cycle
+              ready = false;
+              break;
+            }
+          }
+        }
+      if (!ready) continue;
+      done[q] = 1;
+      order.push_back(slot[q]);
+      stack.pop_back();
+    }
+  }
+  return order;
+}
+
 }  // namespace
 
 Coloring color_elements(const std::vector<int>& elems, int k, int vertices, int chunk) {
@@ -91,7 +142,12 @@ Coloring color_elements(const std::vector<int>& elems, int k, int vertices, int 
   for (int c = 0; c < ncolors; ++c) out.offsets[c + 1] += out.offsets[c];
   out.chunks.resize(nc);
   std::vector<int> fill(out.offsets.begin(), out.offsets.end() - 1);
-  for (int q = 0; q < nc; ++q) out.chunks[fill[color[q]]++] = q;
+  std::vector<int> slot(nc);
+  for (int q = 0; q < nc; ++q) {
+    slot[q] = fill[color[q]];
+    out.chunks[fill[color[q]]++] = q;
+  }
+  out.serial = serial_chunk_order(out, elems, k, vertices, color, slot);
   return out;
 }
 

@@ -25,6 +25,12 @@ struct Coloring {
   int chunk = 1;             ///< elements per chunk (the last one may be shorter)
   std::vector<int> chunks;   ///< chunk indices, colour by colour
   std::vector<int> offsets;  ///< colour c is chunks[offsets[c] .. offsets[c+1])
+  /// One thread's order of the chunks (indices into `chunks`, i.e. slots): mesh order as far as
+  /// the colours allow. A chunk runs after every chunk it shares a vertex with that has a lower
+  /// colour, so each Hessian block and gradient entry receives its adds in the same sequence as
+  /// in the colour-by-colour sweep (the same bits), while the matrix rows are walked once in mesh
+  /// order instead of once per colour (a colour's chunks are spread over the whole mesh).
+  std::vector<int> serial;
   int colors() const { return offsets.empty() ? 0 : static_cast<int>(offsets.size()) - 1; }
   /// Elements [first(k), last(k)) form chunk k.
   int first(int k) const { return k * chunk; }

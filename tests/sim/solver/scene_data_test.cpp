@@ -167,6 +167,31 @@ void expect_valid_coloring(const Coloring& c, const std::vector<int>& elems, int
     }
   }
   for (int e = 0; e < ne; ++e) EXPECT_EQ(seen[e], 1) << "element " << e;
+  // The one-thread order: every slot once, and a chunk only after each chunk of lower colour it
+  // shares a vertex with (so every Hessian entry gets its adds in the colour sweep's sequence).
+  ASSERT_EQ(c.serial.size(), c.chunks.size());
+  std::vector<int> color_of(c.chunks.size()), position(c.chunks.size(), -1);
+  for (int col = 0; col < c.colors(); ++col)
+    for (int q = c.offsets[col]; q < c.offsets[col + 1]; ++q) color_of[c.chunks[q]] = col;
+  for (size_t i = 0; i < c.serial.size(); ++i) {
+    ASSERT_GE(c.serial[i], 0);
+    ASSERT_LT(c.serial[i], static_cast<int>(c.chunks.size()));
+    EXPECT_EQ(position[c.chunks[c.serial[i]]], -1) << "slot " << c.serial[i] << " listed twice";
+    position[c.chunks[c.serial[i]]] = static_cast<int>(i);
+  }
+  std::vector<std::vector<int>> chunks_at;
+  for (int chunk = 0; chunk < static_cast<int>(c.chunks.size()); ++chunk)
+    for (int e = c.first(chunk); e < c.last(chunk); ++e)
+      for (int a = 0; a < k; ++a) {
+        const int v = elems[k * e + a];
+        if (v >= static_cast<int>(chunks_at.size())) chunks_at.resize(v + 1);
+        chunks_at[v].push_back(chunk);
+      }
+  for (const std::vector<int>& at : chunks_at)
+    for (int p : at)
+      for (int q : at)
+        if (color_of[p] < color_of[q])
+          EXPECT_LT(position[p], position[q]) << "chunk " << q << " runs before chunk " << p << " of a lower colour";
 }
 
 TEST(SceneDataColoring, ChunksOfOneColourShareNoVertex) {
