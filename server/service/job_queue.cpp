@@ -121,6 +121,7 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
     GD_RETURN_IF_ERROR(apply_robot_spec(spec.robot, !options_.robot_urdf.empty(), &cfg->robot));
     if (spec.robot.urdf_xml.empty()) {
       cfg->robot.urdf = options_.robot_urdf;
+      cfg->robot.arm.package_paths = options_.robot_package_paths;
     } else {
       cfg->robot.arm.read_meshes = false;  // a client's URDF: the server opens no file it names
       try {

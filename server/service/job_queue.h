@@ -86,6 +86,9 @@ struct JobQueueOptions {
   /// Robot-mode jobs whose request sends no URDF run with this one (flag --robot-urdf; empty:
   /// they are refused).
   std::string robot_urdf;
+  /// Where robot_urdf's `package://` mesh URIs are looked for (flag --robot-urdf-package-path;
+  /// robot::ArmModelOptions::package_paths).
+  std::vector<std::string> robot_package_paths;
 };
 
 /// A finished job's report with (optionally) its files' bytes.

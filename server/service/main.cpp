@@ -86,6 +86,11 @@ int main(int argc, char** argv) {
                  "URDF of robot mode's arms for scenes and jobs whose request sends none (e.g. RGBench's "
                  "piper_with_gripper.urdf; docs/robot.md); without it such requests are refused")
       ->check(CLI::ExistingFile);
+  app.add_option("--robot-urdf-package-path", o.robot_package_paths,
+                 "directory where --robot-urdf's package://NAME/... link meshes are looked for, as DIR/NAME/... or, "
+                 "for a DIR named NAME, DIR/... (repeatable); meshes found nowhere leave their links without a "
+                 "collider (the server's log lists them)")
+      ->check(CLI::ExistingDirectory);
   app.add_flag("--plots", o.plots, "draw the PNG plots of capture jobs (needs Python with matplotlib)");
   app.add_option("--scene-lease-s", o.scene_lease_seconds,
                  "scenes that no call names for this long are destroyed (a client that died or never called "

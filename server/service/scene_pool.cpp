@@ -326,13 +326,17 @@ ScenePool::ScenePool(PoolOptions options)
           throw InputError("scene pool limits must be >= 0");
         return options;
       }()),
-      robot_model_(options_.robot_urdf.empty()
-                       ? nullptr
-                       : std::make_shared<const robot::ArmModel>(robot::ArmModel::load(options_.robot_urdf))),
+      robot_model_(options_.robot_urdf.empty() ? nullptr : [&] {
+        robot::ArmModelOptions arm;
+        arm.package_paths = options_.robot_package_paths;
+        return std::make_shared<const robot::ArmModel>(robot::ArmModel::load(options_.robot_urdf, arm));
+      }()),
       pool_(options_.threads) {
-  if (robot_model_)
-    gd::log().info("robot mode's default arms: {} ({} joints) from {}", robot_model_->name(), robot_model_->arm_dofs(),
-                   options_.robot_urdf);
+  if (!robot_model_) return;
+  gd::log().info("robot mode's default arms: {} ({} joints) from {}; {} collision shapes", robot_model_->name(),
+                 robot_model_->arm_dofs(), options_.robot_urdf, robot_model_->link_shapes().size());
+  for (const std::string& uri : robot_model_->skipped_meshes())
+    gd::log().warn("robot mode: link mesh {} not found (--robot-urdf-package-path); its link has no collider", uri);
 }
 
 ScenePool::~ScenePool() {
@@ -400,6 +404,7 @@ Status ScenePool::robot_arms(const RobotSpec& spec, std::shared_ptr<const robot:
   if (spec.urdf_xml.empty()) {
     *arms = robot_model_;
     options->urdf = options_.robot_urdf;
+    options->arm.package_paths = options_.robot_package_paths;
   } else {
     try {
       robot::ArmModelOptions arm;

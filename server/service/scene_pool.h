@@ -89,6 +89,9 @@ struct PoolOptions {
   /// The arms of robot-mode scenes whose request sends no URDF (flag --robot-urdf; empty: such
   /// requests are refused). Loaded when the pool is built: a bad file stops the server there.
   std::string robot_urdf;
+  /// Where robot_urdf's `package://` mesh URIs are looked for (flag --robot-urdf-package-path;
+  /// robot::ArmModelOptions::package_paths).
+  std::vector<std::string> robot_package_paths;
 };
 
 

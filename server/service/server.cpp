@@ -164,6 +164,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     po.backend = o.backend;
     po.deterministic = o.deterministic;
     po.robot_urdf = o.robot_urdf;
+    po.robot_package_paths = o.robot_package_paths;
     im.scenes = std::make_unique<ScenePool>(po);
     JobQueueOptions jo;
     jo.data_dir = o.data_dir;
@@ -177,6 +178,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     jo.backend = o.backend;
     jo.deterministic = o.deterministic;
     jo.robot_urdf = o.robot_urdf;
+    jo.robot_package_paths = o.robot_package_paths;
     im.jobs = std::make_unique<JobQueue>(jo, *im.store, *im.meshes);
   } catch (const std::exception& e) {
     return fail(Status::InvalidArgument(e.what()));

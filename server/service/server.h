@@ -34,6 +34,8 @@ struct ServerOptions {
   bool plots = false;
   /// URDF of robot mode's arms for requests that send none (empty: they must send one).
   std::string robot_urdf;
+  /// Directories where the URDF's `package://NAME/...` meshes are looked for (repeatable flag).
+  std::vector<std::string> robot_package_paths;
   double grace_seconds = 10;         ///< drain: how long running jobs may still take
   double scene_lease_seconds = 3600; ///< scenes no call names for this long are destroyed (0: never)
   double mesh_lease_seconds = 7 * 86400;  ///< uploads unused for this long are deleted (0: never)

@@ -8,8 +8,10 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <utility>
 
 #include "robot/arm_model.h"
+#include "robot/urdf_test_util.h"
 #include "service/server_process.h"
 
 namespace gd::service::testing {
@@ -58,6 +60,39 @@ void add_command(pb::SceneAction* a, pb::Arm arm, double t, const std::vector<do
 
 std::vector<double> joints_of(const pb::SceneState& s, int arm) {
   return {s.arms(arm).joints().begin(), s.arms(arm).joints().end()};
+}
+
+// The server's own URDF finds its links' package:// meshes on --robot-urdf-package-path (the
+// test arm of robot/urdf_test_util.h with a real STL on its first link): every link's shape is
+// built and none is reported missing; without the path the server says which mesh it lacks.
+TEST(RobotScenesRpc, TheServersUrdfFindsItsMeshesOnThePackagePath) {
+  TempDir dir;
+  const fs::path packages = fs::path(dir.str()) / "packages";
+  fs::create_directories(packages / "test_arm" / "meshes");
+  gd::robot::testing::write_box_stl(packages / "test_arm" / "meshes" / "l1.stl", Eigen::Vector3d(0.15, 0.03, 0.02));
+  std::string xml = gd::robot::testing::two_joint_arm_urdf(R"(
+  <link name="base_link"/>
+  <link name="l1"><collision><origin xyz="0.15 0 0" rpy="0 0 0"/>
+    <geometry><mesh filename="package://test_arm/meshes/l1.stl"/></geometry></collision></link>
+  <link name="l2"><collision><geometry><box size="0.2 0.04 0.04"/></geometry></collision></link>
+  <link name="hand"/><link name="fa"/><link name="fb"/>)");
+  // The server's arms follow the Piper's names: end effector link7, finger joints joint7 and joint8.
+  for (const auto& [from, to] : {std::pair<std::string, std::string>{"\"hand\"", "\"link7\""},
+                                 {"\"fj1\"", "\"joint7\""}, {"\"fj2\"", "\"joint8\""}})
+    for (size_t at = xml.find(from); at != std::string::npos; at = xml.find(from, at + to.size()))
+      xml.replace(at, from.size(), to);
+  const std::string urdf = (fs::path(dir.str()) / "arm.urdf").string();
+  std::ofstream(urdf) << xml;
+  {
+    ServerProcess server(dir.str() + "/with", {"--robot-urdf", urdf, "--robot-urdf-package-path", packages.string()});
+    const std::string log = server.log();
+    EXPECT_NE(log.find("from " + urdf + "; 2 collision shapes"), std::string::npos) << log;
+    EXPECT_EQ(log.find("not found"), std::string::npos) << log;
+  }
+  ServerProcess server(dir.str() + "/without", {"--robot-urdf", urdf});
+  const std::string log = server.log();
+  EXPECT_NE(log.find("from " + urdf + "; 1 collision shapes"), std::string::npos) << log;
+  EXPECT_NE(log.find("link mesh package://test_arm/meshes/l1.stl not found"), std::string::npos) << log;
 }
 
 TEST(RobotScenesRpc, JointCommandsDriveTheArmsAndPosesGoThroughInverseKinematics) {
