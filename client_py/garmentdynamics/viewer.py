@@ -76,27 +76,40 @@ def find_chromium() -> Optional[str]:
 
 
 def screenshot(url: str, path, width: int = 1280, height: int = 800, wait_s: float = 8.0,
-               chromium: Optional[str] = None, timeout_s: float = 120.0) -> Path:
+               chromium: Optional[str] = None, timeout_s: float = 120.0, attempts: int = 3) -> Path:
     """Renders `url` in headless Chromium (software WebGL) after `wait_s` seconds of page time
-    and writes a PNG to `path`. Raises RuntimeError when no Chromium is installed (Debian:
+    and writes a PNG to `path`. Chromium's page clock runs ahead of the page's websocket, so a
+    picture of one colour (the page had drawn nothing yet) is taken again, with twice the wait,
+    up to `attempts` times. Raises RuntimeError when no Chromium is installed (Debian:
     apt-get install chromium) or it writes nothing."""
     exe = chromium or find_chromium()
     if exe is None:
         raise RuntimeError("no Chromium to take screenshots with: install it (Debian: apt-get install chromium)")
     path = Path(path).resolve()
     path.parent.mkdir(parents=True, exist_ok=True)
-    if path.exists():
-        path.unlink()
-    with tempfile.TemporaryDirectory(prefix="gd-chromium-") as profile:
-        cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
-               "--enable-unsafe-swiftshader", "--hide-scrollbars", "--mute-audio", "--no-first-run",
-               f"--user-data-dir={profile}", f"--window-size={int(width)},{int(height)}",
-               f"--virtual-time-budget={int(wait_s * 1000)}", f"--screenshot={path}", url]
-        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=timeout_s, check=False)
-    if not path.exists() or path.stat().st_size == 0:
-        tail = proc.stderr.decode(errors="replace")[-2000:]
-        raise RuntimeError(f"Chromium wrote no screenshot of {url} (exit {proc.returncode}): {tail}")
+    for attempt in range(max(1, int(attempts))):
+        if path.exists():
+            path.unlink()
+        with tempfile.TemporaryDirectory(prefix="gd-chromium-") as profile:
+            cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
+                   "--enable-unsafe-swiftshader", "--hide-scrollbars", "--mute-audio", "--no-first-run",
+                   f"--user-data-dir={profile}", f"--window-size={int(width)},{int(height)}",
+                   f"--virtual-time-budget={int(wait_s * 1000 * 2 ** attempt)}", f"--screenshot={path}", url]
+            proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=timeout_s, check=False)
+        if not path.exists() or path.stat().st_size == 0:
+            tail = proc.stderr.decode(errors="replace")[-2000:]
+            raise RuntimeError(f"Chromium wrote no screenshot of {url} (exit {proc.returncode}): {tail}")
+        if not _one_colour(path):
+            break
     return path
+
+
+def _one_colour(png: Path) -> bool:
+    """True when every pixel of the PNG has the same colour (a page that has drawn nothing)."""
+    import imageio.v3 as iio  # viser's dependency
+    img = np.asarray(iio.imread(png))
+    flat = img.reshape(-1, img.shape[-1]) if img.ndim == 3 else img.reshape(-1, 1)
+    return bool((flat == flat[0]).all())
 
 
 class _SceneTrack:
@@ -147,6 +160,13 @@ class SceneViewer:
         else:
             self.scene_ids = [str(s) for s in scene_ids]
             infos = client.describe(self.scene_ids)
+            # Subscribe before the first states are read, and wait for the server's initial
+            # metadata: it is sent once the subscription is in place, so every step another
+            # client makes after the constructor returns reaches the page.
+            self._call = client._stub.StreamFrames(
+                pb.StreamFramesRequest(scene_ids=self.scene_ids, every=int(every), steps=0),
+                timeout=client.stream_timeout)
+            self._call.initial_metadata()
             first = client.get_state(self.scene_ids)
         if port == 0:
             port = _free_port(host)
@@ -163,7 +183,7 @@ class SceneViewer:
         self._redraw()
         self._dirty = threading.Event()
         self._period = 1.0 / max(0.1, float(max_fps))
-        self._thread = threading.Thread(target=self._listen, args=(int(every),), name="gd-viewer", daemon=True)
+        self._thread = threading.Thread(target=self._listen, name="gd-viewer", daemon=True)
         self._thread.start()
         self._painter = threading.Thread(target=self._paint, name="gd-viewer-paint", daemon=True)
         self._painter.start()
@@ -292,13 +312,9 @@ class SceneViewer:
         self.client._scene_info[self.job_id] = info
         return [info], [SceneState.from_proto(msg.state)]
 
-    def _listen(self, every: int) -> None:
-        ids = self.scene_ids
+    def _listen(self) -> None:
         by_id = {t.scene_id: t for t in self._tracks}
         try:
-            if self._call is None:
-                self._call = self.client._stub.StreamFrames(
-                    pb.StreamFramesRequest(scene_ids=ids, every=every, steps=0), timeout=self.client.stream_timeout)
             for msg in self._call:
                 if self._stop.is_set():
                     break

@@ -88,7 +88,9 @@ def test_a_grid_of_scenes_and_the_robot_pads(client, piper_urdf, tmp_path):
         assert np.allclose(links[-1], state.arms["left"]["position"], atol=1e-5)
         with SceneViewer(client, pseudo + robot, port=0) as viewer:
             client.step(pseudo + robot, substeps=2)
-            assert viewer.wait_for_frames(3, timeout=30)
+            # The constructor returns once the server has the subscription: every frame of the
+            # two steps of the three scenes reaches the page.
+            assert viewer.wait_for_frames(6, timeout=30)
             png = screenshot(viewer.url, output_dir() / "grid_of_three.png", width=960, height=640, wait_s=6)
             assert len(viewer._tracks[2].colliders) == 4
             assert set(viewer._tracks[2].links) == {"left", "right"}  # the robot's arms, drawn
