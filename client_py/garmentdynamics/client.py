@@ -533,34 +533,38 @@ class Client:
         """Yields a SceneState of each scene every `every`-th step it makes: steps made by other
         step() calls, or, with steps > 0, by the stream itself. Ends when the steps are done,
         after max_frames frames (0 = no limit), when the scenes are destroyed, or when the
-        generator is closed (the call is then cancelled)."""
+        iterator is closed (the call is then cancelled). Watching (steps = 0), it returns once the
+        server has the subscription: every step made after the call, from any client, reaches
+        the iterator."""
         call = self._stub.StreamFrames(
             pb.StreamFramesRequest(scene_ids=_ids(ids), every=int(every), steps=int(steps),
                                    max_frames=int(max_frames)),
             timeout=self.stream_timeout if timeout is None else timeout)
-        try:
-            for msg in call:
-                frame = SceneState.from_proto(msg.state)
-                frame.dropped_frames = msg.dropped_frames
-                yield frame
-        finally:
-            call.cancel()
+        if int(steps) == 0:
+            call.initial_metadata()  # sent once the subscription is in place (an error ends the call: raised below)
+        return self._frames(call)
 
     def stream_job(self, job_id: str, every: int = 1, max_frames: int = 0,
                    timeout: Optional[float] = None) -> Iterator[SceneState]:
         """Yields the scene of a queued or running job every `every`-th step of its run, until the
-        job ends, after max_frames frames (0 = no limit), or when the generator is closed. The
+        job ends, after max_frames frames (0 = no limit), or when the iterator is closed. The
         frames carry the job id as scene_id; the job's scene (as scene_info(): triangles, table,
         joints; rest_positions are the positions at the first frame) is known as
-        scene_info(job_id) from the first frame on. A finished job raises FAILED_PRECONDITION
-        (its report has the run's animation)."""
+        scene_info(job_id) from the first frame on. Returns once the server has the
+        subscription. A finished job raises FAILED_PRECONDITION (its report has the run's
+        animation)."""
         call = self._stub.StreamFrames(
             pb.StreamFramesRequest(job_id=str(job_id), every=int(every), max_frames=int(max_frames)),
             timeout=self.stream_timeout if timeout is None else timeout)
+        call.initial_metadata()
+        return self._frames(call, job_id=str(job_id))
+
+    def _frames(self, call, job_id: Optional[str] = None) -> Iterator[SceneState]:
+        """A StreamFrames call's frames; the call is cancelled when the iterator is closed."""
         try:
             for msg in call:
-                if msg.HasField("info"):
-                    self._scene_info[str(job_id)] = _scene_info_to_dict(msg.info)
+                if job_id is not None and msg.HasField("info"):
+                    self._scene_info[job_id] = _scene_info_to_dict(msg.info)
                 frame = SceneState.from_proto(msg.state)
                 frame.dropped_frames = msg.dropped_frames
                 yield frame

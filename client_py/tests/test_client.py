@@ -155,6 +155,19 @@ def test_stream_frames_made_by_the_stream(client):
         client.destroy(ids)
 
 
+def test_a_watching_stream_gets_every_step_made_after_it_returns(client):
+    # stream() returns once the server holds the subscription: the steps made right after it,
+    # before the iterator is first read, are all in it (a frame per scene and step).
+    ids = client.create_scenes(garment="towel", vertices=TOWEL_VERTICES, count=2)
+    try:
+        frames = client.stream(ids, every=1, max_frames=6, timeout=60)
+        client.step(ids, substeps=3)
+        got = list(frames)
+        assert sorted((f.scene_id, f.steps) for f in got) == sorted((sid, k) for sid in ids for k in (1, 2, 3))
+    finally:
+        client.destroy(ids)
+
+
 def test_job_with_its_report(client):
     job = client.submit_job(garment="towel", material="cotton", task="grasp", vertices=200, dt=0.02,
                             time_scale=4.0, settle=0.1, self_contact=False, label="pytest")
