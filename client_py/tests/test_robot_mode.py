@@ -250,3 +250,50 @@ def test_gym_env_with_joint_actions(client, piper_urdf):
             np.testing.assert_allclose(s.arms["right"]["joints"], target[1], atol=1e-5)
     finally:
         vec.close()
+
+
+def write_box_stl(path, half=0.01):
+    """An ASCII STL of an axis-aligned cube of half-side `half` about the origin (12 triangles)."""
+    corners = np.array([[x, y, z] for x in (-half, half) for y in (-half, half) for z in (-half, half)])
+    faces = [(0, 2, 3), (0, 3, 1), (4, 5, 7), (4, 7, 6), (0, 1, 5), (0, 5, 4),
+             (2, 6, 7), (2, 7, 3), (0, 4, 6), (0, 6, 2), (1, 3, 7), (1, 7, 5)]
+    lines = ["solid box"]
+    for f in faces:
+        a, b, c = corners[list(f)]
+        n = np.cross(b - a, c - a)
+        n = n / np.linalg.norm(n)
+        lines += [f"facet normal {n[0]} {n[1]} {n[2]}", "outer loop"]
+        lines += [f"vertex {p[0]} {p[1]} {p[2]}" for p in (a, b, c)]
+        lines += ["endloop", "endfacet"]
+    lines.append("endsolid box")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_a_robot_job_on_the_servers_urdf_finds_its_link_meshes_on_the_package_path(server_bin, piper_urdf, tmp_path):
+    # The Piper's link meshes are package://piper_description/meshes/*.STL, not shipped with
+    # RGBench's URDF: 2 cm cubes stand in for them under a package directory given to the server.
+    # A job in robot mode without a URDF of its own runs on the server's, and its report says
+    # every link mesh was found; on a server without the package path, that none was.
+    uris = sorted(set(re.findall(r'filename="package://([^"]+)"', piper_urdf.read_text())))
+    assert uris
+    for uri in uris:
+        write_box_stl(tmp_path / "packages" / uri)
+
+    def run_job(extra_args, name):
+        with Client.spawn(server_bin=server_bin, threads=1, timeout=60.0, data_dir=str(tmp_path / name),
+                          extra_args=["--robot-urdf", str(piper_urdf)] + extra_args) as c:
+            job = c.submit_job(garment="towel", task="grasp", vertices=TOWEL_VERTICES, mode="robot", grip_force=8.0,
+                               dt=0.02, time_scale=0.25, settle=0.1, self_contact=False,
+                               task_params={"lift_height": 0.15}, label="robot job, server's URDF")
+            report = c.wait_report(job, progress=False)
+        assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+        assert report["summary"]["robot"]["urdf"] == str(piper_urdf)
+        return report["summary"]["robot"]
+
+    found = run_job(["--robot-urdf-package-path", str(tmp_path / "packages")], "with")
+    assert found["link_meshes_not_found"] == []
+    assert found["link_colliders"] == 2 * (len(uris) - 2)  # both arms; not the fingers' links (the pads)
+    missing = run_job([], "without")
+    assert sorted(missing["link_meshes_not_found"]) == sorted(f"package://{u}" for u in uris)
+    assert missing["link_colliders"] == 0
