@@ -154,39 +154,44 @@ class SceneViewer:
         self.client = client
         self.job_id = str(job_id) if job_id else None
         self._call = None
-        if self.job_id:
-            self.scene_ids = [self.job_id]
-            infos, first = self._open_job(int(every), first_frame_timeout)
-        else:
-            self.scene_ids = [str(s) for s in scene_ids]
-            infos = client.describe(self.scene_ids)
-            # Subscribe before the first states are read, and wait for the server's initial
-            # metadata: it is sent once the subscription is in place, so every step another
-            # client makes after the constructor returns reaches the page.
-            self._call = client._stub.StreamFrames(
-                pb.StreamFramesRequest(scene_ids=self.scene_ids, every=int(every), steps=0),
-                timeout=client.stream_timeout)
-            self._call.initial_metadata()
-            first = client.get_state(self.scene_ids)
-        if port == 0:
-            port = _free_port(host)
-        self.host, self.port = host, int(port)
-        self.server = viser.ViserServer(host=host, port=self.port, verbose=False)
-        self._lock = threading.Lock()
-        self._tracks = self._layout(infos, keep_frames)
-        self._frames_received = 0
-        self._stop = threading.Event()
-        self._error: Optional[BaseException] = None
-        self._build_page(infos)
-        for track, state in zip(self._tracks, first):
-            self._receive(track, state)
-        self._redraw()
-        self._dirty = threading.Event()
-        self._period = 1.0 / max(0.1, float(max_fps))
-        self._thread = threading.Thread(target=self._listen, name="gd-viewer", daemon=True)
-        self._thread.start()
-        self._painter = threading.Thread(target=self._paint, name="gd-viewer-paint", daemon=True)
-        self._painter.start()
+        try:
+            if self.job_id:
+                self.scene_ids = [self.job_id]
+                infos, first = self._open_job(int(every), first_frame_timeout)
+            else:
+                self.scene_ids = [str(s) for s in scene_ids]
+                infos = client.describe(self.scene_ids)
+                # Subscribe before the first states are read, and wait for the server's initial
+                # metadata: it is sent once the subscription is in place, so every step another
+                # client makes after the constructor returns reaches the page.
+                self._call = client._stub.StreamFrames(
+                    pb.StreamFramesRequest(scene_ids=self.scene_ids, every=int(every), steps=0),
+                    timeout=client.stream_timeout)
+                self._call.initial_metadata()
+                first = client.get_state(self.scene_ids)
+            if port == 0:
+                port = _free_port(host)
+            self.host, self.port = host, int(port)
+            self.server = viser.ViserServer(host=host, port=self.port, verbose=False)
+            self._lock = threading.Lock()
+            self._tracks = self._layout(infos, keep_frames)
+            self._frames_received = 0
+            self._stop = threading.Event()
+            self._error: Optional[BaseException] = None
+            self._build_page(infos)
+            for track, state in zip(self._tracks, first):
+                self._receive(track, state)
+            self._redraw()
+            self._dirty = threading.Event()
+            self._period = 1.0 / max(0.1, float(max_fps))
+            self._thread = threading.Thread(target=self._listen, name="gd-viewer", daemon=True)
+            self._thread.start()
+            self._painter = threading.Thread(target=self._paint, name="gd-viewer-paint", daemon=True)
+            self._painter.start()
+        except BaseException:
+            if self._call is not None:  # the subscription, made above
+                self._call.cancel()
+            raise
 
     # --- public --------------------------------------------------------------------------------
     @property
