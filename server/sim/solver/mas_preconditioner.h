@@ -254,9 +254,9 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     Vec<int> part_domain; ///< per part: its domain
     Vec<uint64_t> part_adj;  ///< per part: B adjacency bitmasks of the domain's nodes (coarsen)
     Vec<int> comp_count;  ///< per domain: connected pieces (coarsen), then their prefix sum
-    Vec<double> dense;    ///< per part: (3B)^2 partial block; a domain's first part ends up holding
+    typename Exec::template LargeVector<double> dense;  ///< per part: (3B)^2 partial block; a domain's first part ends up holding
                           ///< the domain's block, factored in place (setup scratch)
-    Vec<float> packed;    ///< per domain: its Cholesky factor's lower triangle, single precision
+    typename Exec::template LargeVector<float> packed;  ///< per domain: its Cholesky factor's lower triangle, single precision
     Vec<double> rhs;      ///< per domain: 3B restricted residual, then the solution
     Vec<double> restricted;  ///< per node (levels >= 1): 3 values of R_l r (apply)
     Vec<double> node_diag;   ///< per node (levels >= 1): its 3x3 block, from level l-1's blocks
@@ -705,8 +705,8 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
   }
 
  private:
-  template <class T>
-  static void ensure(Vec<T>& v, size_t size) {
+  template <class V>
+  static void ensure(V& v, size_t size) {
     if (v.size() < size) Exec::resize(v, size);
   }
 

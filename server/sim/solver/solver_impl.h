@@ -410,7 +410,8 @@ class Solver final : public SolverBase {
   Vec<StretchShearRest> tri_rest_;
   Vec<HingeRest> hinge_rest_;
   Vec<double> f_ext_;
-  Vec<double> x_, v_, x_t_, v_t_, g_, dx_, dx_full_, r_, z_, p_, ap_, x_trial_, vals_, kin_target_, hinge_grad_t_;
+  Vec<double> x_, v_, x_t_, v_t_, g_, dx_, dx_full_, r_, z_, p_, ap_, x_trial_, kin_target_, hinge_grad_t_;
+  typename Exec::template LargeVector<double> vals_;  ///< the Hessian's 3x3 blocks (SceneData's pattern)
   std::unique_ptr<Preconditioner<Exec>> precond_;
   std::unique_ptr<MultilevelAdditiveSchwarz<Exec>> estimator_;  ///< MAS for the stopping rule when PCG's is not
   bool estimator_pending_ = false;  ///< estimator_ is ordered for the current matrix but not built

@@ -12,6 +12,7 @@
 #include <numeric>
 #include <vector>
 
+#include "sim/backend/cpu/huge_page_allocator.h"
 #include "sim/backend/cpu/omp_threads.h"
 #include "sim/backend/round_trips.h"
 #include "sim/demand.h"
@@ -40,11 +41,16 @@ struct CpuExec {
 
   template <class T>
   using Vector = std::vector<T>;
+  /// An array of megabytes allocated once per scene and streamed through every iteration (the
+  /// Hessian's blocks): on transparent huge pages (huge_page_allocator.h), so that a pass over it
+  /// does not miss the TLB every 4 KiB.
+  template <class T>
+  using LargeVector = std::vector<T, HugePageAllocator<T>>;
 
-  template <class T>
-  static T* ptr(Vector<T>& v) { return v.data(); }
-  template <class T>
-  static const T* ptr(const Vector<T>& v) { return v.data(); }
+  template <class T, class A>
+  static T* ptr(std::vector<T, A>& v) { return v.data(); }
+  template <class T, class A>
+  static const T* ptr(const std::vector<T, A>& v) { return v.data(); }
   template <class T>
   static void upload(Vector<T>& dst, const std::vector<T>& src) { dst = src; }
   template <class T>
@@ -52,8 +58,8 @@ struct CpuExec {
   /// src's src.size() values copied to dst (host memory the caller sized).
   template <class T>
   static void download_to(T* dst, const Vector<T>& src) { std::copy(src.begin(), src.end(), dst); }
-  template <class T>
-  static void resize(Vector<T>& v, size_t n) { v.assign(n, T{}); }
+  template <class T, class A>
+  static void resize(std::vector<T, A>& v, size_t n) { v.assign(n, T{}); }
   /// n elements whose values the caller overwrites before reading: keeps what is there and
   /// reallocates only to grow (per-pair buffers change size every Newton iteration; zeroing
   /// ~10 MB of them per step was ~2% of a 2-thread T-shirt step, on one thread).

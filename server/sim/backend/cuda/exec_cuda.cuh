@@ -54,6 +54,9 @@ struct CudaExec {
 
   template <class T>
   using Vector = thrust::device_vector<T>;
+  /// Exec's array of megabytes (the CPU's is on huge pages); device memory as any other here.
+  template <class T>
+  using LargeVector = Vector<T>;
 
   template <class T>
   static T* ptr(Vector<T>& v) { return thrust::raw_pointer_cast(v.data()); }
