@@ -42,8 +42,8 @@ struct CpuExec {
   template <class T>
   using Vector = std::vector<T>;
   /// An array of megabytes allocated once per scene and streamed through every iteration (the
-  /// Hessian's blocks): on transparent huge pages (huge_page_allocator.h), so that a pass over it
-  /// does not miss the TLB every 4 KiB.
+  /// Hessian's blocks, MAS's dense blocks and factors): on transparent huge pages
+  /// (huge_page_allocator.h), so that a pass over it does not miss the TLB every 4 KiB.
   template <class T>
   using LargeVector = std::vector<T, HugePageAllocator<T>>;
 
