@@ -105,6 +105,18 @@ GD_HD Real advance_pair(const DistFn& dist, Real offset, Real l, Real s, int max
   return conservative_advancement(gap, d0 - offset, l, s, max_iter);
 }
 
+/// Whether advance_pair would return the whole step (1) at its first test, decided from a lower
+/// bound of the starting distance (pair_distance2_lower_bound, squared) without measuring it:
+/// the bound, less a 1e-6 margin, stands for d0 in the floor's offset and the first advance
+/// s g0 / l. Where it answers true, advance_pair's own test with the exact d0 (larger) passes too,
+/// so the answer is the same; false decides nothing. Saves the distance of most far pairs.
+GD_HD bool whole_step_by_bound(Real lower2, Real offset, Real l, Real s, Real floor) {
+  const Real lower = sqrt(lower2) * Real(0.999999);
+  if (!(lower - offset > Real(2) * floor)) return false;  // the floor's offset needs the exact distance
+  const Real g = lower - offset - floor;                  // floor > 0: ccd_floor_offset is the floor here
+  return g > Real(0) && s * g >= l;
+}
+
 }  // namespace contact_detail
 
 /// Conservative CCD of a point p moving by dp against the triangle (t0, t1, t2) moving by
@@ -124,6 +136,8 @@ GD_HD Real point_triangle_ccd(const Vec3& p, const Vec3& t0, const Vec3& t1, con
   auto dist = [&](Real a) {
     return sqrt(point_triangle_distance2(p + a * up, t0 + a * u0, t1 + a * u1, t2 + a * u2, nullptr, nullptr));
   };
+  if (contact_detail::whole_step_by_bound(pair_distance2_lower_bound(p, t0, t1, t2, 0), offset, l, s, floor))
+    return Real(1);
   return contact_detail::advance_pair(dist, offset, l, s, max_iter, floor);
 }
 
@@ -141,6 +155,8 @@ GD_HD Real edge_edge_ccd(const Vec3& a0, const Vec3& a1, const Vec3& b0, const V
   auto dist = [&](Real a) {
     return sqrt(edge_edge_distance2(a0 + a * ua0, a1 + a * ua1, b0 + a * ub0, b1 + a * ub1, nullptr, nullptr));
   };
+  if (contact_detail::whole_step_by_bound(pair_distance2_lower_bound(a0, a1, b0, b1, 1), offset, l, s, floor))
+    return Real(1);
   return contact_detail::advance_pair(dist, offset, l, s, max_iter, floor);
 }
 

@@ -544,4 +544,34 @@ GD_HD Real edge_edge_distance2(const Vec3& a0, const Vec3& a1, const Vec3& b0, c
   return edge_edge_distance2(a0, a1, b0, b1, edge_edge_closest_feature(a0, a1, b0, b1), grad, hess);
 }
 
+// ------------------------------------------------------------------------------------------------
+// A cheap lower bound
+// ------------------------------------------------------------------------------------------------
+
+/// A lower bound of a pair's squared distance (m²) for one cross and one dot product: the
+/// point's distance to the triangle's plane (type 0: point a, triangle b, c, d) or the distance
+/// between the two edges' lines (type 1: edges (a, b) and (c, d)), which the closest points of
+/// the closed triangle or segments can only exceed. Most candidate pairs of layered cloth lie
+/// beyond the barrier's reach, and this tells so without the closest-feature search
+/// (fold/5000: 40% of the line search's candidates). Zero (no bound) where the plane or the
+/// lines are ill-conditioned, a sliver triangle or edges within ~0.06 degrees of parallel, so
+/// that rounding cannot lift the bound above the distance by more than ~1e-12 of it.
+GD_HD Real pair_distance2_lower_bound(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, int type) {
+  const Vec3 e1 = type == 0 ? Vec3(c - b) : Vec3(b - a);
+  const Vec3 e2 = type == 0 ? Vec3(d - b) : Vec3(d - c);
+  const Vec3 r = type == 0 ? Vec3(a - b) : Vec3(a - c);
+  const Vec3 n = e1.cross(e2);
+  const Real q = n.squaredNorm();
+  if (!(q > Real(1e-6) * e1.squaredNorm() * e2.squaredNorm())) return Real(0);
+  const Real s = r.dot(n);
+  return s * s / q;
+}
+
+/// Whether the pair is certainly farther than `reach` (m) apart by pair_distance2_lower_bound,
+/// with a relative margin of 1e-6 that rounding of the bound or of the exact distance cannot
+/// cross: where it says so, the exact distance also exceeds `reach`.
+GD_HD bool pair_certainly_beyond(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, int type, Real reach) {
+  return pair_distance2_lower_bound(a, b, c, d, type) > reach * reach * Real(1.000001);
+}
+
 }  // namespace gd::sim

@@ -33,17 +33,14 @@ void each_block(const std::vector<PairHessians>& lists, const int* fixed, long b
 }  // namespace
 
 void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>& lists, CouplingMatrix* out) {
-  struct Ref {
-    const double* block;  // a stored 3x3, row-major
-    int col;
-    int transposed;       // the block of (row, col) is block's transpose
-  };
+  using Ref = CouplingMatrix::Ref;
   long pairs = 0;
   for (const PairHessians& l : lists) pairs += l.count;
   const int threads = pairs >= 2048 ? std::max(1, omp_threads()) : 1;
   // 1. Each thread counts the blocks per row of its contiguous range of pairs; a row's blocks
   //    are then laid out thread by thread, i.e. in pair order whatever the thread count.
-  std::vector<int> counts(static_cast<size_t>(threads) * (n + 1), 0);
+  std::vector<int>& counts = out->scratch.counts;
+  counts.assign(static_cast<size_t>(threads) * (n + 1), 0);
   auto range = [&](int t, long* b, long* e) {
     *b = pairs * t / threads;
     *e = pairs * (t + 1) / threads;
@@ -56,7 +53,8 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
     int* c = counts.data() + static_cast<size_t>(t) * (n + 1);
     each_block(lists, fixed, b, e, [&](int row, int, const double*, bool) { ++c[row]; });
   }
-  std::vector<int> start(n + 1, 0);  // refs of row i: [start[i], start[i+1])
+  std::vector<int>& start = out->scratch.start;  // refs of row i: [start[i], start[i+1])
+  start.assign(n + 1, 0);
   for (int i = 0; i < n; ++i) {
     int s = start[i];
     for (int t = 0; t < threads; ++t) {
@@ -67,7 +65,8 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
     }
     start[i + 1] = s;
   }
-  std::vector<Ref> refs(start[n]);
+  std::vector<Ref>& refs = out->scratch.refs;
+  refs.resize(start[n]);  // every entry written below
 #pragma omp parallel num_threads(threads)
   {
     const int t = omp_thread();

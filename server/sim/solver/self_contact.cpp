@@ -247,6 +247,8 @@ void SelfContact::select_active(const std::vector<double>& x, const std::vector<
       dist_[c] = -1.0;
     } else if (raw_stamp_[r] == dist_gen_) {
       dist_[c] = raw_dist_[r];
+    } else if (pair_certainly_beyond(at(x, v[0]), at(x, v[1]), at(x, v[2]), at(x, v[3]), cand_.type[c], dhat_)) {
+      dist_[c] = std::numeric_limits<double>::infinity();  // beyond dhat: a candidate, not active (not measured)
     } else {
       dist_[c] = raw_dist_[r] = pair_distance(x, v, cand_.type[c]);
       raw_stamp_[r] = dist_gen_;

@@ -277,7 +277,7 @@ class Solver final : public SolverBase {
   template <class F>
   double sum_elements(const Coloring& coloring, const ElementOrder& order, int count, const F& f);
   void add_pairs_in_order(const detail::View& V, const detail::PairView& L, const int* live, const double* GA,
-                          const double* GF, double* g, double* H);
+                          const double* GF, int gs, double* g, double* H);
 
   // Linear solve: matrix-vector product, contact couplings, PCG, direct (linear_solve.h)
   void spmv_dot_to(const Vec<double>& xs, Vec<double>& ys, double* xy);  ///< y = A x, and x·y into *xy
