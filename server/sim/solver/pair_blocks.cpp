@@ -1,49 +1,58 @@
 #include "sim/solver/pair_blocks.h"
 
 #include <algorithm>
+#include <limits>
 
 #include "sim/backend/cpu/omp_threads.h"
+#include "sim/demand.h"
 
 namespace gd::sim {
 namespace {
 
-/// Calls f(row, col, block, transposed) for every off-diagonal block between free vertices of the
-/// pairs [begin, end) of the concatenated lists, in order; block (row, col) is the stored 3x3 at
-/// `block`, or its transpose when `transposed`.
-template <class F>
-void each_block(const std::vector<PairHessians>& lists, const int* fixed, long begin, long end, F&& f) {
-  long base = 0;
-  for (const PairHessians& l : lists) {
-    const long lo = std::max(begin, base), hi = std::min(end, base + l.count);
-    for (long c = lo; c < hi; ++c) {
-      const long p = c - base;
-      const int* vs = l.v + 4 * p;
-      for (int a = 0; a < 4; ++a) {
-        if (fixed[vs[a]]) continue;
-        for (int b = 0; b < 4; ++b)
-          if (b != a && !fixed[vs[b]])
-            f(vs[a], vs[b], l.H + kPairBlockValues * p + (a < b ? pair_block_offset(a, b) : pair_block_offset(b, a)),
-              a > b);
+/// The lists' pairs numbered one after another: pair p's list and index within it.
+struct PairIndex {
+  const std::vector<PairHessians>* lists;
+  const PairHessians& list(long p, long* local) const {
+    for (const PairHessians& l : *lists) {
+      if (p < l.count) {
+        *local = p;
+        return l;
       }
+      p -= l.count;
     }
-    base += l.count;
+    GD_DEMAND(false, "pair index past the lists");
+    return lists->front();
   }
-}
+};
 
 }  // namespace
 
 void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>& lists, CouplingMatrix* out) {
-  using Ref = CouplingMatrix::Ref;
   long pairs = 0;
   for (const PairHessians& l : lists) pairs += l.count;
+  GD_DEMAND(4 * pairs < std::numeric_limits<int>::max(), "too many contact pairs to merge");
+  const PairIndex index{&lists};
   const int threads = pairs >= 2048 ? std::max(1, omp_threads()) : 1;
-  // 1. Each thread counts the blocks per row of its contiguous range of pairs; a row's blocks
-  //    are then laid out thread by thread, i.e. in pair order whatever the thread count.
+  // 1. Each free vertex's incidences (pair, corner), in pair order: each thread counts those of
+  //    its contiguous range of pairs per vertex, a vertex's are laid out thread by thread, then
+  //    filled (4 ints per pair: at 20k vertices ~4 MB, where a reference per block was ~50 MB).
   std::vector<int>& counts = out->scratch.counts;
   counts.assign(static_cast<size_t>(threads) * (n + 1), 0);
   auto range = [&](int t, long* b, long* e) {
     *b = pairs * t / threads;
     *e = pairs * (t + 1) / threads;
+  };
+  auto each_corner = [&](long b, long e, auto&& f) {  // f(vertex, 4 p + a) over free corners
+    for (long p = b; p < e;) {
+      long local;
+      const PairHessians& l = index.list(p, &local);
+      const long stop = std::min(e, p - local + l.count);
+      for (; p < stop; ++p, ++local)
+        for (int a = 0; a < 4; ++a) {
+          const int v = l.v[4 * local + a];
+          if (!fixed[v]) f(v, static_cast<int>(4 * p + a));
+        }
+    }
   };
 #pragma omp parallel num_threads(threads)
   {
@@ -51,45 +60,58 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
     long b, e;
     range(t, &b, &e);
     int* c = counts.data() + static_cast<size_t>(t) * (n + 1);
-    each_block(lists, fixed, b, e, [&](int row, int, const double*, bool) { ++c[row]; });
+    each_corner(b, e, [&](int v, int) { ++c[v]; });
   }
-  std::vector<int>& start = out->scratch.start;  // refs of row i: [start[i], start[i+1])
+  std::vector<int>& start = out->scratch.start;  // incidences of vertex i: [start[i], start[i+1])
   start.assign(n + 1, 0);
   for (int i = 0; i < n; ++i) {
     int s = start[i];
     for (int t = 0; t < threads; ++t) {
       int& c = counts[static_cast<size_t>(t) * (n + 1) + i];
       const int k = c;
-      c = s;  // now the thread's cursor into row i
+      c = s;  // now the thread's cursor into vertex i's incidences
       s += k;
     }
     start[i + 1] = s;
   }
-  std::vector<Ref>& refs = out->scratch.refs;
-  refs.resize(start[n]);  // every entry written below
+  std::vector<int>& inc = out->scratch.incidences;
+  inc.resize(start[n]);  // every entry written below
 #pragma omp parallel num_threads(threads)
   {
     const int t = omp_thread();
     long b, e;
     range(t, &b, &e);
     int* cursor = counts.data() + static_cast<size_t>(t) * (n + 1);
-    each_block(lists, fixed, b, e, [&](int row, int col, const double* blk, bool tr) {
-      refs[cursor[row]++] = {blk, col, tr ? 1 : 0};
-    });
+    each_corner(b, e, [&](int v, int pa) { inc[cursor[v]++] = pa; });
   }
+  // Row i's blocks, in order: its incidences (pair order), each pair's other free corners b in
+  // order; block (a, b) is stored above the diagonal (a < b) or is the transpose of (b, a).
+  auto each_block = [&](int i, auto&& f) {  // f(col, block, transposed)
+    for (int k = start[i]; k < start[i + 1]; ++k) {
+      const long p = inc[k] >> 2;
+      const int a = inc[k] & 3;
+      long local;
+      const PairHessians& l = index.list(p, &local);
+      const int* vs = l.v + 4 * local;
+      const double* H = l.H + kPairBlockValues * local;
+      for (int b = 0; b < 4; ++b)
+        if (b != a && !fixed[vs[b]]) f(vs[b], H + (a < b ? pair_block_offset(a, b) : pair_block_offset(b, a)), a > b);
+    }
+  };
   // 2. Per row, one block per distinct column in order of first appearance: count them, lay the
   //    rows out, then sum the blocks (mark/pos: per-thread column stamps of the current row).
   std::vector<int>& row_ptr = out->row_ptr;
   row_ptr.assign(n + 1, 0);
-  const int row_threads = start[n] >= 4096 ? std::max(1, omp_threads()) : 1;
+  const int row_threads = start[n] >= 1024 ? std::max(1, omp_threads()) : 1;
 #pragma omp parallel num_threads(row_threads)
   {
     std::vector<int> mark(n, -1);
 #pragma omp for schedule(static)
     for (int i = 0; i < n; ++i) {
       int k = 0;
-      for (int e = start[i]; e < start[i + 1]; ++e)
-        if (mark[refs[e].col] != i) mark[refs[e].col] = i, ++k;
+      each_block(i, [&](int col, const double*, bool) {
+        if (mark[col] != i) mark[col] = i, ++k;
+      });
       row_ptr[i + 1] = k;
     }
   }
@@ -106,21 +128,20 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
 #pragma omp for schedule(static)
     for (int i = 0; i < n; ++i) {
       int k = row_ptr[i];
-      for (int e = start[i]; e < start[i + 1]; ++e) {
-        const Ref& ref = refs[e];
-        if (mark[ref.col] != i) {
-          mark[ref.col] = i;
-          pos[ref.col] = k;
-          cols[k++] = ref.col;
+      each_block(i, [&](int col, const double* block, bool transposed) {
+        if (mark[col] != i) {
+          mark[col] = i;
+          pos[col] = k;
+          cols[k++] = col;
         }
-        double* dst = vals + 9 * static_cast<size_t>(pos[ref.col]);
-        if (ref.transposed) {
+        double* dst = vals + 9 * static_cast<size_t>(pos[col]);
+        if (transposed) {
           for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c) dst[3 * r + c] += ref.block[3 * c + r];
+            for (int c = 0; c < 3; ++c) dst[3 * r + c] += block[3 * c + r];
         } else {
-          for (int k = 0; k < 9; ++k) dst[k] += ref.block[k];
+          for (int q = 0; q < 9; ++q) dst[q] += block[q];
         }
-      }
+      });
     }
   }
 }

@@ -32,17 +32,10 @@ struct PairHessians {
 struct CouplingMatrix {
   std::vector<int> row_ptr, cols;
   std::vector<double> vals;
-  /// One stored pair block on its way into a row: the 3x3 at `block`, or its transpose.
-  struct Ref {
-    const double* block;
-    int col;
-    int transposed;
-  };
-  /// merge_pair_blocks' working arrays, kept from call to call: at fold/20000 the references
-  /// alone are ~35 MB, and fresh ones every Newton iteration were paid in page faults.
+  /// merge_pair_blocks' working arrays (per-thread counts, each vertex's pair corners), kept
+  /// from call to call rather than allocated and page-faulted every Newton iteration.
   struct Scratch {
-    std::vector<int> counts, start;
-    std::vector<Ref> refs;
+    std::vector<int> counts, start, incidences;
   } scratch;
 };
 
