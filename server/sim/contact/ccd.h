@@ -26,8 +26,9 @@
 /// move such a pair closer.
 ///
 /// Cost: one distance evaluation per advance, none for a pair whose cheap distance bound
-/// (pair_distance2_lower_bound) already allows the whole step (whole_step_by_bound). A head-on approach stops after 1-3 advances (the
-/// bound is tight); motion that is mostly tangential needs up to about l / (0.9 g) advances
+/// (pair_distance2_lower_bound) already allows the whole step (whole_step_by_bound). A head-on
+/// approach stops after 1-3 advances (the bound is tight); motion that is mostly tangential
+/// needs up to about l / (0.9 g) advances
 /// (sliding a distance l at gap g), hence the max_iter cap, which only makes the answer smaller.
 
 #include <cmath>
