@@ -138,18 +138,20 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
                              Real* dist2 = nullptr) {
   const bool want_hess = hess != nullptr && kind != HessianKind::kNone;
   const PointTriangleRegion region = point_triangle_closest_feature(p, t0, t1, t2);
-  const Real d2 = point_triangle_distance2(p, t0, t1, t2, region, nullptr, nullptr);
+  // With the Hessian the pair is an active one (within dhat, selected there): the distance's
+  // gradient comes with its value in one evaluation (the value's bits are the same either way).
+  VecN<12> g2;
+  MatN<12> H2;
+  const bool closed_form = want_hess && kind == HessianKind::kProjected;
+  const bool exact_h2 = want_hess && kind == HessianKind::kExact;
+  const Real d2 = point_triangle_distance2(p, t0, t1, t2, region, want_hess ? &g2 : nullptr, exact_h2 ? &H2 : nullptr);
   if (dist2) *dist2 = d2;
   if (!contact_detail::barrier_active(d2, offset, dhat) || (grad == nullptr && !want_hess)) {
     if (grad) grad->setZero();
     if (want_hess) hess->setZero();
     return contact_barrier(sqrt(d2) - offset, dhat, kappa, nullptr, nullptr);
   }
-  VecN<12> g2;
-  MatN<12> H2;
-  const bool closed_form = want_hess && kind == HessianKind::kProjected;
-  const bool exact_h2 = want_hess && kind == HessianKind::kExact;
-  point_triangle_distance2(p, t0, t1, t2, region, &g2, exact_h2 ? &H2 : nullptr);
+  if (!want_hess) point_triangle_distance2(p, t0, t1, t2, region, &g2, nullptr);
   const Real E = contact_detail::barrier_of_distance2(d2, g2, exact_h2 ? &H2 : nullptr, offset, dhat, kappa, grad,
                                                       want_hess && !closed_form ? hess : nullptr);
   if (closed_form) {
@@ -180,8 +182,13 @@ GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, con
                              Real dhat, Real kappa, Real eps_x, VecN<12>* grad, MatN<12>* hess,
                              HessianKind kind, Real* dist2 = nullptr) {
   const bool want_hess = hess != nullptr && kind != HessianKind::kNone;
+  const bool exact = want_hess && kind == HessianKind::kExact;
   const EdgeEdgeRegion region = edge_edge_closest_feature(a0, a1, b0, b1);
-  const Real d2 = edge_edge_distance2(a0, a1, b0, b1, region, nullptr, nullptr);
+  // With the Hessian (an active pair) the distance's derivatives come with its value, as in
+  // vf_contact_energy.
+  VecN<12> g2;
+  MatN<12> H2;
+  const Real d2 = edge_edge_distance2(a0, a1, b0, b1, region, want_hess ? &g2 : nullptr, exact ? &H2 : nullptr);
   if (dist2) *dist2 = d2;
   if (!contact_detail::barrier_active(d2, offset, dhat)) {
     if (grad) grad->setZero();
@@ -189,17 +196,16 @@ GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, con
     return contact_barrier(sqrt(d2) - offset, dhat, kappa, nullptr, nullptr);
   }
   const bool want = grad != nullptr || want_hess;
-  const bool exact = want_hess && kind == HessianKind::kExact;
   VecN<12> gm;
   MatN<12> Hm;
   const Real m = ee_mollifier(a0, a1, b0, b1, eps_x, want ? &gm : nullptr, exact ? &Hm : nullptr);
   if (!want) return m * contact_barrier(sqrt(d2) - offset, dhat, kappa, nullptr, nullptr);
-  VecN<12> g2, gB;
-  MatN<12> H2, HB;
+  VecN<12> gB;
+  MatN<12> HB;
   // kProjected: m times the closed-form projection of ∇²B; kGaussNewton: m times B's Gauss-Newton
   // term. Both leave the mollifier's derivatives out of the Hessian (see the function comment).
   const bool closed_form = want_hess && kind == HessianKind::kProjected;
-  edge_edge_distance2(a0, a1, b0, b1, region, &g2, exact ? &H2 : nullptr);
+  if (!want_hess) edge_edge_distance2(a0, a1, b0, b1, region, &g2, nullptr);
   const Real B = contact_detail::barrier_of_distance2(d2, g2, exact ? &H2 : nullptr, offset, dhat, kappa, &gB,
                                                       want_hess && !closed_form ? &HB : nullptr);
   if (grad) *grad = m * gB + B * gm;
