@@ -4,8 +4,8 @@
 A fold's final shape is chaotic: a millimetre of grasp point or a few percent of speed can
 decide whether a half lands flat or stands as an arch. This script runs each fold at the
 settings of tests/experiment/garment_tasks_test.cpp (dt 0.01 s, time scale 0.3, the page turn
-in 2 s, 0.3 s settle) and under perturbations of them (grasp point +-5 mm, speed +-5%), in
-parallel `gd run` processes, and prints one row per run (docs/validation.md records the table).
+in 2 s, 0.3 s settle) and under perturbations of them (grasp point +-5 mm, speed +-5%, the
+mesh at twice the vertices), in parallel `gd run` processes, and prints one row per run (docs/validation.md records the table).
 
     python3 scripts/fold_matrix.py --gd build/bin/gd --garments cake_skirt,towel --vertices 400
 """
@@ -17,18 +17,20 @@ import subprocess
 import sys
 import time
 
-# name -> (grasp_inset in metres, speed factor on the time scale)
+# name -> (grasp_inset in metres, speed factor on the time scale, factor on --vertices)
 PERTURBATIONS = {
-    "nominal": (0.0, 1.0),
-    "inset-5mm": (-0.005, 1.0),
-    "inset+5mm": (0.005, 1.0),
-    "speed-5%": (0.0, 0.95),
-    "speed+5%": (0.0, 1.05),
+    "nominal": (0.0, 1.0, 1),
+    "inset-5mm": (-0.005, 1.0, 1),
+    "inset+5mm": (0.005, 1.0, 1),
+    "speed-5%": (0.0, 0.95, 1),
+    "speed+5%": (0.0, 1.05, 1),
+    "vertices-x2": (0.0, 1.0, 2),
 }
 
 
 def run_one(gd, garment, vertices, pert, out_root, threads):
-    inset, speed = PERTURBATIONS[pert]
+    inset, speed, vertex_factor = PERTURBATIONS[pert]
+    vertices *= vertex_factor
     time_scale = 0.3 * speed
     out = os.path.join(out_root, f"{garment}_{vertices}_{pert}")
     cmd = [gd, "run", "--garment", garment, "--task", "fold", "--vertices", str(vertices), "--dt", "0.01",

@@ -4,7 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
+#include <queue>
 #include <unordered_map>
+#include <utility>
+#include <vector>
 
 #include "sim/demand.h"
 #include "sim/log.h"
@@ -30,6 +34,39 @@ void rest_corners(const Mesh& m, int ti, bool use_uv, Vec2 p[3]) {
   p[0] = Vec2::Zero();
   p[1] = Vec2(e1.dot(a1), e1.dot(a2));
   p[2] = Vec2(e2.dot(a1), e2.dot(a2));
+}
+
+/// Each vertex's distance from the nearest vertex of a gathering elastic edge (ratio < 1),
+/// along the mesh's edges in its initial shape (Dijkstra); infinity where none lies within
+/// kGatheredBandWidth (the search stops there).
+std::vector<Real> distance_from_gathers(const Mesh& m) {
+  const int n = static_cast<int>(m.x.size());
+  std::vector<Real> dist(n, std::numeric_limits<Real>::infinity());
+  using Item = std::pair<Real, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<>> open;
+  for (const ElasticEdge& e : m.elastic_edges)
+    if (e.ratio < 1)
+      for (const int v : {e.a, e.b}) {
+        dist[v] = 0;
+        open.emplace(0, v);
+      }
+  if (open.empty()) return dist;
+  std::vector<std::vector<int>> adj(n);
+  for (const Eigen::Vector3i& t : m.tris)
+    for (int k = 0; k < 3; ++k) adj[t[k]].push_back(t[(k + 1) % 3]), adj[t[(k + 1) % 3]].push_back(t[k]);
+  while (!open.empty()) {
+    const auto [d, v] = open.top();
+    open.pop();
+    if (d > dist[v] || d >= kGatheredBandWidth) continue;
+    for (const int w : adj[v]) {
+      const Real dw = d + (m.x[w] - m.x[v]).norm();
+      if (dw < dist[w]) {
+        dist[w] = dw;
+        open.emplace(dw, w);
+      }
+    }
+  }
+  return dist;
 }
 
 /// Key of an undirected edge.
@@ -166,10 +203,9 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
   std::unordered_map<uint64_t, Real> elastic;  // edge -> rest-length ratio
   for (const ElasticEdge& e : mesh.elastic_edges) elastic[edge_key(e.a, e.b)] = e.ratio;
   const int nt = static_cast<int>(mesh.tris.size());
-  // The gathered band: vertices of gathering elastic edges (kGatheredCompressionRatio).
-  std::vector<char> gathers(d.n, 0);
-  for (const ElasticEdge& e : mesh.elastic_edges)
-    if (e.ratio < 1) gathers[e.a] = gathers[e.b] = 1;
+  // The gathered band (kGatheredCompressionRatio, kGatheredBandWidth): each vertex's distance
+  // from the gathering elastic edges.
+  const std::vector<Real> gather_distance = distance_from_gathers(mesh);
   d.mass.assign(d.n, 0.0);
   d.tris.resize(3 * nt);
   d.tri_rest.resize(nt);
@@ -194,7 +230,8 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
     r.k_warp = mat.stretch_warp;
     r.k_weft = mat.stretch_weft;
     r.k_shear = mat.shear;
-    const bool gathered = gathers[tri[0]] || gathers[tri[1]] || gathers[tri[2]];
+    const Real g0 = gather_distance[tri[0]], g1 = gather_distance[tri[1]], g2 = gather_distance[tri[2]];
+    const bool gathered = std::min({g0, g1, g2}) == 0 || (g0 + g1 + g2) / 3 < kGatheredBandWidth;
     r.compression_ratio = gathered ? std::min(opt.compression_ratio, kGatheredCompressionRatio) : opt.compression_ratio;
     for (int k = 0; k < 3; ++k) {
       d.tris[3 * t + k] = tri[k];

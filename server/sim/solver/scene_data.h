@@ -47,6 +47,15 @@ struct Coloring {
 /// "Gathered fabric").
 inline constexpr Real kGatheredCompressionRatio = 0.1;
 
+/// Half-width of that gathered band, m: a triangle is in it when it has a vertex on a gathering
+/// edge or its centroid lies within this distance of one (measured along the mesh's edges from
+/// the edge's vertices, in the mesh's initial shape). The ruffles of a gather reach a physical
+/// distance from the seam, not one row of triangles: with the band one row wide, a finer mesh
+/// had a narrower band and stored more of the squeeze (docs/physics.md, "Gathered fabric"). 2 cm
+/// is about the one-row band of the 2000-vertex garments, so meshes up to that resolution keep
+/// the band they had.
+inline constexpr Real kGatheredBandWidth = 0.02;
+
 struct SceneData {
   int n = 0;                             ///< vertices
   std::vector<double> x, v;              ///< 3n initial positions and velocities

@@ -102,7 +102,8 @@ TEST(SceneDataRest, ElasticEdgeShortensRestLengthAlongItOnly) {
 }
 
 // The band a gather ruffles: triangles with a vertex on a gathering edge (ratio < 1) resist
-// compression at kGatheredCompressionRatio (or the scene's ratio where that is smaller); a
+// compression at kGatheredCompressionRatio (or the scene's ratio where that is smaller; at this
+// spacing the band is that one row); a
 // stretching edge (ratio > 1) and the rest of the mesh keep the scene's ratio.
 TEST(SceneDataRest, GatheringEdgeSoftensCompressionInTheTrianglesAtItsVertices) {
   Mesh m = make_rect(0.2, 0.1, 0.02);
@@ -126,6 +127,34 @@ TEST(SceneDataRest, GatheringEdgeSoftensCompressionInTheTrianglesAtItsVertices) 
       softened += at_gather;
     }
     EXPECT_GE(softened, 3);  // the edge's two triangles and their neighbours at its vertices
+  }
+}
+
+// The gathered band has a physical width: on a sheet gathered along its bottom edge (y = 0), the
+// triangles at the edge are in it at every spacing, none whose centroid lies beyond
+// kGatheredBandWidth is, and as the mesh is refined the band fills that width (its distance is
+// measured along the mesh's edges, which on this lattice run ~15% longer than straight up).
+TEST(SceneDataRest, GatheredBandKeepsItsWidthInMetresAsTheMeshIsRefined) {
+  const Real W = kGatheredBandWidth;
+  for (const Real spacing : {0.04, 0.02, 0.01, 0.005, 0.0025}) {
+    Mesh m = make_rect(0.2, 0.1, spacing);
+    const Topology topo = build_topology(m);
+    for (const Eigen::Vector2i& e : topo.edges)
+      if (m.x[e[0]].y() == 0 && m.x[e[1]].y() == 0) m.elastic_edges.push_back({e[0], e[1], 0.8});
+    validate_mesh(m);
+    const SceneData d = build_scene_data(m, cotton(), SceneOptions{});
+    Real reach = 0;  // the farthest softened centroid from the gather
+    for (size_t t = 0; t < m.tris.size(); ++t) {
+      const auto& f = m.tris[t];
+      const Real cy = (m.x[f[0]].y() + m.x[f[1]].y() + m.x[f[2]].y()) / 3;
+      const bool at_edge = m.x[f[0]].y() == 0 || m.x[f[1]].y() == 0 || m.x[f[2]].y() == 0;
+      const bool softened = d.tri_rest[t].compression_ratio == kGatheredCompressionRatio;
+      if (at_edge) EXPECT_TRUE(softened) << "spacing " << spacing << ", triangle " << t << " touches the gather";
+      if (!at_edge && cy > W) EXPECT_FALSE(softened) << "spacing " << spacing << ", centroid " << cy << " m away";
+      if (spacing <= 0.005 && cy < 0.75 * W) EXPECT_TRUE(softened) << "spacing " << spacing << ", centroid " << cy << " m away";
+      if (softened) reach = std::max(reach, cy);
+    }
+    if (spacing <= 0.005) EXPECT_GT(reach, 0.8 * W) << "spacing " << spacing;
   }
 }
 
