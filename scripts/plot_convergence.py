@@ -4,9 +4,10 @@
     plot_convergence.py STUDY_DIR
 
 Reads STUDY_DIR/convergence.csv (vertices, reference_vertices, t, final, cd, hd per compared
-shape) and writes STUDY_DIR/convergence.png: the symmetric Chamfer and Hausdorff distances of
-each run's shapes to the finest run's, against the vertex count (log-log), one line per compared
-time (the final shapes drawn thick).
+shape, and the floors of a study with several draws) and writes STUDY_DIR/convergence.png: the
+symmetric Chamfer and Hausdorff distances of each run's shapes to the finest run's, against the
+vertex count (log-log), one line per compared time (the final shapes drawn thick), and with
+draws the final shapes' spread between draws of each resolution (dashed).
 """
 
 from __future__ import annotations
@@ -32,9 +33,17 @@ def main() -> int:
         print(f"{study}/convergence.csv has no rows", file=sys.stderr)
         return 1
     series: dict[tuple[bool, float], list[tuple[int, float, float]]] = defaultdict(list)
+    # With several draws per resolution (gd converge --draws): the final shapes' spread between
+    # two draws of each resolution, the floor a distance between resolutions cannot go below.
+    floors: list[tuple[int, float, float]] = []
+    ref_floor = None
     for r in rows:
         key = (r["final"] == "1", float(r["t"]))
         series[key].append((int(r["vertices"]), float(r["cd"]), float(r["hd"])))
+        if key[0] and r.get("cd_floor"):
+            floors.append((int(r["vertices"]), float(r["cd_floor"]), float(r["hd_floor"])))
+            if r.get("ref_cd_floor"):
+                ref_floor = (int(r["reference_vertices"]), float(r["ref_cd_floor"]), float(r["ref_hd_floor"]))
     reference = rows[0]["reference_vertices"]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for (final, t), pts in sorted(series.items()):
@@ -44,6 +53,13 @@ def main() -> int:
         style = {"linewidth": 2.5, "color": "black"} if final else {"linewidth": 1, "alpha": 0.7}
         for ax, k in zip(axes, (1, 2)):
             ax.plot(n, [1e3 * p[k] for p in pts], marker="o", label=label, **style)
+    if floors:
+        if ref_floor:
+            floors.append(ref_floor)
+        floors.sort()
+        for ax, k in zip(axes, (1, 2)):
+            ax.plot([p[0] for p in floors], [1e3 * p[k] for p in floors], marker="s", linestyle="--", color="tab:red",
+                    label="final: between draws of one resolution (floor)")
     for ax, title in zip(axes, ("symmetric Chamfer distance", "symmetric Hausdorff distance")):
         ax.set_xscale("log")
         ax.set_yscale("log")

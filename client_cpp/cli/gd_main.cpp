@@ -12,7 +12,8 @@
 ///       trying `gd run --capture` without the real dataset).
 ///   gd converge --garment G --task T --vertices 1000,2000,4000,8000 --out DIR [...]
 ///       a mesh-convergence study: the same run at each resolution, each shape's distance to the
-///       finest run's (server/experiment/convergence.h lists the files it writes).
+///       finest run's (server/experiment/convergence.h lists the files it writes); --draws K
+///       runs K meshes of nearly each resolution and reports their spread beside it.
 ///
 ///
 /// With `--server HOST:PORT` the same `gd run` is submitted to a gd-server as a job (progress
@@ -98,10 +99,23 @@ int cmd_converge(const gd::experiment::ConvergenceConfig& cfg, bool quiet) {
   if (bar) bar->finish();
   std::printf("distance to the finest run (%d vertices), symmetric, mm:\n",
               result.summary["reference_vertices"].get<int>());
-  std::printf("%9s %9s %10s %10s\n", "vertices", "t (s)", "chamfer", "hausdorff");
-  for (const auto& r : result.rows)
-    std::printf("%9d %9s %10.2f %10.2f\n", r.vertices, r.final ? "final" : fmt::format("{:.2f}", r.t).c_str(),
-                1e3 * r.cd, 1e3 * r.hd);
+  const bool floors = cfg.draws > 1;
+  if (floors) {
+    std::printf("(means over %d draws per resolution; floor: between two draws of the run's resolution, "
+                "ref floor: of the finest)\n", cfg.draws);
+    std::printf("%9s %9s %10s %10s %14s %14s\n", "vertices", "t (s)", "chamfer", "hausdorff", "chamfer floor",
+                "ref floor");
+  } else {
+    std::printf("%9s %9s %10s %10s\n", "vertices", "t (s)", "chamfer", "hausdorff");
+  }
+  for (const auto& r : result.rows) {
+    const std::string t = r.final ? std::string("final") : fmt::format("{:.2f}", r.t);
+    if (floors)
+      std::printf("%9d %9s %10.2f %10.2f %14.2f %14.2f\n", r.vertices, t.c_str(), 1e3 * r.cd, 1e3 * r.hd,
+                  1e3 * r.cd_floor, 1e3 * r.ref_cd_floor);
+    else
+      std::printf("%9d %9s %10.2f %10.2f\n", r.vertices, t.c_str(), 1e3 * r.cd, 1e3 * r.hd);
+  }
   const bool png = std::filesystem::exists(cfg.base.out_dir + "/convergence.png");
   std::printf("files in %s: convergence.csv, convergence.json%s, v<N>/ per run\n", cfg.base.out_dir.c_str(),
               png ? ", convergence.png" : "");
@@ -267,6 +281,11 @@ int main(int argc, char** argv) {
                   "also compare the shapes every S seconds along the runs (0: final shapes only)")
       ->capture_default_str();
   cvg->add_option("--samples", conv.samples, "surface points sampled per shape")->capture_default_str();
+  cvg->add_option("--draws", conv.draws,
+                  "meshes per resolution: draws 1, 2, 3, 4... at 2.5% more, 2.5% fewer, 5% more, 5% fewer... "
+                  "vertices; > 1 also measures the spread between meshes of one resolution (the floor of a "
+                  "multi-stable outcome)")
+      ->capture_default_str();
   cvg->add_option("--dt", conv.base.scene.dt, "time step, s")->capture_default_str();
   cvg->add_option("--time-scale", conv.base.task_params.time_scale, "speed factor of the task's slow parts")
       ->capture_default_str();

@@ -7,10 +7,12 @@
 #include <fstream>
 #include <map>
 #include <random>
+#include <cmath>
 #include <limits>
 #include <set>
 
 #include "garments/garment.h"
+#include "garments/generator.h"
 #include <nanoflann.hpp>
 
 #include "sim/contact/distance.h"
@@ -145,6 +147,38 @@ SurfaceDistance surface_distance(const sim::Mesh& a, const sim::Mesh& b, int sam
   return {0.5 * (mean_ab + mean_ba), std::max(max_ab, max_ba)};
 }
 
+double draw_vertex_factor(int k) {
+  if (k <= 0) return 1;
+  const double step = 0.025 * ((k + 1) / 2);
+  return k % 2 == 1 ? 1 + step : 1 - step;
+}
+
+namespace {
+
+/// Mean distance over the pairs (one shape of `a`, one of `b`) at one time; pairs of a shape
+/// with itself are skipped (a floor: `a` and `b` the same draws).
+SurfaceDistance mean_distance(const std::vector<std::string>& a, const std::vector<std::string>& b, bool same,
+                              int samples, std::map<std::string, sim::Mesh>* cache) {
+  auto mesh = [&](const std::string& path) -> const sim::Mesh& {
+    auto it = cache->find(path);
+    if (it == cache->end()) it = cache->emplace(path, sim::read_obj(path)).first;
+    return it->second;
+  };
+  SurfaceDistance sum;
+  int n = 0;
+  for (size_t i = 0; i < a.size(); ++i)
+    for (size_t j = same ? i + 1 : 0; j < b.size(); ++j) {
+      const SurfaceDistance d = surface_distance(mesh(a[i]), mesh(b[j]), samples);
+      sum.cd += d.cd, sum.hd += d.hd, ++n;
+    }
+  if (n == 0) return {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
+  return {sum.cd / n, sum.hd / n};
+}
+
+std::string csv_number(double v) { return std::isfinite(v) ? fmt::format("{:.6f}", v) : std::string(); }
+
+}  // namespace
+
 ConvergenceResult run_convergence(const ConvergenceConfig& config, const ConvergenceProgressFn& progress) {
   std::vector<int> counts = config.vertices;
   std::sort(counts.begin(), counts.end());
@@ -158,46 +192,80 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
   if (config.base.out_dir.empty()) throw InputError("gd converge needs an output directory (--out)");
   if (!(config.snapshot_interval >= 0)) throw InputError("the snapshot interval must be >= 0 s");
   if (config.samples < 100) throw InputError(fmt::format("samples must be at least 100 (got {})", config.samples));
+  if (config.draws < 1 || config.draws > 20) throw InputError(fmt::format("draws must be 1..20 (got {})", config.draws));
+  for (int n : counts)
+    for (int k = 0; k < config.draws; ++k) {
+      const long v = std::lround(n * draw_vertex_factor(k));
+      if (v < garments::kMinTargetVertices || v > garments::kMaxTargetVertices)
+        throw InputError(fmt::format("draw {} of {} vertices would mesh {} vertices; garments take {}-{} (use fewer "
+                                     "draws or other vertex counts)", k, n, v, garments::kMinTargetVertices,
+                                     garments::kMaxTargetVertices));
+    }
   fs::create_directories(config.base.out_dir);
 
   ConvergenceResult result;
   nlohmann::json runs = nlohmann::json::array();
-  std::vector<std::string> dirs;
-  std::vector<bool> ok;
   const int total = static_cast<int>(counts.size());
+  const int draws = config.draws;
+  // dirs[r][k]: resolution r's draw k, "" where the run failed.
+  std::vector<std::vector<std::string>> dirs(total);
+  std::vector<int> actual(total);  // vertex count of each resolution's nominal draw
   for (int r = 0; r < total; ++r) {
-    ExperimentConfig c = config.base;
-    c.vertices = counts[r];
-    c.out_dir = fmt::format("{}/v{}", config.base.out_dir, counts[r]);
-    c.mesh_interval = config.snapshot_interval;
-    gd::log().info("gd converge: run {}/{} at {} vertices -> {}", r + 1, total, counts[r], c.out_dir);
-    const ExperimentResult res = run_experiment(c, [&](double t, double end, const sim::StepStats&) {
-      if (progress) progress(r, total, counts[r], t, end);
-    });
-    runs.push_back(res.summary);
-    dirs.push_back(c.out_dir);
-    ok.push_back(!res.summary.value("failed", false));
+    for (int k = 0; k < draws; ++k) {
+      ExperimentConfig c = config.base;
+      c.vertices = static_cast<int>(std::lround(counts[r] * draw_vertex_factor(k)));
+      c.out_dir = k == 0 ? fmt::format("{}/v{}", config.base.out_dir, counts[r])
+                         : fmt::format("{}/v{}_d{}", config.base.out_dir, counts[r], k);
+      c.mesh_interval = config.snapshot_interval;
+      const int run = r * draws + k;
+      gd::log().info("gd converge: run {}/{} at {} vertices{} -> {}", run + 1, total * draws, c.vertices,
+                     k == 0 ? "" : fmt::format(" (draw {} of resolution {})", k, counts[r]), c.out_dir);
+      const ExperimentResult res = run_experiment(c, [&](double t, double end, const sim::StepStats&) {
+        if (progress) progress(run, total * draws, counts[r], t, end);
+      });
+      nlohmann::json summary = res.summary;
+      summary["draw"] = k;
+      summary["resolution"] = counts[r];
+      runs.push_back(summary);
+      dirs[r].push_back(res.summary.value("failed", false) ? std::string() : c.out_dir);
+      if (k == 0) actual[r] = res.summary.value("vertices", counts[r]);
+    }
   }
-  if (!ok.back()) throw InputError(fmt::format("the finest run ({} vertices) failed: {}", counts.back(),
-                                                runs.back().value("failure", std::string("?"))));
+  if (dirs.back()[0].empty())
+    throw InputError(fmt::format("the finest run ({} vertices) failed: {}", counts.back(),
+                                 runs[(total - 1) * draws].value("failure", std::string("?"))));
 
-  // Every shape of the finest run, compared with the same time's shape of each other run.
-  const auto finest = run_shapes(dirs.back());
-  const double end_time = runs.back().value("sim_seconds", 0.0);
-  for (const auto& [ms, path] : finest) {
-    const sim::Mesh ref = sim::read_obj(path);
-    for (int r = 0; r + 1 < total; ++r) {
-      if (!ok[r]) continue;
-      const auto shapes = run_shapes(dirs[r]);
+  // The shapes of each resolution's draws that ran, by time (ms; -1: final).
+  auto shapes_at = [&](int r, long ms) {
+    std::vector<std::string> out;
+    for (const std::string& d : dirs[r]) {
+      if (d.empty()) continue;
+      const auto shapes = run_shapes(d);
       const auto it = shapes.find(ms);
-      if (it == shapes.end()) continue;
-      const SurfaceDistance d = surface_distance(sim::read_obj(it->second), ref, config.samples);
+      if (it != shapes.end()) out.push_back(it->second);
+    }
+    return out;
+  };
+  // Every shape of the finest run, compared with the same time's shape of each other run.
+  const auto finest = run_shapes(dirs.back()[0]);
+  const double end_time = runs[(total - 1) * draws].value("sim_seconds", 0.0);
+  for (const auto& [ms, path] : finest) {
+    std::map<std::string, sim::Mesh> cache;
+    const std::vector<std::string> ref = shapes_at(total - 1, ms);
+    const SurfaceDistance ref_floor = mean_distance(ref, ref, true, config.samples, &cache);
+    for (int r = 0; r + 1 < total; ++r) {
+      const std::vector<std::string> own = shapes_at(r, ms);
+      if (own.empty()) continue;
+      const SurfaceDistance d = mean_distance(own, ref, false, config.samples, &cache);
+      const SurfaceDistance floor = mean_distance(own, own, true, config.samples, &cache);
       ShapeDistance row;
-      row.vertices = runs[r].value("vertices", counts[r]);
+      row.vertices = actual[r];
       row.final = ms < 0;
       row.t = ms < 0 ? end_time : 1e-3 * ms;
       row.cd = d.cd;
       row.hd = d.hd;
+      row.cd_floor = floor.cd, row.hd_floor = floor.hd;
+      row.ref_cd_floor = ref_floor.cd, row.ref_hd_floor = ref_floor.hd;
       result.rows.push_back(row);
     }
   }
@@ -208,12 +276,17 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
   const std::string out = config.base.out_dir;
   std::ofstream csv(out + "/convergence.csv");
   if (!csv) throw InputError(fmt::format("cannot write '{}/convergence.csv'", out));
-  csv << "vertices,reference_vertices,t,final,cd,hd\n";
-  const int ref_vertices = runs.back().value("vertices", counts.back());
+  csv << "vertices,reference_vertices,t,final,cd,hd,cd_floor,hd_floor,ref_cd_floor,ref_hd_floor\n";
+  const int ref_vertices = actual.back();
+  auto json_number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   nlohmann::json rows = nlohmann::json::array();
   for (const ShapeDistance& s : result.rows) {
-    csv << fmt::format("{},{},{:.3f},{},{:.6f},{:.6f}\n", s.vertices, ref_vertices, s.t, s.final ? 1 : 0, s.cd, s.hd);
-    rows.push_back({{"vertices", s.vertices}, {"t", s.t}, {"final", s.final}, {"cd", s.cd}, {"hd", s.hd}});
+    csv << fmt::format("{},{},{:.3f},{},{:.6f},{:.6f},{},{},{},{}\n", s.vertices, ref_vertices, s.t, s.final ? 1 : 0,
+                       s.cd, s.hd, csv_number(s.cd_floor), csv_number(s.hd_floor), csv_number(s.ref_cd_floor),
+                       csv_number(s.ref_hd_floor));
+    rows.push_back({{"vertices", s.vertices}, {"t", s.t}, {"final", s.final}, {"cd", s.cd}, {"hd", s.hd},
+                    {"cd_floor", json_number(s.cd_floor)}, {"hd_floor", json_number(s.hd_floor)},
+                    {"ref_cd_floor", json_number(s.ref_cd_floor)}, {"ref_hd_floor", json_number(s.ref_hd_floor)}});
   }
   csv.close();
   result.summary = {{"garment", config.base.garment},
@@ -223,8 +296,16 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
                     {"reference_vertices", ref_vertices},
                     {"snapshot_interval", config.snapshot_interval},
                     {"samples", config.samples},
+                    {"draws", draws},
+                    {"draw_vertex_factors", [&] {
+                       std::vector<double> v;
+                       for (int k = 0; k < draws; ++k) v.push_back(draw_vertex_factor(k));
+                       return v;
+                     }()},
                     {"distance", "symmetric Chamfer (cd, mean of both directions' mean nearest distances) and "
-                                 "Hausdorff (hd), Euclidean, m, between area-sampled surfaces"},
+                                 "Hausdorff (hd), Euclidean, m, between area-sampled surfaces; with draws > 1 "
+                                 "means over the pairs of draws (meshes of nearly the same resolution), and "
+                                 "*_floor the mean between two draws of the same resolution (ref_*: of the finest)"},
                     {"rows", rows},
                     {"runs", runs}};
   std::ofstream(out + "/convergence.json") << result.summary.dump(2) << "\n";

@@ -6,7 +6,8 @@
 /// by how much they do. Writes
 ///
 ///     OUT/v<N>/...                   each run's own files (experiment.h), meshes in OUT/v<N>/meshes
-///     OUT/convergence.csv            vertices, t, cd, hd, per compared shape (m)
+///     OUT/v<N>_d<k>/...              draw k's (ConvergenceConfig::draws)
+///     OUT/convergence.csv            vertices, t, cd, hd (and the draws' floors), per compared shape (m)
 ///     OUT/convergence.json           the same rows, each run's summary, the study's settings
 ///     OUT/convergence.png            distance to the finest run against vertex count, one line
 ///                                    per compared time (scripts/plot_convergence.py)
@@ -19,6 +20,7 @@
 /// symmetric Hausdorff distance (the larger one-sided maximum).
 
 #include <functional>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -30,14 +32,24 @@ namespace gd::experiment {
 
 struct ConvergenceConfig {
   /// The experiment run at every resolution (its `vertices` and `out_dir` are replaced per run:
-  /// out_dir/v<N>); `out_dir` is the study's directory. Needs a generated garment (a type name).
+  /// out_dir/v<N>, and out_dir/v<N>_d<k> for draw k > 0); `out_dir` is the study's directory. Needs a generated garment (a type name).
   ExperimentConfig base;
   std::vector<int> vertices;      ///< target vertex counts, at least two; the largest is the reference
   /// Seconds between shapes compared along the runs (each run writes its meshes then); 0: the
   /// final shapes only.
   double snapshot_interval = 0;
   int samples = 20000;            ///< surface points per shape
+  /// Runs per resolution, at least 1. Draw 0 meshes the garment at the given vertex count, draw
+  /// k at that count times draw_vertex_factor(k) (2.5% more, 2.5% fewer, 5% more, ...): meshes of
+  /// nearly the same resolution. A multi-stable outcome differs between such meshes at any
+  /// resolution; with draws > 1 each row also carries that spread (the floor a distance between
+  /// resolutions cannot go below), and its distances are means over every pair of a draw of the
+  /// run and a draw of the finest.
+  int draws = 1;
 };
+
+/// The factor on a resolution's vertex count for draw k of a study (1 for draw 0).
+double draw_vertex_factor(int k);
 
 /// Distance of one run's shape at time t to the finest run's shape at the same time.
 struct ShapeDistance {
@@ -46,6 +58,10 @@ struct ShapeDistance {
   bool final = false;   ///< the runs' final shapes
   double cd = 0;        ///< symmetric Chamfer distance, m
   double hd = 0;        ///< symmetric Hausdorff distance, m
+  /// With draws > 1, the mean distance between two draws of this run's resolution (floor) and of
+  /// the finest (ref_floor) at the same time, m; NaN with one draw or fewer than two that ran.
+  double cd_floor = std::numeric_limits<double>::quiet_NaN(), hd_floor = std::numeric_limits<double>::quiet_NaN();
+  double ref_cd_floor = std::numeric_limits<double>::quiet_NaN(), ref_hd_floor = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct ConvergenceResult {

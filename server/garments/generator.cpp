@@ -432,8 +432,9 @@ Pattern make_pattern(const std::string& type, const GarmentParams& params) {
 Garment make_garment(const std::string& type, int target_vertices, const GarmentParams& params) {
   const auto t0 = std::chrono::steady_clock::now();
   Layout l = layout_for(type, params);
-  if (target_vertices < 200 || target_vertices > 200000)
-    throw InputError(fmt::format("target_vertices must be in [200, 200000] (got {})", target_vertices));
+  if (target_vertices < kMinTargetVertices || target_vertices > kMaxTargetVertices)
+    throw InputError(fmt::format("target_vertices must be in [{}, {}] (got {})", kMinTargetVertices,
+                                 kMaxTargetVertices, target_vertices));
   orient_panels(l.pattern);
   check_pattern(l.pattern);
   Real area = 0;

@@ -56,6 +56,10 @@ std::vector<std::string> garment_param_names();
 /// skirt, pleat_skirt, cake_skirt, hoodie, coat.
 std::vector<std::string> garment_types();
 
+/// The vertex counts make_garment accepts.
+inline constexpr int kMinTargetVertices = 200;
+inline constexpr int kMaxTargetVertices = 200000;
+
 /// Generates a garment of `type` laid flat in the garment frame (garment.h) with about
 /// `target_vertices` vertices (within ±20% for 500..40000). Throws sim::InputError for an
 /// unknown type (the message lists the known ones), a target outside [200, 200000], or sizes

@@ -90,6 +90,51 @@ TEST(Convergence, ComparesEachRunWithTheFinestAtTheSameTimes) {
   EXPECT_EQ(json["rows"].size(), r.rows.size());
 }
 
+// With two draws per resolution (two meshes 2.5% apart in vertex count) each row is the mean over
+// the four (run draw, finest draw) pairs, and carries the spread between the two draws of its
+// resolution and of the finest; before the grasp every mesh lies as placed, so that spread is
+// (nearly) zero there.
+TEST(Convergence, DrawsMeasureEachResolutionsSpreadBesideTheDistance) {
+  EXPECT_EQ(draw_vertex_factor(0), 1.0);
+  EXPECT_EQ(draw_vertex_factor(1), 1.025);
+  EXPECT_EQ(draw_vertex_factor(2), 0.975);
+  EXPECT_EQ(draw_vertex_factor(3), 1.05);
+  const testing::TempDir tmp("convergence_draws");
+  ConvergenceConfig c = small_study(tmp.str());
+  c.draws = 2;
+  const ConvergenceResult r = run_convergence(c);
+  for (const char* f : {"v200/final.obj", "v200_d1/final.obj", "v300/final.obj", "v300_d1/final.obj"})
+    ASSERT_TRUE(fs::exists(tmp / f)) << f;
+  ASSERT_GE(r.rows.size(), 3u);
+  EXPECT_EQ(r.rows.front().t, 0.0);
+  EXPECT_LT(r.rows.front().cd_floor, 1e-3) << "both draws lie as placed before the grasp";
+  EXPECT_LT(r.rows.front().ref_cd_floor, 1e-3);
+  for (const ShapeDistance& d : r.rows) {
+    EXPECT_TRUE(std::isfinite(d.cd_floor) && std::isfinite(d.ref_cd_floor) && std::isfinite(d.hd_floor)) << d.t;
+    EXPECT_LE(d.cd_floor, d.hd_floor + 1e-12);
+  }
+  // The final row, recomputed from the four final shapes.
+  const ShapeDistance& fin = r.rows.back();
+  ASSERT_TRUE(fin.final);
+  const sim::Mesh a0 = sim::read_obj(tmp / "v200/final.obj"), a1 = sim::read_obj(tmp / "v200_d1/final.obj");
+  const sim::Mesh b0 = sim::read_obj(tmp / "v300/final.obj"), b1 = sim::read_obj(tmp / "v300_d1/final.obj");
+  double cd = 0, hd = 0;
+  for (const sim::Mesh* a : {&a0, &a1})
+    for (const sim::Mesh* b : {&b0, &b1}) {
+      const SurfaceDistance d = surface_distance(*a, *b, c.samples);
+      cd += d.cd / 4, hd += d.hd / 4;
+    }
+  EXPECT_NEAR(fin.cd, cd, 1e-12);
+  EXPECT_NEAR(fin.hd, hd, 1e-12);
+  EXPECT_NEAR(fin.cd_floor, surface_distance(a0, a1, c.samples).cd, 1e-12);
+  EXPECT_NEAR(fin.ref_cd_floor, surface_distance(b0, b1, c.samples).cd, 1e-12);
+  const auto json = nlohmann::json::parse(std::ifstream(tmp / "convergence.json"));
+  EXPECT_EQ(json["runs"].size(), 4u);
+  EXPECT_EQ(json["draws"].get<int>(), 2);
+  EXPECT_EQ(json["runs"][1]["resolution"].get<int>(), 200);
+  EXPECT_GT(json["runs"][1]["vertices"].get<int>(), json["runs"][0]["vertices"].get<int>()) << "2.5% more";
+}
+
 TEST(Convergence, RefusesWhatItCannotStudy) {
   const testing::TempDir tmp("convergence_refusals");
   ConvergenceConfig one = small_study(tmp.str());
@@ -98,6 +143,13 @@ TEST(Convergence, RefusesWhatItCannotStudy) {
   ConvergenceConfig obj = small_study(tmp.str());
   obj.base.garment = "/tmp/shirt.obj";
   EXPECT_THROW(run_convergence(obj), sim::InputError) << "an imported mesh cannot be remeshed";
+  ConvergenceConfig none = small_study(tmp.str());
+  none.draws = 0;
+  EXPECT_THROW(run_convergence(none), sim::InputError) << "no draw";
+  ConvergenceConfig small = small_study(tmp.str());
+  small.draws = 3;  // draw 2 of 200 vertices: 195, below what a garment is meshed with
+  EXPECT_THROW(run_convergence(small), sim::InputError) << "a draw below the garments' vertex range";
+  EXPECT_FALSE(fs::exists(tmp / "v200")) << "refused before running anything";
 }
 
 }  // namespace
