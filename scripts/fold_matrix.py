@@ -5,7 +5,8 @@ A fold's final shape is chaotic: a millimetre of grasp point or a few percent of
 decide whether a half lands flat or stands as an arch. This script runs each fold at the
 settings of tests/experiment/garment_tasks_test.cpp (dt 0.01 s, time scale 0.3, the page turn
 in 2 s, 0.3 s settle) and under perturbations of them (grasp point +-5 mm, speed +-5%, the
-mesh at twice the vertices), in parallel `gd run` processes, and prints one row per run (docs/validation.md records the table).
+mesh at twice the vertices), in parallel `gd run` processes, and prints one row per run
+(docs/validation.md records the table).
 
     python3 scripts/fold_matrix.py --gd build/bin/gd --garments cake_skirt,towel --vertices 400
 """

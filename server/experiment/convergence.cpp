@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
-#include <map>
-#include <random>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <random>
 #include <set>
 
 #include "garments/garment.h"
@@ -235,12 +235,15 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
     throw InputError(fmt::format("the finest run ({} vertices) failed: {}", counts.back(),
                                  runs[(total - 1) * draws].value("failure", std::string("?"))));
 
-  // The shapes of each resolution's draws that ran, by time (ms; -1: final).
+  // The shapes each draw that ran wrote (time in ms -> OBJ; -1: final), and those of one
+  // resolution's draws at one time.
+  std::vector<std::vector<std::map<long, std::string>>> written(total);
+  for (int r = 0; r < total; ++r)
+    for (const std::string& d : dirs[r])
+      if (!d.empty()) written[r].push_back(run_shapes(d));
   auto shapes_at = [&](int r, long ms) {
     std::vector<std::string> out;
-    for (const std::string& d : dirs[r]) {
-      if (d.empty()) continue;
-      const auto shapes = run_shapes(d);
+    for (const auto& shapes : written[r]) {
       const auto it = shapes.find(ms);
       if (it != shapes.end()) out.push_back(it->second);
     }

@@ -32,7 +32,8 @@ namespace gd::experiment {
 
 struct ConvergenceConfig {
   /// The experiment run at every resolution (its `vertices` and `out_dir` are replaced per run:
-  /// out_dir/v<N>, and out_dir/v<N>_d<k> for draw k > 0); `out_dir` is the study's directory. Needs a generated garment (a type name).
+  /// out_dir/v<N>, and out_dir/v<N>_d<k> for draw k > 0); `out_dir` is the study's directory.
+  /// Needs a generated garment (a type name).
   ExperimentConfig base;
   std::vector<int> vertices;      ///< target vertex counts, at least two; the largest is the reference
   /// Seconds between shapes compared along the runs (each run writes its meshes then); 0: the
