@@ -1,7 +1,8 @@
 // Every garment type survives Grasp, Fold and Fling with self-contact on: no intersecting
 // triangle pairs, no non-finite state, and the physical outcome the task is for; folds under
-// small perturbations of grasp point, speed and mesh resolution. The hoodie fold lays the hood over first and then
-// brings the hem up to the shoulders (TaskParams::tuck_hood); it is the longest case.
+// small perturbations of grasp point, speed and mesh resolution. The hoodie fold lays the hood
+// over first and then brings the hem up to the shoulders (TaskParams::tuck_hood); it is the
+// longest case.
 #include <gtest/gtest.h>
 
 #include <cstdlib>

@@ -37,9 +37,9 @@ void rest_corners(const Mesh& m, int ti, bool use_uv, Vec2 p[3]) {
 }
 
 /// Each vertex's distance from the nearest vertex of a gathering elastic edge (ratio < 1),
-/// along the mesh's edges in its initial shape (Dijkstra); infinity where none lies within
-/// kGatheredBandWidth (the search stops there).
-std::vector<Real> distance_from_gathers(const Mesh& m) {
+/// along the mesh's edges (the topology's) in its initial shape (Dijkstra); infinity where none
+/// lies within kGatheredBandWidth (the search stops there).
+std::vector<Real> distance_from_gathers(const Mesh& m, const std::vector<Eigen::Vector2i>& edges) {
   const int n = static_cast<int>(m.x.size());
   std::vector<Real> dist(n, std::numeric_limits<Real>::infinity());
   using Item = std::pair<Real, int>;
@@ -52,8 +52,7 @@ std::vector<Real> distance_from_gathers(const Mesh& m) {
       }
   if (open.empty()) return dist;
   std::vector<std::vector<int>> adj(n);
-  for (const Eigen::Vector3i& t : m.tris)
-    for (int k = 0; k < 3; ++k) adj[t[k]].push_back(t[(k + 1) % 3]), adj[t[(k + 1) % 3]].push_back(t[k]);
+  for (const Eigen::Vector2i& e : edges) adj[e[0]].push_back(e[1]), adj[e[1]].push_back(e[0]);
   while (!open.empty()) {
     const auto [d, v] = open.top();
     open.pop();
@@ -203,9 +202,10 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
   std::unordered_map<uint64_t, Real> elastic;  // edge -> rest-length ratio
   for (const ElasticEdge& e : mesh.elastic_edges) elastic[edge_key(e.a, e.b)] = e.ratio;
   const int nt = static_cast<int>(mesh.tris.size());
+  const Topology topo = build_topology(mesh);
   // The gathered band (kGatheredCompressionRatio, kGatheredBandWidth): each vertex's distance
   // from the gathering elastic edges.
-  const std::vector<Real> gather_distance = distance_from_gathers(mesh);
+  const std::vector<Real> gather_distance = distance_from_gathers(mesh, topo.edges);
   d.mass.assign(d.n, 0.0);
   d.tris.resize(3 * nt);
   d.tri_rest.resize(nt);
@@ -240,7 +240,6 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
     d.area += area;
   }
 
-  const Topology topo = build_topology(mesh);
   std::unordered_map<uint64_t, Real> creases;  // edge -> bending scale
   for (const Crease& c : mesh.creases) creases[edge_key(c.a, c.b)] = c.bend_scale;
   const int nh = static_cast<int>(topo.hinges.size());
