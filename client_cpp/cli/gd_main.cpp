@@ -13,7 +13,8 @@
 ///   gd converge --garment G --task T --vertices 1000,2000,4000,8000 --out DIR [...]
 ///       a mesh-convergence study: the same run at each resolution, each shape's distance to the
 ///       finest run's (server/experiment/convergence.h lists the files it writes); --draws K
-///       runs K meshes of nearly each resolution and reports their spread beside it.
+///       runs K meshes of nearly each resolution and reports their spread beside it; --jobs J
+///       runs J of the runs at once.
 ///
 ///
 /// With `--server HOST:PORT` the same `gd run` is submitted to a gd-server as a job (progress
@@ -85,8 +86,24 @@ int cmd_metrics(const std::string& sim, const std::string& real, bool json) {
 int cmd_converge(const gd::experiment::ConvergenceConfig& cfg, bool quiet) {
   std::unique_ptr<gd::experiment::ProgressBar> bar;
   int bar_run = -1;
+  std::vector<double> run_time;  // with jobs: each run's simulated time so far, one bar for them all
   auto progress = [&](int run, int runs, int vertices, double t, double end) {
     if (quiet) return;
+    if (cfg.jobs > 1) {
+      if (!bar) {
+        std::fprintf(stderr, "%d runs, %d at a time (simulated seconds summed over the runs)\n", runs,
+                     std::min(cfg.jobs, runs));
+        bar = std::make_unique<gd::experiment::ProgressBar>(runs * end, "s");
+        run_time.assign(runs, 0.0);
+      }
+      run_time[run] = t;
+      int done = 0;
+      for (int k = 0; k < runs; ++k) done += run_time[k] >= end;
+      double sum = 0;
+      for (double x : run_time) sum += x;
+      bar->update(sum, fmt::format("runs done {}/{}", done, runs));
+      return;
+    }
     if (run != bar_run) {
       if (bar) bar->finish();
       std::fprintf(stderr, "run %d/%d: %d vertices\n", run + 1, runs, vertices);
@@ -285,6 +302,10 @@ int main(int argc, char** argv) {
                   "meshes per resolution: draws 1, 2, 3, 4... at 2.5% more, 2.5% fewer, 5% more, 5% fewer... "
                   "vertices; > 1 also measures the spread between meshes of one resolution (the floor of a "
                   "multi-stable outcome)")
+      ->capture_default_str();
+  cvg->add_option("--jobs", conv.jobs,
+                  "runs at once, each on its own threads (--threads each; by default the cores divided among "
+                  "the jobs); the results are those of one run after another")
       ->capture_default_str();
   cvg->add_option("--dt", conv.base.scene.dt, "time step, s")->capture_default_str();
   cvg->add_option("--time-scale", conv.base.task_params.time_scale, "speed factor of the task's slow parts")

@@ -3,13 +3,17 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <atomic>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <cmath>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <random>
 #include <set>
+#include <thread>
 
 #include "garments/garment.h"
 #include "garments/generator.h"
@@ -193,6 +197,7 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
   if (!(config.snapshot_interval >= 0)) throw InputError("the snapshot interval must be >= 0 s");
   if (config.samples < 100) throw InputError(fmt::format("samples must be at least 100 (got {})", config.samples));
   if (config.draws < 1 || config.draws > 20) throw InputError(fmt::format("draws must be 1..20 (got {})", config.draws));
+  if (config.jobs < 1 || config.jobs > 64) throw InputError(fmt::format("jobs must be 1..64 (got {})", config.jobs));
   for (int n : counts)
     for (int k = 0; k < config.draws; ++k) {
       const long v = std::lround(n * draw_vertex_factor(k));
@@ -204,33 +209,64 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
   fs::create_directories(config.base.out_dir);
 
   ConvergenceResult result;
-  nlohmann::json runs = nlohmann::json::array();
   const int total = static_cast<int>(counts.size());
   const int draws = config.draws;
-  // dirs[r][k]: resolution r's draw k, "" where the run failed.
-  std::vector<std::vector<std::string>> dirs(total);
+  const int run_count = total * draws;
+  // Run `run` is resolution run / draws's draw run % draws; runs[run] its summary, dirs[r][k]
+  // its directory ("" where the run failed).
+  std::vector<nlohmann::json> summaries(run_count);
+  std::vector<std::vector<std::string>> dirs(total, std::vector<std::string>(draws));
   std::vector<int> actual(total);  // vertex count of each resolution's nominal draw
-  for (int r = 0; r < total; ++r) {
-    for (int k = 0; k < draws; ++k) {
-      ExperimentConfig c = config.base;
-      c.vertices = static_cast<int>(std::lround(counts[r] * draw_vertex_factor(k)));
-      c.out_dir = k == 0 ? fmt::format("{}/v{}", config.base.out_dir, counts[r])
-                         : fmt::format("{}/v{}_d{}", config.base.out_dir, counts[r], k);
-      c.mesh_interval = config.snapshot_interval;
-      const int run = r * draws + k;
-      gd::log().info("gd converge: run {}/{} at {} vertices{} -> {}", run + 1, total * draws, c.vertices,
-                     k == 0 ? "" : fmt::format(" (draw {} of resolution {})", k, counts[r]), c.out_dir);
-      const ExperimentResult res = run_experiment(c, [&](double t, double end, const sim::StepStats&) {
-        if (progress) progress(run, total * draws, counts[r], t, end);
+  const int jobs = std::min(config.jobs, run_count);
+  int threads = config.base.scene.threads;  // each run's; with jobs and "all" threads, the cores shared
+  if (jobs > 1 && threads <= 0) threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / jobs);
+  std::mutex progress_mutex;  // the callback is called from every job's thread, one call at a time
+  auto run_one = [&](int run) {
+    const int r = run / draws, k = run % draws;
+    ExperimentConfig c = config.base;
+    c.scene.threads = threads;
+    c.vertices = static_cast<int>(std::lround(counts[r] * draw_vertex_factor(k)));
+    c.out_dir = k == 0 ? fmt::format("{}/v{}", config.base.out_dir, counts[r])
+                       : fmt::format("{}/v{}_d{}", config.base.out_dir, counts[r], k);
+    c.mesh_interval = config.snapshot_interval;
+    gd::log().info("gd converge: run {}/{} at {} vertices{} -> {}", run + 1, run_count, c.vertices,
+                   k == 0 ? "" : fmt::format(" (draw {} of resolution {})", k, counts[r]), c.out_dir);
+    const ExperimentResult res = run_experiment(c, [&](double t, double end, const sim::StepStats&) {
+      if (!progress) return;
+      const std::lock_guard<std::mutex> lock(progress_mutex);
+      progress(run, run_count, counts[r], t, end);
+    });
+    nlohmann::json summary = res.summary;
+    summary["draw"] = k;
+    summary["resolution"] = counts[r];
+    summaries[run] = summary;
+    dirs[r][k] = res.summary.value("failed", false) ? std::string() : c.out_dir;
+    if (k == 0) actual[r] = res.summary.value("vertices", counts[r]);
+  };
+  if (jobs <= 1) {
+    for (int run = 0; run < run_count; ++run) run_one(run);
+  } else {  // a pool of `jobs` threads taking the runs in order; the first error stops it and is rethrown
+    std::atomic<int> next{0};
+    std::exception_ptr error;
+    std::mutex error_mutex;
+    std::vector<std::thread> pool;
+    for (int j = 0; j < jobs; ++j)
+      pool.emplace_back([&] {
+        for (int run; (run = next.fetch_add(1)) < run_count;) {
+          try {
+            run_one(run);
+          } catch (...) {
+            const std::lock_guard<std::mutex> lock(error_mutex);
+            if (!error) error = std::current_exception();
+            next = run_count;
+          }
+        }
       });
-      nlohmann::json summary = res.summary;
-      summary["draw"] = k;
-      summary["resolution"] = counts[r];
-      runs.push_back(summary);
-      dirs[r].push_back(res.summary.value("failed", false) ? std::string() : c.out_dir);
-      if (k == 0) actual[r] = res.summary.value("vertices", counts[r]);
-    }
+    for (std::thread& t : pool) t.join();
+    if (error) std::rethrow_exception(error);
   }
+  nlohmann::json runs = nlohmann::json::array();
+  for (const nlohmann::json& s : summaries) runs.push_back(s);
   if (dirs.back()[0].empty())
     throw InputError(fmt::format("the finest run ({} vertices) failed: {}", counts.back(),
                                  runs[(total - 1) * draws].value("failure", std::string("?"))));
@@ -300,6 +336,8 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
                     {"snapshot_interval", config.snapshot_interval},
                     {"samples", config.samples},
                     {"draws", draws},
+                    {"jobs", jobs},
+                    {"threads_per_run", threads},
                     {"draw_vertex_factors", [&] {
                        std::vector<double> v;
                        for (int k = 0; k < draws; ++k) v.push_back(draw_vertex_factor(k));

@@ -47,6 +47,10 @@ struct ConvergenceConfig {
   /// resolutions cannot go below), and its distances are means over every pair of a draw of the
   /// run and a draw of the finest.
   int draws = 1;
+  /// Runs at once, 1..64 (each on a thread of its own; the runs are independent, and their
+  /// results are those of one run after another). With base.scene.threads = 0 ("all") each run
+  /// gets the cores divided among the jobs.
+  int jobs = 1;
 };
 
 /// The factor on a resolution's vertex count for draw k of a study (1 for draw 0).
@@ -70,7 +74,8 @@ struct ConvergenceResult {
   nlohmann::json summary;           ///< what convergence.json holds
 };
 
-/// Reports the study's progress (which run, the run's own progress as experiment.h's).
+/// Reports the study's progress (which run, the run's own progress as experiment.h's). With
+/// jobs > 1 the runs' reports interleave; the calls never overlap.
 using ConvergenceProgressFn = std::function<void(int run, int runs, int vertices, double sim_time, double end_time)>;
 
 /// Runs the study and writes its files. Throws InputError for fewer than two distinct vertex

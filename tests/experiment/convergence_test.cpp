@@ -1,12 +1,16 @@
 // The mesh-convergence study (gd converge): its surface sampling and distances against shapes
-// whose distance is known in closed form, and one small study end to end (files, rows, refusals).
+// whose distance is known in closed form, and one small study end to end (files, rows, refusals,
+// its runs in parallel).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "experiment/convergence.h"
 #include "experiment/temp_dir.h"
@@ -149,7 +153,56 @@ TEST(Convergence, RefusesWhatItCannotStudy) {
   ConvergenceConfig small = small_study(tmp.str());
   small.draws = 3;  // draw 2 of 200 vertices: 195, below what a garment is meshed with
   EXPECT_THROW(run_convergence(small), sim::InputError) << "a draw below the garments' vertex range";
+  ConvergenceConfig no_jobs = small_study(tmp.str());
+  no_jobs.jobs = 0;
+  EXPECT_THROW(run_convergence(no_jobs), sim::InputError) << "no job to run the runs";
   EXPECT_FALSE(fs::exists(tmp / "v200")) << "refused before running anything";
+}
+
+// --jobs: the study's four runs (two resolutions, two draws each), one thread each, three at a
+// time, give the rows of one run after another to the last bit (each run is deterministic on one
+// thread, and the rows are computed after all of them); the runs' progress reports show them
+// overlapping, never more than three at once.
+TEST(Convergence, JobsRunTheRunsAtOnceWithTheResultsOfOneAfterAnother) {
+  const testing::TempDir serial_dir("convergence_serial"), jobs_dir("convergence_jobs");
+  ConvergenceConfig serial = small_study(serial_dir.str());
+  serial.draws = 2;
+  serial.base.scene.threads = 1;
+  ConvergenceConfig jobs = serial;
+  jobs.base.out_dir = jobs_dir.str();
+  jobs.jobs = 3;
+  const ConvergenceResult a = run_convergence(serial);
+  std::vector<std::pair<long, long>> span(4, {-1, -1});  // per run: its first and last report
+  long calls = 0;
+  const ConvergenceResult b = run_convergence(jobs, [&](int run, int runs, int, double, double) {
+    ASSERT_EQ(runs, 4);
+    if (span[run].first < 0) span[run].first = calls;
+    span[run].second = calls++;
+  });
+  ASSERT_EQ(a.rows.size(), b.rows.size());
+  for (size_t i = 0; i < a.rows.size(); ++i) {
+    EXPECT_EQ(a.rows[i].vertices, b.rows[i].vertices);
+    EXPECT_EQ(a.rows[i].t, b.rows[i].t);
+    EXPECT_EQ(a.rows[i].cd, b.rows[i].cd) << i;
+    EXPECT_EQ(a.rows[i].hd, b.rows[i].hd) << i;
+    EXPECT_EQ(a.rows[i].cd_floor, b.rows[i].cd_floor) << i;
+    EXPECT_EQ(a.rows[i].ref_cd_floor, b.rows[i].ref_cd_floor) << i;
+  }
+  ASSERT_EQ(b.summary["runs"].size(), 4u);
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_EQ(b.summary["runs"][k]["vertices"], a.summary["runs"][k]["vertices"]) << "the runs in the same order";
+    EXPECT_EQ(b.summary["runs"][k]["draw"].get<int>(), k % 2);
+  }
+  EXPECT_EQ(b.summary["jobs"].get<int>(), 3);
+  EXPECT_EQ(b.summary["threads_per_run"].get<int>(), 1);
+  int most = 0;  // runs between their first and last report at one call
+  for (long c = 0; c < calls; ++c) {
+    int open = 0;
+    for (const auto& [first, last] : span) open += first <= c && c <= last;
+    most = std::max(most, open);
+  }
+  EXPECT_GE(most, 2) << "the runs overlap";
+  EXPECT_LE(most, 3) << "at most --jobs at once";
 }
 
 }  // namespace
