@@ -212,7 +212,7 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
   const int total = static_cast<int>(counts.size());
   const int draws = config.draws;
   const int run_count = total * draws;
-  // Run `run` is resolution run / draws's draw run % draws; runs[run] its summary, dirs[r][k]
+  // Run `run` is resolution run / draws's draw run % draws; summaries[run] its summary, dirs[r][k]
   // its directory ("" where the run failed).
   std::vector<nlohmann::json> summaries(run_count);
   std::vector<std::vector<std::string>> dirs(total, std::vector<std::string>(draws));
