@@ -265,8 +265,7 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
     for (std::thread& t : pool) t.join();
     if (error) std::rethrow_exception(error);
   }
-  nlohmann::json runs = nlohmann::json::array();
-  for (const nlohmann::json& s : summaries) runs.push_back(s);
+  const nlohmann::json runs = summaries;  // in run order, whatever order they ended in
   if (dirs.back()[0].empty())
     throw InputError(fmt::format("the finest run ({} vertices) failed: {}", counts.back(),
                                  runs[(total - 1) * draws].value("failure", std::string("?"))));
