@@ -11,6 +11,25 @@
 namespace gd::sim {
 namespace {
 
+using Dyn = Eigen::MatrixXd;
+
+/// Eigen's self-adjoint eigensolver's projection: the reference. Dynamic sizes, so that its
+/// templates are instantiated once for all N (fixed ones cost this file minutes of compile time).
+Dyn reference_projection(const Dyn& A) {
+  const Eigen::SelfAdjointEigenSolver<Dyn> es(A);
+  return es.eigenvectors() * es.eigenvalues().cwiseMax(Real(0)).asDiagonal() * es.eigenvectors().transpose();
+}
+
+Eigen::VectorXd reference_eigenvalues(const Dyn& A) {
+  return Eigen::SelfAdjointEigenSolver<Dyn>(A, Eigen::EigenvaluesOnly).eigenvalues();
+}
+
+/// An orthogonal matrix from the QR of a random one.
+Dyn orthogonal_factor(const Dyn& A) {
+  const Eigen::HouseholderQR<Dyn> qr(A);
+  return qr.householderQ();
+}
+
 /// Symmetric test matrices of size N: random dense ones, and the shapes that break eigen
 /// iterations: zero, diagonal, repeated eigenvalues, rank one, zero rows (padding), huge and
 /// tiny scales, and the bordered form of the contact barrier's reduced Hessian.
@@ -35,8 +54,7 @@ std::vector<MatN<N>> cases(std::mt19937* rng) {
   out.push_back(u * u.transpose());
   out.push_back(-3 * u * u.transpose());
   {  // a rotated matrix with a repeated negative and a repeated positive eigenvalue
-    const Eigen::HouseholderQR<MatN<N>> qr(random());
-    const MatN<N> Q = qr.householderQ();
+    const MatN<N> Q = orthogonal_factor(random());
     VecN<N> lam;
     for (int i = 0; i < N; ++i) lam(i) = i < N / 2 ? -1.0 : 2.0;
     out.push_back(Q * lam.asDiagonal() * Q.transpose());
@@ -66,12 +84,6 @@ std::vector<MatN<N>> cases(std::mt19937* rng) {
 }
 
 template <int N>
-MatN<N> reference_projection(const MatN<N>& A) {
-  const Eigen::SelfAdjointEigenSolver<MatN<N>> es(A);
-  return es.eigenvectors() * es.eigenvalues().cwiseMax(Real(0)).asDiagonal() * es.eigenvectors().transpose();
-}
-
-template <int N>
 void check_size() {
   SCOPED_TRACE("N = " + std::to_string(N));
   std::mt19937 rng(11 + N);
@@ -81,18 +93,20 @@ void check_size() {
       VecN<N> lam;
       MatN<N> V;
       symmetric_eigen<N>(A, &lam, &V, jacobi);
-      EXPECT_LE((V.transpose() * V - MatN<N>::Identity()).norm(), 1e-13) << "eigenvectors orthonormal";
-      EXPECT_LE((V * lam.asDiagonal() * V.transpose() - A).norm(), 1e-13 * scale) << "A = V diag(lambda) V^T";
-      VecN<N> sorted = lam;
+      const Dyn Ad = A, Vd = V;
+      const Eigen::VectorXd lamd = lam;
+      EXPECT_LE((Vd.transpose() * Vd - Dyn::Identity(N, N)).norm(), 1e-13) << "eigenvectors orthonormal";
+      EXPECT_LE((Vd * lamd.asDiagonal() * Vd.transpose() - Ad).norm(), 1e-13 * scale) << "A = V diag(lambda) V^T";
+      Eigen::VectorXd sorted = lamd;
       std::sort(sorted.data(), sorted.data() + N);
-      const VecN<N> expected = Eigen::SelfAdjointEigenSolver<MatN<N>>(A, Eigen::EigenvaluesOnly).eigenvalues();
-      EXPECT_LE((sorted - expected).norm(), 1e-13 * scale) << "eigenvalues as Eigen's";
+      EXPECT_LE((sorted - reference_eigenvalues(Ad)).norm(), 1e-13 * scale) << "eigenvalues as Eigen's";
 
       MatN<N> P = A;
       project_psd<N>(&P, jacobi);
-      EXPECT_LE((P - reference_projection<N>(A)).norm(), 1e-12 * scale) << (jacobi ? "Jacobi" : "QL");
-      EXPECT_LE((P - P.transpose()).norm(), 0.0) << "exactly symmetric";
-      EXPECT_GE(Eigen::SelfAdjointEigenSolver<MatN<N>>(P).eigenvalues().minCoeff(), -1e-12 * scale) << "PSD";
+      const Dyn Pd = P;
+      EXPECT_LE((Pd - reference_projection(Ad)).norm(), 1e-12 * scale) << (jacobi ? "Jacobi" : "QL");
+      EXPECT_LE((Pd - Pd.transpose()).norm(), 0.0) << "exactly symmetric";
+      EXPECT_GE(reference_eigenvalues(Pd).minCoeff(), -1e-12 * scale) << "PSD";
     }
   }
 }
