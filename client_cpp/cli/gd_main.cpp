@@ -228,6 +228,10 @@ int main(int argc, char** argv) {
   run->add_option("--newton-rtol", cfg.scene.newton_rtol,
                   "Newton stops when the next correction is below this fraction of the first (0: off)")
       ->capture_default_str();
+  run->add_option("--newton-max", cfg.scene.newton_max_iters,
+                  "Newton iterations at most per step (a step that reaches it goes on from where it stopped)")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
   std::string preconditioner = "auto";
   run->add_option("--preconditioner", preconditioner,
                   "PCG preconditioner: auto (MAS without self-contact, block-Jacobi with it) | mas | block-jacobi")
@@ -338,7 +342,7 @@ int main(int argc, char** argv) {
     }
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic", "--garment-position",
-                                     "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--no-plots", "--mesh-every",
+                                     "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--newton-max", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf-package-path",
                                      "--no-link-colliders"})
         if (run->count(local_only) > 0)

@@ -309,6 +309,8 @@ void SceneOptions::validate() const {
   if (dt < kMinDt) throw InputError(fmt::format("option dt must be at least {} s (got {} s)", kMinDt, dt));
   if (!gravity.allFinite()) throw InputError("option gravity must be finite");
   if (newton_max_iters < 1 || newton_max_iters > 1000) throw InputError("option newton_max_iters must be in [1, 1000]");
+  if (grip_newton_max_iters < 1 || grip_newton_max_iters > 1000)
+    throw InputError("option grip_newton_max_iters must be in [1, 1000]");
   if (pcg_max_iters < 1 || pcg_max_iters > 100000) throw InputError("option pcg_max_iters must be in [1, 100000]");
   positive(newton_tol, "newton_tol");
   nonneg(newton_rtol, "newton_rtol");

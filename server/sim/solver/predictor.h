@@ -120,6 +120,17 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
   }
 }
 
+/// This step's Newton cap: SceneOptions::grip_newton_max_iters where higher, while a yielding
+/// collider with friction (a finger pad) is in the scene; newton_max_iters otherwise.
+template <class Exec>
+int Solver<Exec>::newton_max_iters() const {
+  const int cap = opt_.newton_max_iters;
+  if (!colliders_ || opt_.grip_newton_max_iters <= cap) return cap;
+  for (const Collider& c : *colliders_)
+    if (c.yielding() && c.friction() > 0) return opt_.grip_newton_max_iters;
+  return cap;
+}
+
 /// x += alpha dx, taking the line search's accepted trial point (bit for bit the state it
 /// evaluated) and its gradient, and the candidate pairs' distances it measured there (the next
 /// select_active and min_active_distance read them instead of measuring again). Returns whether

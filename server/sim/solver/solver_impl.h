@@ -118,7 +118,8 @@ class Solver final : public SolverBase {
     timed(T.predictor, [&] { begin_step(kin, quasi_static); });   // lagged data, Dirichlet targets, predictor
     bool gradient_known = false;                                    // g_ is the gradient at x (line search)
     double scale = 0;                                               // the first Newton step's size, m/s
-    for (int k = 0; k < opt_.newton_max_iters; ++k) {
+    const int newton_cap = newton_max_iters();                      // higher while fingers pinch the cloth
+    for (int k = 0; k < newton_cap; ++k) {
       if (k > 0 && residual_rule() && converged(&st, k, gradient_known, scale)) break;  // residual small
       timed(T.contacts, [&] { select_contacts(); });                // active self-contact pairs at x
       double e0 = 0;
@@ -228,6 +229,7 @@ class Solver final : public SolverBase {
 
   // Start, accept and end of a step (predictor.h)
   void begin_step(const KinematicTargets& kin, bool quasi_static);
+  int newton_max_iters() const;
   void clamp_hinges(const std::vector<int>& fixed, const std::vector<int>& gripped);
   bool accept_step(double alpha);
   void end_step();

@@ -113,6 +113,7 @@ TEST(YieldingCollider, APadClosingFasterThanTheStackCanMoveStopsShort) {
 
 struct CarryRun {
   int found = 0, untangled = 0, stopped = 0;
+  int max_newton = 0;  // most Newton iterations in one step
   double min_reached = 1;
   double shift = 0;  // mean sideways motion of the layers, m (the pads' is -speed * seconds)
   bool failed = false;
@@ -121,9 +122,9 @@ struct CarryRun {
 // Two 4 x 6 cm layers 0.3 dhat apart hanging in the xz plane, their top 2 cm between pads whose
 // faces stand 0.25 dhat off each layer. Both pads then move sideways (-y) at `speed`: the +y pad
 // pushes its layer towards the other, which only that layer's barrier can push in turn.
-CarryRun carry_sideways(bool yielding, double speed, double seconds) {
+CarryRun carry_sideways(bool yielding, double speed, double seconds,
+                        const SceneOptions& o = testing_layers::pinch_options(), double friction = 1.5) {
   const Material cotton = MaterialLibrary::load_default().get("cotton");
-  const SceneOptions o = testing_layers::pinch_options();
   const double dhat = effective_contact_distance(o, cotton.thickness);
   const double W = 0.04, L = 0.06, grip = 0.02, gap = 0.3 * dhat, thick = 0.005;
   const Mesh mesh = testing_layers::two_hanging_layers(W, L, gap);
@@ -140,7 +141,7 @@ CarryRun carry_sideways(bool yielding, double speed, double seconds) {
     Collider pad = Collider::box(Vec3(W, thick, 0.5 * grip));
     pad.set_pose([m](double t) { return m->at(t); });
     pad.set_yielding(yielding);
-    pad.set_friction(1.5);
+    pad.set_friction(friction);
     pad.set_stiffness_scale(20);
     ids.push_back(scene->add_collider(pad));
     motion.push_back(m);
@@ -161,6 +162,7 @@ CarryRun carry_sideways(bool yielding, double speed, double seconds) {
     const StepStats& st = scene->last_stats();
     r.found = std::max(r.found, st.intersecting_found);
     r.untangled += st.untangled;
+    r.max_newton = std::max(r.max_newton, st.newton_iters);
     for (const double s : scene->collider_reached(ids)) {
       r.stopped += s < 1.0;
       r.min_reached = std::min(r.min_reached, s);
@@ -193,6 +195,28 @@ TEST(YieldingCollider, PadsCarryingAPinchSidewaysTakeTheStackAlongWithoutCrossin
   std::printf("not yielding, 0.20 m/s: failed %d, intersecting found %d, untangled %d, stack moved %.2f mm\n",
               fixed.failed, fixed.found, fixed.untangled, 1e3 * fixed.shift);
   EXPECT_EQ(fixed.found, 0);
+}
+
+// Cloth held in a pinch by friction slips out when the pinch's steps end unconverged (a T-shirt
+// lifted by its shoulders lost both hands at 8 Newton iterations and held at 30: docs/robot.md,
+// "Converged pinches"), so a step with a yielding collider that has friction (a finger pad) runs
+// to SceneOptions::grip_newton_max_iters instead of newton_max_iters. Here newton_max_iters is 1
+// and the pads carry the pinch sideways (steps that need several iterations): the cap rises with
+// yielding pads that have friction, and only with them.
+TEST(YieldingCollider, FingerPadsWithFrictionRaiseTheNewtonCap) {
+  SceneOptions o = testing_layers::pinch_options();
+  o.newton_max_iters = 1;
+  o.grip_newton_max_iters = 30;
+  const CarryRun fingers = carry_sideways(true, 0.2, 0.05, o);
+  const CarryRun rigid = carry_sideways(false, 0.2, 0.05, o);
+  const CarryRun frictionless = carry_sideways(true, 0.2, 0.05, o, 0.0);
+  std::printf("most Newton iterations in a step: yielding pads with friction %d, rigid pads %d, frictionless "
+              "yielding pads %d\n", fingers.max_newton, rigid.max_newton, frictionless.max_newton);
+  EXPECT_GT(fingers.max_newton, 1) << "the steps converged in one iteration: the test does not exercise the cap";
+  EXPECT_LE(fingers.max_newton, 30);
+  EXPECT_EQ(rigid.max_newton, 1);
+  EXPECT_EQ(frictionless.max_newton, 1);
+  EXPECT_EQ(fingers.found, 0);
 }
 
 }  // namespace
