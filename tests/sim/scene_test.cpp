@@ -49,6 +49,14 @@ TEST(SceneCreate, RejectsBadOptionsWithTheirName) {
   o = SceneOptions();
   o.grip_stiffness = 0;
   EXPECT_TRUE(rejected_naming(o, "grip_stiffness"));
+  for (int bad : {0, -3, 1001}) {
+    o = SceneOptions();
+    o.grip_newton_max_iters = bad;
+    EXPECT_TRUE(rejected_naming(o, "option grip_newton_max_iters")) << "cap " << bad;
+    o = SceneOptions();
+    o.newton_max_iters = bad;
+    EXPECT_TRUE(rejected_naming(o, "option newton_max_iters")) << "cap " << bad;
+  }
   for (Real bad : {0.0, -1.0, static_cast<Real>(NAN)}) {
     o = SceneOptions();
     o.grip_force_limit = bad;
