@@ -184,6 +184,11 @@ int main(int argc, char** argv) {
   run->add_option("--grip-force", cfg.robot.grip_force,
                   "robot mode: squeeze at which the closing fingers stop, N (< 0: the URDF's finger effort limit)")
       ->capture_default_str();
+  std::vector<std::string> grip_schedule;
+  run->add_option("--grip-force-schedule", grip_schedule,
+                  "robot mode: the squeeze limit over time, knots T:N (s, N; linear between, held beyond), e.g. "
+                  "7.6:10 11.6:0 lowers it to 0 over the hold: summary.json's lost_at and grip_force_at_loss_n say "
+                  "when each hand let go and at what limit");
   run->add_option("--finger-friction", cfg.robot.finger_friction,
                   "robot mode: friction of the finger pads on the cloth (< 0: the material's)")
       ->capture_default_str();
@@ -334,6 +339,8 @@ int main(int argc, char** argv) {
     for (const std::string& kv : garment_params) cfg.garment_params.insert(gd::cli::parse_name_value(kv, "--garment-param"));
     for (const std::string& kv : material_params)
       cfg.material_params.insert(gd::cli::parse_name_value(kv, "--material-param"));
+    for (const std::string& knot : grip_schedule)
+      cfg.robot.grip_force_schedule.push_back(gd::cli::parse_knot(knot, "--grip-force-schedule"));
     std::map<std::string, double> task_param_values;
     for (const std::string& kv : task_params) {
       const auto [name, value] = gd::cli::parse_name_value(kv, "--task-param");
@@ -344,7 +351,7 @@ int main(int argc, char** argv) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic", "--garment-position",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--newton-max", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf-package-path",
-                                     "--no-link-colliders"})
+                                     "--no-link-colliders", "--grip-force-schedule"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

@@ -170,6 +170,24 @@ std::pair<std::string, double> parse_name_value(const std::string& name_value, c
   return {name, v};
 }
 
+std::array<double, 2> parse_knot(const std::string& text, const std::string& flag) {
+  const size_t colon = text.find(':');
+  std::array<double, 2> knot{0, 0};
+  bool ok = colon != std::string::npos && colon > 0 && colon + 1 < text.size();
+  for (int k = 0; ok && k < 2; ++k) {
+    const std::string part = k == 0 ? text.substr(0, colon) : text.substr(colon + 1);
+    size_t used = 0;
+    try {
+      knot[k] = std::stod(part, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    ok = used == part.size();
+  }
+  if (!ok) throw sim::InputError(flag + " takes T:VALUE pairs of numbers, e.g. " + flag + " 7.6:10 11.6:0 (got '" + text + "')");
+  return knot;
+}
+
 RemoteCommands::RemoteCommands(CLI::App& app) {
   info_ = app.add_subcommand("info", "server version, backend, limits, load and health (needs --server)");
   garments_ = app.add_subcommand("garments", "garment types and uploaded meshes of the server (needs --server)");

@@ -5,6 +5,7 @@
 /// unreachable or another RPC error; see client_cpp/README.md).
 
 #include <CLI/CLI.hpp>
+#include <array>
 #include <string>
 #include <utility>
 #include <vector>
@@ -16,6 +17,8 @@ namespace gd::cli {
 /// "NAME=VALUE" of --garment-param or --task-param (`flag`) as (name, value). Throws
 /// sim::InputError when it is not a name, '=' and a number; the name is checked by its user.
 std::pair<std::string, double> parse_name_value(const std::string& name_value, const std::string& flag);
+/// "T:V" (two numbers, e.g. a time and a force) as {T, V}; throws InputError naming `flag` and the text.
+std::array<double, 2> parse_knot(const std::string& text, const std::string& flag);
 
 /// Exit codes of the command line.
 enum ExitCode : int { kExitOk = 0, kExitFailed = 1, kExitBadInput = 2, kExitRpcError = 3 };

@@ -185,7 +185,9 @@ class Run {
     std::ofstream f(path);
     if (!f) throw InputError(fmt::format("cannot write '{}'", path));
     f << "t,min_z,max_z,mean_z,extent_x,extent_y,kinetic,contacts,intersecting_pairs,newton_iters,pcg_iters,ms";
-    if (robot_) f << ",left_gripper,right_gripper,left_squeeze_n,right_squeeze_n,left_table_lift,right_table_lift";
+    if (robot_)
+      f << ",left_gripper,right_gripper,left_squeeze_n,right_squeeze_n,left_table_lift,right_table_lift,"
+           "left_grip_limit_n,right_grip_limit_n";
     f << "\n";
     for (const std::string& r : rows_) f << r << "\n";
   }
@@ -201,8 +203,8 @@ class Run {
                                 1e3 * st.seconds));
     if (robot_) {  // robot mode: each hand's opening (m per finger), squeeze (N) and lift off the table (m)
       const tasks::RobotArmState &l = robot_->state(tasks::Arm::kLeft), &r = robot_->state(tasks::Arm::kRight);
-      rows_.back() += fmt::format(",{:.6f},{:.6f},{:.4f},{:.4f},{:.6f},{:.6f}", l.gripper, r.gripper, l.squeeze,
-                                  r.squeeze, l.table_lift, r.table_lift);
+      rows_.back() += fmt::format(",{:.6f},{:.6f},{:.4f},{:.4f},{:.6f},{:.6f},{:.4f},{:.4f}", l.gripper, r.gripper,
+                                  l.squeeze, r.squeeze, l.table_lift, r.table_lift, l.grip_force, r.grip_force);
     }
     next_record_ = scene_->time() + frame_interval_;
     // Every anim_stride_-th frame for the animation; past kMaxAnimationFrames every other
@@ -662,7 +664,13 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     for (tasks::Arm a : {tasks::Arm::kLeft, tasks::Arm::kRight}) {
       const tasks::RobotArmState& st = robot->state(a);
       arms[tasks::arm_name(a)] = {{"gripper_final", st.gripper}, {"squeeze_final_n", st.squeeze},
-                                   {"table_lift_final", st.table_lift}};
+                                   {"table_lift_final", st.table_lift}, {"grip_force_final_n", st.grip_force},
+                                   // when the hand first held the cloth and when it let go (null: never), and
+                                   // its squeeze limit then
+                                   {"held_at", st.held_at >= 0 ? nlohmann::json(st.held_at) : nlohmann::json()},
+                                   {"lost_at", st.lost_at >= 0 ? nlohmann::json(st.lost_at) : nlohmann::json()},
+                                   {"grip_force_at_loss_n", st.lost_at >= 0 ? nlohmann::json(st.force_at_loss)
+                                                                            : nlohmann::json()}};
     }
     s["robot"] = {{"urdf", config.robot.urdf},
                   {"ik_samples", robot->ik_solved()},

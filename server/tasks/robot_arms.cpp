@@ -51,6 +51,18 @@ void RobotOptions::validate(bool need_urdf) const {
   check(max_tilt, "max_tilt");
   if (max_tilt < 0) throw InputError("robot option max_tilt must be >= 0 rad");
   if (grip_force == 0) throw InputError("robot option grip_force must be > 0 N (or < 0 for the URDF's effort limit)");
+  for (size_t k = 0; k < grip_force_schedule.size(); ++k) {
+    const auto [t, f] = grip_force_schedule[k];
+    if (!std::isfinite(t) || !std::isfinite(f) || f < 0)
+      throw InputError(fmt::format("robot option grip_force_schedule: knot {} ({} s, {} N) needs a finite time and a "
+                                   "finite force >= 0", k, t, f));
+    if (k > 0 && !(t > grip_force_schedule[k - 1][0]))
+      throw InputError(fmt::format("robot option grip_force_schedule: knot {} at {} s is not after the one before ({} s); "
+                                   "give the knots in increasing time", k, t, grip_force_schedule[k - 1][0]));
+  }
+  if (!grip_force_schedule.empty() &&
+      std::all_of(grip_force_schedule.begin(), grip_force_schedule.end(), [](const auto& k) { return k[1] == 0; }))
+    throw InputError("robot option grip_force_schedule: every knot is 0 N; the fingers could never hold");
   if (finger_speed == 0) throw InputError("robot option finger_speed must be > 0 m/s (or < 0 for the URDF's limit)");
   if (!tool_to_ee.allFinite() || (tool_to_ee.transpose() * tool_to_ee - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
       tool_to_ee.determinant() < 0)
@@ -113,6 +125,8 @@ RobotController::RobotController(DualArmTrajectory traj, RobotOptions options,
   options_.validate(false);
   const robot::ArmModel& m = *model_;
   grip_force_ = options_.grip_force > 0 ? options_.grip_force : m.finger_limits().effort;
+  for (const auto& k : options_.grip_force_schedule) grip_force_ = std::max(grip_force_, k[1]);  // the pads' stiffness
+  for (RobotArmState& st : state_) st.grip_force = grip_force_at(0.0);
   if (!(grip_force_ > 0))
     throw InputError(fmt::format("URDF {}: finger joint '{}' gives no effort limit; set the grip force", options_.urdf,
                                  options_.arm.finger_joints[0]));
@@ -352,6 +366,17 @@ void RobotController::attach_links(sim::Scene& scene, double mu) {
     gd::log().debug("robot mode: link mesh {} not found on the package path; that link has no collider", uri);
 }
 
+double RobotController::grip_force_at(double t) const {
+  const auto& k = options_.grip_force_schedule;
+  if (k.empty()) return grip_force_;
+  if (t <= k.front()[0]) return k.front()[1];
+  if (t >= k.back()[0]) return k.back()[1];
+  const auto hi = std::upper_bound(k.begin(), k.end(), t, [](double v, const auto& knot) { return v < knot[0]; });
+  const auto lo = hi - 1;
+  const double u = (t - (*lo)[0]) / ((*hi)[0] - (*lo)[0]);
+  return (*lo)[1] + u * ((*hi)[1] - (*lo)[1]);
+}
+
 void RobotController::update(sim::Scene& scene, double t_end) {
   const double t0 = scene.time();
   if (!(t_end > t0)) throw InputError(fmt::format("robot mode: step end {} is not after the scene time {}", t_end, t0));
@@ -387,6 +412,22 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     st.squeeze = squeeze;
     // A position-controlled, force-limited finger joint.
     const double command = std::clamp(s.gripper, 0.0, model_->gripper_max());
+    const double limit = grip_force_at(t_end);
+    st.grip_force = limit;
+    // Whether the hand holds the cloth: it squeezed with half its limit, and later, still commanded
+    // closed, felt (almost) nothing and closed nearer than cloth between the pads lets them (below):
+    // the cloth left the pads.
+    if (command >= 0.5 * model_->gripper_max()) {
+      if (st.held_at >= 0) prev_[ai].released = true;  // the hold is over
+    } else if (const double was = grip_force_at(t0); !prev_[ai].released && was > 0) {  // the squeeze is of t0
+      if (st.held_at < 0 && squeeze >= 0.5 * was) st.held_at = t0;
+      if (st.held_at >= 0 && st.lost_at < 0 && squeeze < kLetGoFraction * was && st.gripper < 0.25 * dhat) {
+        st.lost_at = t0;
+        st.force_at_loss = was;
+        gd::log().info("robot mode: the {} hand let go of the cloth at {:.3f} s (squeeze limit {:.3g} N)", arm_name(a),
+                       t0, st.force_at_loss);
+      }
+    }
     double g = st.gripper;
     // The squeeze's stiffness against the opening, from the last two measurements (a secant).
     if (st.gripper != prev_[ai].gripper && squeeze > 0) {
@@ -401,9 +442,9 @@ void RobotController::update(sim::Scene& scene, double t_end) {
       // by the secant stiffness (the barrier's force rises from 0 to the limit within the contact
       // distance, so fixed steps would swing past it), or 5% of the contact distance while the
       // stiffness is unknown. Above the limit the fingers give way the same way.
-      const double error = grip_force_ - std::max(0.0, squeeze);
+      const double error = limit - std::max(0.0, squeeze);
       double step = finger_speed_ * dt;
-      if (squeeze > 0.1 * grip_force_)
+      if (squeeze > 0.1 * limit)
         step = std::min(step, prev_[ai].stiffness > 0 ? 0.5 * std::abs(error) / prev_[ai].stiffness : 0.05 * dhat);
       g = error >= 0 ? std::max(command, g - step) : std::min(model_->gripper_max(), g + step);
     } else if (command > g) {
@@ -416,8 +457,8 @@ void RobotController::update(sim::Scene& scene, double t_end) {
       // newtons, until the cloth ended inside a pad (docs/robot.md, "Opening against the cloth").
       const double resist = std::max(0.0, -squeeze);
       double step = finger_speed_ * dt;
-      if (resist > 0.1 * grip_force_) step = std::min(step, 0.05 * dhat);
-      g = resist <= grip_force_ ? std::min(command, g + step) : std::max(0.0, g - step);
+      if (resist > 0.1 * limit) step = std::min(step, 0.05 * dhat);
+      g = resist <= limit ? std::min(command, g + step) : std::max(0.0, g - step);
     }
     // Never so near that the pads' faces meet with cloth between them (no room left for it). Cloth
     // pressing one pad's inner face counts even when cloth wrapped round the other pad's outer face

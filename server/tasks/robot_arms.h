@@ -63,6 +63,12 @@ struct RobotOptions {
   /// N: squeeze at which a closing gripper stops; < 0: the finger joint's effort limit in the
   /// URDF (Piper: 10 N).
   double grip_force = -1;
+  /// The squeeze limit over time instead of a constant: knots (t s, N), linear between, held
+  /// beyond the first and last; empty: grip_force throughout. A hold whose limit falls slowly
+  /// measures the force a garment needs: the hand lets go once friction at the falling limit no
+  /// longer carries its share of the weight (RobotArmState::lost_at, docs/robot.md "The force a
+  /// grip needs"). The pads' barrier stiffness is set for the largest knot.
+  std::vector<std::array<double, 2>> grip_force_schedule;
   /// m/s: fastest finger motion; < 0: the finger joint's velocity limit in the URDF, capped at
   /// 0.1 m/s.
   double finger_speed = -1;
@@ -94,6 +100,14 @@ struct RobotArmState {
   double gripper_command = 0;       ///< what the trajectory asks, m
   double squeeze = 0;               ///< N: the cloth's mean push on the two pads at the step's start
   double table_lift = 0;            ///< m the hand was raised to stay off the table
+  double grip_force = 0;            ///< N: the squeeze limit at the step's end (RobotOptions)
+  /// s: when the closed fingers first squeezed the cloth with half their limit (< 0: not yet).
+  double held_at = -1;
+  /// s: when, after that, the squeeze fell below kLetGoFraction of the limit and the fingers,
+  /// still commanded closed, came nearer than a quarter contact distance (cloth between the pads
+  /// keeps them that far apart): the cloth left the pads (< 0: not yet); and the limit then, N. An
+  /// opening command (a release) ends the watch: the hold is over.
+  double lost_at = -1, force_at_loss = 0;
   std::array<int, 2> colliders{-1, -1};  ///< the pads' scene collider ids
   std::vector<int> link_colliders;       ///< the links' scene collider ids (RobotOptions::link_colliders)
 };
@@ -139,6 +153,10 @@ class RobotController final : public TaskController {
   /// trajectory's orientation (its wrist reaches that way round; fingers swapped), decided at its
   /// first solved pose; false for arms driven by given joints.
   bool hand_half_turned(Arm a) const { return half_turned_[static_cast<int>(a)] == 1; }
+  /// The squeeze limit at scene time t (RobotOptions::grip_force_schedule, else the constant), N.
+  double grip_force_at(double t) const;
+  /// A hand whose squeeze falls below this fraction of its limit while closed has let go.
+  static constexpr double kLetGoFraction = 0.02;
   /// Recorded samples whose joints lay outside the URDF's limits (beyond kJointLimitSlack) and
   /// were clamped to them, and the largest excess (rad or m).
   int joints_clamped() const { return joints_clamped_; }
@@ -179,6 +197,7 @@ class RobotController final : public TaskController {
   std::array<bool, 2> closing_{false, false};
   struct Previous {
     double gripper = -1, squeeze = 0, stiffness = 0;  ///< the last update's opening and squeeze, N/m
+    bool released = false;  ///< the hand opened after holding: RobotArmState::lost_at no longer watched
   };
   std::array<Previous, 2> prev_;
   std::vector<GripperEvent> events_;

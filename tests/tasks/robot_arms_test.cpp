@@ -72,19 +72,28 @@ struct Lifted {
   bool failed = false;
 };
 
-/// A 4 x 12 cm strip hanging in the plane x = kGripX (its top row pinned at z = 0.11), gripped
-/// by the left hand, pins released at t = 0.5 s, then lifted.
-Lifted lift_strip(double finger_friction, const Vec3& hand_offset = Vec3::Zero()) {
+/// A 4 x 12 cm cotton strip hanging in the plane x = kGripX, its top row at `top_z` pinned (no
+/// table); returns the scene and the pins' group.
+std::pair<std::unique_ptr<sim::Scene>, int> hanging_strip(double top_z) {
   sim::Mesh m = sim::make_rect(0.04, 0.12, 0.005);
-  for (Vec3& p : m.x) p = Vec3(kGripX, kGripY - 0.02 + p.x(), 0.11 - p.y());
+  for (Vec3& p : m.x) p = Vec3(kGripX, kGripY - 0.02 + p.x(), top_z - p.y());
   sim::SceneOptions o = task_options();
   o.dt = 0.005;
   o.table = false;
   auto scene = make_scene(m, o);
   std::vector<int> top;
   for (int i = 0; i < scene->vertex_count(); ++i)
-    if (m.x[i].z() > 0.11 - 1e-9) top.push_back(i);
+    if (m.x[i].z() > top_z - 1e-9) top.push_back(i);
   const int pins = scene->pin(top);
+  return {std::move(scene), pins};
+}
+
+/// A 4 x 12 cm strip hanging in the plane x = kGripX (its top row pinned at z = 0.11), gripped
+/// by the left hand, pins released at t = 0.5 s, then lifted.
+Lifted lift_strip(double finger_friction, const Vec3& hand_offset = Vec3::Zero()) {
+  auto strip = hanging_strip(0.11);
+  sim::Scene* scene = strip.first.get();
+  const int pins = strip.second;
   RobotOptions ro;
   ro.urdf = piper_urdf();
   ro.finger_friction = finger_friction;
@@ -122,6 +131,93 @@ TEST(RobotArms, FingersHoldAStripByFrictionAndLiftIt) {
   ASSERT_FALSE(slipped.failed);
   std::printf("without friction: rise %.1f mm\n", 1e3 * slipped.rise);
   EXPECT_LT(slipped.rise, -0.03);  // without friction it slid out and fell
+}
+
+/// A strip like lift_strip's, its top 5 mm above the pads, held by the left hand (closed at 0.1 s,
+/// the pins let go at 0.8 s) without lifting while the squeeze limit falls from 10 N at 0.6 s to
+/// 0.1 N at 0.8 s and to 1 mN at 4.8 s.
+struct LetGo {
+  RobotArmState hand;       ///< at the end (held_at, lost_at, force_at_loss)
+  double weight = 0;        ///< N
+  double slip_limit = -1;   ///< N: the limit when the strip had slid 1 mm down between the pads
+};
+LetGo let_go_strip(double finger_friction) {
+  // Its top 5 mm above the pads (4 cm long): none of it to fold over them.
+  auto strip = hanging_strip(kTipZ + 0.045);
+  sim::Scene* scene = strip.first.get();
+  const int pins = strip.second;
+  RobotOptions ro;
+  ro.urdf = piper_urdf();
+  ro.finger_friction = finger_friction;
+  ro.grip_force_schedule = {{0.6, 10.0}, {0.8, 0.1}, {4.8, 0.001}};
+  const DualArmTrajectory traj = two_arms(
+      {0.0, 0.1, 5.2}, [](double) -> Vec3 { return Vec3(kGripX, kGripY, kTipZ); },
+      [](double t) { return t < 0.1 ? kGripperOpen : 0.0; });
+  RobotController c(traj, ro);
+  EXPECT_NEAR(c.grip_force_at(0.7), 5.05, 1e-12);  // the limit is the schedule's, linear between knots
+  EXPECT_DOUBLE_EQ(c.grip_force_at(5.0), 0.001);
+  auto mean_z = [&] {
+    double z = 0;
+    for (const Vec3& p : scene->positions()) z += p.z() / scene->vertex_count();
+    return z;
+  };
+  if (!run_until(*scene, c, 0.8)) return {};  // closed at 0.1 s; at 0.8 s the pins let go at a 0.1 N limit
+  scene->release(pins);
+  LetGo out;
+  const double z0 = mean_z();
+  if (!run_until(*scene, c, 5.2, [&](const sim::StepStats&) {
+        if (out.slip_limit < 0 && mean_z() < z0 - 0.001) out.slip_limit = c.state(Arm::kLeft).grip_force;
+      }))
+    return {};
+  out.hand = c.state(Arm::kLeft);
+  out.weight = scene->material().density * 0.04 * 0.12 * sim::kGravity;
+  return out;
+}
+
+// The force a pinch needs: with the squeeze limit falling slowly, a flat strip held by two pads
+// starts to slide once 2 mu F (F: each pad's push) falls below its weight W, so at a limit that
+// scales as 1/mu: asserted within a factor 2 of W / (2 mu). The hand lets go (the strip has left
+// the pads) at a lower limit still.
+TEST(RobotArms, AFallingGripLimitLetsTheStripGoWhereFrictionNoLongerCarriesIt) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  double slip[2] = {0, 0};
+  const double mus[2] = {0.2, 0.8};
+  for (int k = 0; k < 2; ++k) {
+    const LetGo r = let_go_strip(mus[k]);
+    ASSERT_GT(r.weight, 0) << "the run failed";
+    const double coulomb = r.weight / (2 * mus[k]);
+    std::printf("mu %.1f: held from %.3f s; slid 1 mm at a limit of %.4f N (W / 2 mu = %.4f N); let go at %.3f s at "
+                "%.4f N\n", mus[k], r.hand.held_at, r.slip_limit, coulomb, r.hand.lost_at, r.hand.force_at_loss);
+    EXPECT_GE(r.hand.held_at, 0.0);  // it held at 10 N
+    ASSERT_GT(r.slip_limit, 0.0);    // and slid once the limit fell
+    EXPECT_GT(r.slip_limit, coulomb / 2);
+    EXPECT_LT(r.slip_limit, 2 * coulomb);
+    EXPECT_GT(r.hand.lost_at, 0.8);  // then left the pads
+    EXPECT_LE(r.hand.force_at_loss, r.slip_limit);
+    slip[k] = r.slip_limit;
+  }
+  EXPECT_GT(slip[0], 2 * slip[1]);  // four times the friction: a quarter of the force, within a factor 2
+}
+
+// The schedule is checked: finite knots, forces >= 0, times increasing, not all 0 N.
+TEST(RobotArms, AGripForceScheduleWithBadKnotsIsRefusedNamingTheKnot) {
+  RobotOptions ro;
+  ro.urdf = "arms.urdf";
+  ro.grip_force_schedule = {{1.0, 10.0}, {1.0, 5.0}};
+  EXPECT_THROW(ro.validate(), sim::InputError);
+  ro.grip_force_schedule = {{1.0, 10.0}, {2.0, -1.0}};
+  try {
+    ro.validate();
+    ADD_FAILURE() << "a negative force was taken";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("knot 1"), std::string::npos) << e.what();
+  }
+  ro.grip_force_schedule = {{1.0, 0.0}, {2.0, 0.0}};
+  EXPECT_THROW(ro.validate(), sim::InputError);
+  ro.grip_force_schedule = {{1.0, NAN}};
+  EXPECT_THROW(ro.validate(), sim::InputError);
+  ro.grip_force_schedule = {{1.0, 10.0}, {2.0, 0.0}};
+  EXPECT_NO_THROW(ro.validate());
 }
 
 /// A 12 x 12 cm cloth lying on the table; the left hand comes down on it (aimed at the table

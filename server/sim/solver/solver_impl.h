@@ -118,9 +118,10 @@ class Solver final : public SolverBase {
     timed(T.predictor, [&] { begin_step(kin, quasi_static); });   // lagged data, Dirichlet targets, predictor
     bool gradient_known = false;                                    // g_ is the gradient at x (line search)
     double scale = 0;                                               // the first Newton step's size, m/s
+    double taken = 0;                                               // the last correction made, m/s
     const int newton_cap = newton_max_iters();                      // higher while fingers pinch the cloth
     for (int k = 0; k < newton_cap; ++k) {
-      if (k > 0 && residual_rule() && converged(&st, k, gradient_known, scale)) break;  // residual small
+      if (k > 0 && residual_rule() && converged(&st, k, gradient_known, scale, taken)) break;  // residual small
       timed(T.contacts, [&] { select_contacts(); });                // active self-contact pairs at x
       double e0 = 0;
       timed(T.assembly, [&] { e0 = assemble(); });                  // L, gradient and PSD Hessian at x
@@ -147,7 +148,7 @@ class Solver final : public SolverBase {
       gradient_known = accept_step(alpha);                          // x += alpha dx
       st.newton_iters = k + 1;
       st.min_alpha = std::min(st.min_alpha, alpha);
-      const double taken = alpha * rms_velocity(dx_);               // the correction just made, m/s
+      taken = alpha * rms_velocity(dx_);                            // the correction just made, m/s
       if (k == 0) scale = taken;
       st.step_norm = max_abs(dx_) / P_.h;
       gd::log().trace("newton {}: step rms {:.3g} m/s (max |dx|/h {:.3g}), alpha {:.3g} (max {:.3g}), pcg {}, "
@@ -246,7 +247,7 @@ class Solver final : public SolverBase {
   double max_grip_force();
 
   // Newton stopping rule (stopping_rule.h)
-  bool converged(StepStats* st, int k, bool gradient_known, double scale);
+  bool converged(StepStats* st, int k, bool gradient_known, double scale, double last_taken);
   bool pressed();
   bool predictor_converged(StepStats* st);
   double residual_bound();
@@ -429,6 +430,9 @@ class Solver final : public SolverBase {
   static constexpr double kRelaxGapFraction = 0.5;
   static constexpr double kClearanceFloor = 1e-3;  // project_out_of_colliders: least clearance kept, in dhat
   static constexpr double kPressedGapFloors = 10;  // stiffen_pressed_pairs: gap in CCD floors
+  /// converged(): no estimate after a correction this many times the threshold (fold/5000: no
+  /// step the estimate stopped had taken one above 9x; docs/physics.md "Thirty-fifth round").
+  static constexpr double kEstimateRatio = 10;
   // kinematic colliders (host objects owned by the Scene; packed copies on the backend)
   const std::vector<Collider>* colliders_ = nullptr;
   double col_t1_ = 0;

@@ -12,9 +12,18 @@ namespace gd::sim {
 /// gradient still asks for against the first step's `scale`: estimated with the last
 /// preconditioner where it carries smooth modes (MAS: the next Newton step, P⁻¹g, without
 /// assembling or solving), else bounded by residual_bound. The gradient comes from the line
-/// search when it was computed there.
+/// search when it was computed there. Where the estimate needs a preconditioner of its own
+/// (PCG's block-Jacobi carries no smooth modes), none is made after a correction (`last_taken`)
+/// more than kEstimateRatio times the threshold: the next correction is not expected under the
+/// threshold, and the estimator's setup is the rule's cost.
 template <class Exec>
-bool Solver<Exec>::converged(StepStats* st, int k, bool gradient_known, double scale) {
+bool Solver<Exec>::converged(StepStats* st, int k, bool gradient_known, double scale, double last_taken) {
+  if (estimator_ && last_taken > kEstimateRatio * residual_threshold(scale)) {
+    gd::log().trace("newton {}: the last correction was {:.3g} times the threshold, not converged", k,
+                    last_taken / residual_threshold(scale));
+    st->converged = false;
+    return false;
+  }
   // A pair pressed too close keeps the step going whatever the estimate says: no estimate then
   // (its setup is the rule's cost), and the last one checked stays in st->residual.
   bool held = false;

@@ -247,19 +247,22 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   EXPECT_LT(s.at("robot").at("ik_max_tilt_deg").get<double>(), 120.0);
   EXPECT_DOUBLE_EQ(s.at("task_params").at("grasp_depth").get<double>(), 0.005);  // down to the table
   EXPECT_EQ(s.at("robot").at("hands_half_turned").size(), 2u);
-  // The time series carries each hand's opening (within the finger's travel), squeeze and lift
-  // off the table, and the hands close.
+  // The time series carries each hand's opening (within the finger's travel), squeeze, lift
+  // off the table and squeeze limit (the URDF's 10 N without a schedule), and the hands close.
   std::ifstream ts(dir / "local" / "timeseries.csv");
   std::string ts_header, ts_row;
   std::getline(ts, ts_header);
-  EXPECT_NE(ts_header.find(",left_gripper,right_gripper,left_squeeze_n,right_squeeze_n,left_table_lift,right_table_lift"),
+  EXPECT_NE(ts_header.find(",left_gripper,right_gripper,left_squeeze_n,right_squeeze_n,left_table_lift,right_table_lift,"
+                           "left_grip_limit_n,right_grip_limit_n"),
             std::string::npos) << ts_header;
   double narrowest = 1;
   while (std::getline(ts, ts_row)) {
     std::vector<double> c;
     std::stringstream cells_ts(ts_row);
     for (std::string v; std::getline(cells_ts, v, ',');) c.push_back(std::stod(v));
-    ASSERT_EQ(c.size(), 18u);
+    ASSERT_EQ(c.size(), 20u);
+    EXPECT_DOUBLE_EQ(c[18], 10.0);
+    EXPECT_DOUBLE_EQ(c[19], 10.0);
     for (int k : {12, 13}) {
       EXPECT_GE(c[k], 0.0);
       EXPECT_LE(c[k], 0.035 + 1e-9);
@@ -282,6 +285,18 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   r = gd(run + " --out " + (dir / "no_urdf").string());
   EXPECT_EQ(r.rc, 2) << r.err;
   EXPECT_NE(r.err.find("--urdf"), std::string::npos) << r.err;
+  // A squeeze-limit schedule: a knot that is not T:N, and knots out of order, are refused naming
+  // what to fix; the schedule is local only.
+  r = gd(run + " --urdf " + urdf + " --grip-force-schedule 1:10 2 --out " + (dir / "bad_knot").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("T:VALUE"), std::string::npos) << r.err;
+  r = gd(run + " --urdf " + urdf + " --grip-force-schedule 2:10 1:5 --out " + (dir / "bad_order").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("increasing time"), std::string::npos) << r.err;
+  r = gd(server_flag() + " run --garment towel --task grasp --mode robot --grip-force-schedule 1:10 --out " +
+         (dir / "remote_schedule").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--grip-force-schedule is not available with --server"), std::string::npos) << r.err;
   // The same as a job: the URDF's text goes with it, and the job's report says robot mode.
   r = gd(server_flag() + run.substr(0, run.find(" --no-plots")) + " --quiet --mode robot --urdf " + urdf + " --out " +
          (dir / "remote").string());
