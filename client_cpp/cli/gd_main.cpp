@@ -187,8 +187,8 @@ int main(int argc, char** argv) {
   std::vector<std::string> grip_schedule;
   run->add_option("--grip-force-schedule", grip_schedule,
                   "robot mode: the squeeze limit over time, knots T:N (s, N; linear between, held beyond), e.g. "
-                  "7.6:10 11.6:0 lowers it to 0 over the hold: summary.json's lost_at and grip_force_at_loss_n say "
-                  "when each hand let go and at what limit");
+                  "8.5:10 14.5:0.1 lowers it over a hold: summary.json's lost_at and grip_force_at_loss_n say when "
+                  "each hand let go and at what limit (docs/robot.md, \"The force a grip needs\")");
   run->add_option("--finger-friction", cfg.robot.finger_friction,
                   "robot mode: friction of the finger pads on the cloth (< 0: the material's)")
       ->capture_default_str();

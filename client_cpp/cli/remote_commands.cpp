@@ -184,7 +184,7 @@ std::array<double, 2> parse_knot(const std::string& text, const std::string& fla
     }
     ok = used == part.size();
   }
-  if (!ok) throw sim::InputError(flag + " takes T:VALUE pairs of numbers, e.g. " + flag + " 7.6:10 11.6:0 (got '" + text + "')");
+  if (!ok) throw sim::InputError(flag + " takes T:VALUE pairs of numbers, e.g. " + flag + " 8.5:10 14.5:0.1 (got '" + text + "')");
   return knot;
 }
 

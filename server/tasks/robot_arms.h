@@ -67,7 +67,8 @@ struct RobotOptions {
   /// beyond the first and last; empty: grip_force throughout. A hold whose limit falls slowly
   /// measures the force a garment needs: the hand lets go once friction at the falling limit no
   /// longer carries its share of the weight (RobotArmState::lost_at, docs/robot.md "The force a
-  /// grip needs"). The pads' barrier stiffness is set for the largest knot.
+  /// grip needs"). The pads' barrier stiffness is set for the larger of grip_force (or the URDF's
+  /// limit) and the largest knot. A hand that lets go is seen only while the limit is above 0.
   std::vector<std::array<double, 2>> grip_force_schedule;
   /// m/s: fastest finger motion; < 0: the finger joint's velocity limit in the URDF, capped at
   /// 0.1 m/s.
