@@ -414,10 +414,11 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     const double command = std::clamp(s.gripper, 0.0, model_->gripper_max());
     const double limit = grip_force_at(t_end);
     st.grip_force = limit;
+    const bool closing = command < 0.5 * model_->gripper_max();  // the trajectory asks for a grip
     // Whether the hand holds the cloth: it squeezed with half its limit, and later, still commanded
     // closed, felt (almost) nothing and closed nearer than cloth between the pads lets them (below):
     // the cloth left the pads.
-    if (command >= 0.5 * model_->gripper_max()) {
+    if (!closing) {
       if (st.held_at >= 0) prev_[ai].released = true;  // the hold is over
     } else if (const double was = grip_force_at(t0); !prev_[ai].released && was > 0) {  // the squeeze is of t0
       if (st.held_at < 0 && squeeze >= 0.5 * was) st.held_at = t0;
@@ -465,8 +466,7 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     // pulls the mean squeeze below zero (a towel turned over in a fold or a fling: the fingers then
     // closed to 0 on the cloth between them and trapped it inside a pad).
     if (pressed) g = std::max(g, 0.25 * dhat);
-    const bool closing = command < 0.5 * model_->gripper_max();  // a grasp or release event
-    if (closing != closing_[ai]) {
+    if (closing != closing_[ai]) {  // a grasp or release event
       events_.push_back({t0, a, closing, {}});
       closing_[ai] = closing;
     }
