@@ -441,7 +441,7 @@ Cloud load_obj_vertices(const std::string& path) {
   return out;
 }
 
-pcl::PointCloud<pcl::PointXYZ> to_pcl(const Cloud& cloud) {
+pcl::PointCloud<pcl::PointXYZ> to_pcl_points(const Cloud& cloud) {
   pcl::PointCloud<pcl::PointXYZ> pc;
   pc.resize(cloud.size());
   bool dense = true;
@@ -505,7 +505,7 @@ Cloud load_cloud(const std::string& path) {
 }
 
 void save_pcd(const std::string& path, const Cloud& cloud, PcdEncoding encoding) {
-  const auto pc = to_pcl(cloud);
+  const auto pc = to_pcl_points(cloud);
   pcl::PCDWriter writer;
   int rc = 0;
   if (cloud.empty()) {

@@ -15,6 +15,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <numbers>
 #include <sstream>
 
 #include "sim/demand.h"
@@ -25,7 +26,6 @@ using sim::InputError;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 Eigen::Isometry3d to_eigen(const KDL::Frame& f) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -142,8 +142,8 @@ struct ArmModel::Impl {
     for (unsigned k = 0; k < q.rows(); ++k) {
       double v = q(k);
       const JointLimits& l = arm_limits[k];
-      while (v > l.upper && v - 2 * kPi >= l.lower) v -= 2 * kPi;
-      while (v < l.lower && v + 2 * kPi <= l.upper) v += 2 * kPi;
+      while (v > l.upper && v - 2 * std::numbers::pi >= l.lower) v -= 2 * std::numbers::pi;
+      while (v < l.lower && v + 2 * std::numbers::pi <= l.upper) v += 2 * std::numbers::pi;
       out[k] = std::clamp(v, l.lower, l.upper);
     }
     return out;
@@ -352,7 +352,7 @@ IkResult ArmModel::ik(const Eigen::Isometry3d& target, const Eigen::VectorXd& se
     Eigen::VectorXd start(n);
     for (unsigned k = 0; k < n; ++k) {
       const JointLimits& l = m.arm_limits[k];
-      const double lo = std::max(l.lower, -kPi), hi = std::min(l.upper, kPi);
+      const double lo = std::max(l.lower, -std::numbers::pi), hi = std::min(l.upper, std::numbers::pi);
       const double u = std::fmod(0.5 + 0.618033988749895 * attempt * (k + 1), 1.0);  // golden-ratio spread
       start[k] = lo + (attempt == 0 ? 0.5 : u) * (hi - lo);
     }
@@ -385,7 +385,7 @@ IkResult ArmModel::ik_position_first(const Eigen::Isometry3d& target, const Eige
     Eigen::VectorXd start(n);
     for (unsigned k = 0; k < n; ++k) {
       const JointLimits& l = m.arm_limits[k];
-      const double lo = std::max(l.lower, -kPi), hi = std::min(l.upper, kPi);
+      const double lo = std::max(l.lower, -std::numbers::pi), hi = std::min(l.upper, std::numbers::pi);
       const double u = std::fmod(0.5 + 0.618033988749895 * attempt * (k + 1), 1.0);
       start[k] = lo + (attempt == 0 ? 0.5 : u) * (hi - lo);
     }

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <numbers>
 
 #include "sim/demand.h"
 
@@ -23,7 +24,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kCylinderSides = 32;
 
 bool is_file(const fs::path& p) {
@@ -196,7 +196,7 @@ std::vector<LinkShape> read_link_shapes(const urdf::ModelInterface& model, const
           if (!(cyl.radius > 0 && cyl.length > 0)) throw InputError(what + ": a cylinder needs a positive radius and length");
           std::vector<Eigen::Vector3d> pts;
           for (int k = 0; k < kCylinderSides; ++k) {
-            const double a = 2 * kPi * k / kCylinderSides;
+            const double a = 2 * std::numbers::pi * k / kCylinderSides;
             for (double z : {-0.5 * cyl.length, 0.5 * cyl.length})
               pts.emplace_back(cyl.radius * std::cos(a), cyl.radius * std::sin(a), z);
           }

@@ -13,6 +13,11 @@
 #include "sim/scene.h"
 
 namespace gd::validation {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 namespace {
 
 using sim::Mesh;
@@ -23,10 +28,6 @@ using sim::Vec3;
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kAstmAngleDeg = 41.5;
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 CaseResult finish(CaseResult r, double tol) {
   r.rel_error = std::abs(r.measured - r.expected) / std::max(std::abs(r.expected), 1e-300);

@@ -9,6 +9,7 @@
 ///  - slide/<fabric>: a square sliding on the table stops after v^2 / (2 mu g)
 ///  - hang/<fabric>: a square pinned at two corners settles with small strain and no energy gain
 
+#include <chrono>
 #include <functional>
 #include <string>
 #include <vector>
@@ -30,6 +31,9 @@ struct CaseResult {
   double seconds = 0;
   int intersections = -1;  ///< most intersecting triangle pairs after any step (-1: not tracked)
 };
+
+/// Seconds of wall time since t0 (a case's `seconds`).
+double seconds_since(std::chrono::steady_clock::time_point t0);
 
 /// ASTM D1388 cantilever of a 2.5 cm wide strip: finds the overhang at which the chord from the
 /// support edge to the tip falls 41.5 degrees; the bending length is half of it.

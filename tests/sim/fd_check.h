@@ -98,6 +98,16 @@ inline Mat3 random_rotation(std::mt19937& rng) {
   return q.toRotationMatrix();
 }
 
+/// The four points of a 12-vector (a pair or a hinge) stacked as one.
+inline VecN<12> stack4(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  VecN<12> x;
+  x << a, b, c, d;
+  return x;
+}
+
+/// Point i (0-3) of a stacked 12-vector.
+inline Vec3 seg(const VecN<12>& x, int i) { return x.segment<3>(3 * i); }
+
 /// Fabric parameters used across the energy tests (catalogue numbers of real fabrics).
 struct Fabric {
   const char* name;

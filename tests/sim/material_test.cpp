@@ -13,7 +13,7 @@
 namespace gd::sim {
 namespace {
 
-const char* const kFabrics[] = {"cotton", "linen", "wool",   "polyester", "nylon",
+const char* const kLibraryFabrics[] = {"cotton", "linen", "wool",   "polyester", "nylon",
                                 "silk",   "knit",  "velvet", "leather",   "fur"};
 
 /// Writes `text` to a per-process temp file and returns its path.
@@ -51,7 +51,7 @@ Material valid_material() {
 
 TEST(MaterialLibrary, AllTenFabricsLoad) {
   const MaterialLibrary lib = MaterialLibrary::load_default();
-  for (const char* name : kFabrics) {
+  for (const char* name : kLibraryFabrics) {
     ASSERT_TRUE(lib.has(name)) << name;
     const Material& m = lib.get(name);
     EXPECT_NO_THROW(m.validate());
@@ -64,7 +64,7 @@ TEST(MaterialLibrary, AllTenFabricsLoad) {
     EXPECT_GT(c, 0.003) << name;
     EXPECT_LT(c, 0.03) << name;
   }
-  EXPECT_EQ(lib.names().size(), std::size(kFabrics));
+  EXPECT_EQ(lib.names().size(), std::size(kLibraryFabrics));
 }
 
 TEST(MaterialLibrary, CottonInSI) {
@@ -115,7 +115,7 @@ TEST(MaterialLibrary, MergeFileOverridesAndExtends) {
   EXPECT_NEAR(lib.get("cotton").stretch_warp, 2000, 1e-9);
   EXPECT_NEAR(lib.get("denim").density, 0.4, 1e-12);
   EXPECT_TRUE(lib.has("silk"));
-  EXPECT_EQ(lib.names().size(), std::size(kFabrics) + 1);
+  EXPECT_EQ(lib.names().size(), std::size(kLibraryFabrics) + 1);
 
   Material extra = valid_material();
   lib.add(extra);

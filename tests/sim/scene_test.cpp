@@ -6,11 +6,12 @@
 #include <cmath>
 
 #include "sim/demand.h"
+#include "sim/library_materials.h"
 
 namespace gd::sim {
 namespace {
 
-Material cotton() { return MaterialLibrary::load_default().get("cotton"); }
+using test::cotton;
 
 Mesh lifted_square(double size, double spacing, double z) {
   Mesh m = make_rect(size, size, spacing);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <set>
 
 #include "sim/demand.h"
@@ -16,7 +17,6 @@ namespace {
 using sim::InputError;
 using testing::make_scene;
 
-constexpr double kPi = 3.14159265358979323846;
 
 ArmSample S(double t, const Vec3& p, double gripper, const Eigen::Quaterniond& q = top_down_orientation()) {
   return {t, p, q, gripper};
@@ -39,7 +39,7 @@ TEST(PseudoGrasp, TakesTheVerticesWithinTheJawRadiusAndTheyFollowTheEndEffectorR
   const sim::Mesh m = cloth();
   auto scene = make_scene(m);
   const Vec3 p0(0.25, 0.0, 0.01);  // on the cloth
-  const Eigen::Quaterniond turned = Eigen::AngleAxisd(kPi / 2, Vec3::UnitZ()) * top_down_orientation();
+  const Eigen::Quaterniond turned = Eigen::AngleAxisd(std::numbers::pi / 2, Vec3::UnitZ()) * top_down_orientation();
   DualArmTrajectory traj;
   traj.left = ArmTrajectory({S(0, p0, kGripperOpen), S(0.05, p0, 0.0), S(0.1, p0, 0.0),
                              S(0.5, p0 + Vec3(0.05, 0, 0.15), 0.0, turned)});
@@ -170,7 +170,7 @@ TEST(FixedPoint, PinsTheNearestInitialVertexAtGrabTimeAndTracksPositionOnly) {
   const sim::Mesh m = cloth();
   auto scene = make_scene(m);
   const Vec3 a(0.12, 0.04, 0.02), b(0.3, -0.02, 0.012);
-  const Eigen::Quaterniond turned = Eigen::AngleAxisd(kPi / 2, Vec3::UnitZ()) * top_down_orientation();
+  const Eigen::Quaterniond turned = Eigen::AngleAxisd(std::numbers::pi / 2, Vec3::UnitZ()) * top_down_orientation();
   DualArmTrajectory traj;
   // Gripper columns say "open" throughout: fixed-point mode ignores them.
   traj.left = ArmTrajectory({S(0, a, kGripperOpen), S(0.3, b, kGripperOpen),

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -18,7 +19,6 @@ namespace {
 using sim::InputError;
 namespace fs = std::filesystem;
 
-constexpr double kPi = 3.14159265358979323846;
 
 Eigen::Quaterniond about_z(double angle) { return Eigen::Quaterniond(Eigen::AngleAxisd(angle, Vec3::UnitZ())); }
 
@@ -82,23 +82,23 @@ void expect_same(const DualArmTrajectory& a, const DualArmTrajectory& b, double 
 // --- interpolation ---------------------------------------------------------------------------
 
 TEST(ArmTrajectory, InterpolatesLinearlyWithSlerpAndClampsOutsideTheRange) {
-  const ArmTrajectory t({{1.0, Vec3(0, 0, 0), about_z(0), 0.035}, {3.0, Vec3(2, 4, -2), about_z(kPi / 2), 0.0}});
+  const ArmTrajectory t({{1.0, Vec3(0, 0, 0), about_z(0), 0.035}, {3.0, Vec3(2, 4, -2), about_z(std::numbers::pi / 2), 0.0}});
   const ArmSample m = t.sample(1.5);
   EXPECT_DOUBLE_EQ(m.t, 1.5);
   EXPECT_LT((m.position - Vec3(0.5, 1, -0.5)).norm(), 1e-12);
-  EXPECT_NEAR(m.orientation.angularDistance(about_z(kPi / 8)), 0, 1e-12);  // SLERP: constant angular rate
+  EXPECT_NEAR(m.orientation.angularDistance(about_z(std::numbers::pi / 8)), 0, 1e-12);  // SLERP: constant angular rate
   EXPECT_NEAR(m.gripper, 0.035 * 0.75, 1e-12);
   const ArmSample before = t.sample(-5), after = t.sample(10);
   EXPECT_LT(before.position.norm(), 1e-12);
   EXPECT_DOUBLE_EQ(before.gripper, 0.035);
   EXPECT_LT((after.position - Vec3(2, 4, -2)).norm(), 1e-12);
-  EXPECT_NEAR(after.orientation.angularDistance(about_z(kPi / 2)), 0, 1e-12);
+  EXPECT_NEAR(after.orientation.angularDistance(about_z(std::numbers::pi / 2)), 0, 1e-12);
   EXPECT_DOUBLE_EQ(after.gripper, 0.0);
   // Exactly on a sample.
   EXPECT_LT((t.sample(3.0).position - Vec3(2, 4, -2)).norm(), 1e-12);
   const Eigen::Isometry3d p = t.pose(2.0);
   EXPECT_LT((p.translation() - Vec3(1, 2, -1)).norm(), 1e-12);
-  EXPECT_LT((p.linear() - about_z(kPi / 4).toRotationMatrix()).norm(), 1e-12);
+  EXPECT_LT((p.linear() - about_z(std::numbers::pi / 4).toRotationMatrix()).norm(), 1e-12);
 }
 
 TEST(ArmTrajectory, SlerpTakesTheShortArcWhateverTheQuaternionSign) {
@@ -269,7 +269,7 @@ TEST(RgbenchJoints, ReadsEndPosesIntoTheWorldFrameOnTheMasterTimeBase) {
   EXPECT_LT((t.left.samples()[1].position - Vec3(0.20, 0.30, 0.30)).norm(), 1e-12);
   EXPECT_LT((t.right.samples()[1].position - Vec3(0.30, -0.15, 0.10)).norm(), 1e-12);
   // w-first quaternions: (0.707, 0, 0, 0.707) is a quarter turn about z; (0, 1, 0, 0) a half turn about x.
-  EXPECT_NEAR(t.left.samples()[0].orientation.angularDistance(about_z(kPi / 2)), 0, 1e-9);
+  EXPECT_NEAR(t.left.samples()[0].orientation.angularDistance(about_z(std::numbers::pi / 2)), 0, 1e-9);
   EXPECT_NEAR(t.left.samples()[0].orientation.z(), std::sqrt(0.5), 1e-12);
   EXPECT_NEAR(t.right.samples()[0].orientation.x(), 1.0, 1e-12);
   EXPECT_NEAR(t.right.samples()[0].orientation.w(), 0.0, 1e-12);

@@ -21,11 +21,12 @@
 #include "sim/solver/solver.h"
 #include "sim/stacked_sheets.h"
 #include "sim/tight_solve.h"
+#include "sim/library_materials.h"
 
 namespace gd::sim {
 namespace {
 
-Material cotton() { return MaterialLibrary::load_default().get("cotton"); }
+using test::cotton;
 
 /// Solver settings under which a step's result does not depend on the linear solver's path
 /// (test::tight_solve), on two threads (so the atomic adds race).

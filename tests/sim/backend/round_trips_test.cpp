@@ -9,11 +9,12 @@
 #include "sim/material.h"
 #include "sim/mesh.h"
 #include "sim/scene.h"
+#include "sim/library_materials.h"
 
 namespace gd::sim {
 namespace {
 
-Material cotton() { return MaterialLibrary::load_default().get("cotton"); }
+using test::cotton;
 
 /// Round trips of one step of `s` on this thread.
 HostRoundTrips step_round_trips(Scene& s) {

@@ -16,13 +16,9 @@ namespace {
 using V12 = VecN<12>;
 using M12 = MatN<12>;
 
-V12 stack4(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-  V12 x;
-  x << a, b, c, d;
-  return x;
-}
+using test::stack4;
 
-Vec3 seg(const V12& x, int i) { return x.segment<3>(3 * i); }
+using test::seg;
 
 // Unit vector orthogonal to v.
 Vec3 orthogonal_unit(const Vec3& v, std::mt19937& rng) {

@@ -14,11 +14,7 @@ namespace {
 
 using V12 = VecN<12>;
 
-V12 stack4(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-  V12 x;
-  x << a, b, c, d;
-  return x;
-}
+using test::stack4;
 
 // Brute force: min over a barycentric lattice of spacing 1/N (includes the boundary). Any point of
 // the triangle is within max_edge/N of a lattice point.

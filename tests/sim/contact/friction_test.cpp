@@ -15,13 +15,9 @@ using V12 = VecN<12>;
 using M12 = MatN<12>;
 using Mat32 = Eigen::Matrix<Real, 3, 2>;
 
-V12 stack4(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-  V12 x;
-  x << a, b, c, d;
-  return x;
-}
+using test::stack4;
 
-Vec3 seg(const V12& x, int i) { return x.segment<3>(3 * i); }
+using test::seg;
 
 void expect_frame_ok(const ContactFrictionFrame& f, const V12& x, Real dist) {
   EXPECT_NEAR(f.w.sum(), 0.0, 1e-14);

@@ -24,12 +24,8 @@ using test::near_rel;
 
 constexpr Real kPi = 3.14159265358979323846;
 
-Vec12 stack4(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-  Vec12 v;
-  v << a, b, c, d;
-  return v;
-}
-Vec3 seg(const Vec12& x, int i) { return x.segment<3>(3 * i); }
+using test::stack4;
+using test::seg;
 
 Real theta_of(const Vec12& x) { return dihedral_angle(seg(x, 0), seg(x, 1), seg(x, 2), seg(x, 3)); }
 Vec12 theta_grad_of(const Vec12& x) {

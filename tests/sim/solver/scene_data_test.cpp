@@ -10,11 +10,12 @@
 
 #include "sim/demand.h"
 #include "sim/material.h"
+#include "sim/library_materials.h"
 
 namespace gd::sim {
 namespace {
 
-Material cotton() { return MaterialLibrary::load_default().get("cotton"); }
+using test::cotton;
 
 /// The same rect with its uvs given per corner, every panel-corner moved by `offset` for the
 /// triangles with centroid x > half (as if the right half were a separate pattern piece).
