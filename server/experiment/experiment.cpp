@@ -176,7 +176,7 @@ class Run {
   /// The recorded frames' positions as OUT/animation.npy (float32, (frames, N, 3), world m) and
   /// their times; at most kMaxAnimationFrames (and kMaxAnimationBytes), evenly spaced over the run.
   nlohmann::json write_animation(const std::string& path) const {
-    write_npy_f32(path, anim_, {anim_times_.size(), scene_->vertex_count(), 3});
+    write_npy_f32(path, anim_, {anim_times_.size(), static_cast<size_t>(scene_->vertex_count()), 3});
     const size_t frames = anim_times_.size();
     return {{"file", fs::path(path).filename().string()}, {"frames", frames}, {"times", anim_times_}};
   }
