@@ -258,8 +258,9 @@ class Lbvh {
   /// For each query box q in [0, queries) (6 floats each, the policy's memory), the indices of the
   /// built boxes it overlaps that accept(q, index) keeps, as keys q << 32 | index in `out`
   /// (overwritten), grouped by query in order and in traversal order within one. Returns the
-  /// count. When the count is over max_total, `out` is left empty (the pairs are counted, not
-  /// written) and the count is still returned.
+  /// count. When the count is over max_total, `out` is left empty and some count above max_total
+  /// is returned: the policies with kSinglePassQueries stop traversing once past it (a flooded
+  /// query then costs about max_total pairs' work, not all of its pairs'), the others count all.
   /// self_above: the query boxes are the built boxes themselves and only indices above the
   /// query's are wanted (each unordered pair once): subtrees without one are not entered.
   template <class Accept>
@@ -319,8 +320,10 @@ class Lbvh {
   /// emit(key) for each of query q's keys in traversal order. The queries are cut into
   /// kQueryChunks contiguous chunks (a count independent of the threads, so the output is too),
   /// each filling its own list; the lists are concatenated in chunk order. Past max_total the
-  /// keys are counted and no longer kept (each chunk checks the shared count every kFlushEvery
-  /// keys), so a flooded query holds at most max_total + kQueryChunks * kFlushEvery keys.
+  /// keys are no longer kept and every chunk stops at its next query (each chunk adds its count to
+  /// the shared one every kFlushEvery keys), so a flooded query holds at most max_total +
+  /// kQueryChunks * kFlushEvery keys, and returns a count above max_total that depends on the
+  /// threads' timing (callers compare it with max_total only).
   template <class Visit>
   int64_t query_single_pass(int queries, const Visit& visit, Vec<uint64_t>* out, int64_t max_total) {
     constexpr int kQueryChunks = 64;
@@ -338,7 +341,7 @@ class Lbvh {
       bool keep = true;
       const int lo = static_cast<int>(static_cast<int64_t>(queries) * c / chunks);
       const int hi = static_cast<int>(static_cast<int64_t>(queries) * (c + 1) / chunks);
-      for (int q = lo; q < hi; ++q)
+      for (int q = lo; q < hi && keep && kept.load(std::memory_order_relaxed) <= max_total; ++q)
         visit(q, [&](uint64_t key) {
           ++count;
           if (!keep) return;
