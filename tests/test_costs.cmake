@@ -1,9 +1,9 @@
 # Expected seconds of the tests that take 4 s or more (one OpenMP thread each, ctest -j2 on this
 # 2-core machine, 2026-11-30: the experiment label and the rest measured in two runs), read by
 # ctest after the discovered tests. ctest -j starts the costliest tests first, but a clean clone has
-# no Testing/Temporary/CTestCostData.txt: without these it starts them in number order (after the
-# experiment groups' COST in tests/CMakeLists.txt), and a long test with a late number (the service's
-# towel pick, the cake skirt's fold draws) runs on while the other core has nothing left. Names are
+# no Testing/Temporary/CTestCostData.txt: without these it starts them in number order, and a long
+# test with a late number (the service's towel pick, the cake skirt's fold draws) runs on while the
+# other core has nothing left. Names are
 # matched without the ' # GetParam() = ...' that gtest_discover_tests appends; one that no longer
 # exists is ignored. Refresh from a full run: the "Test #N: name ... Passed S sec" lines of ctest.
 set(_gd_costs
