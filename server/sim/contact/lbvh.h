@@ -171,10 +171,10 @@ class Lbvh {
       const float cd = c0[d];
       const double below = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
         return static_cast<double>(cd) - 0.5 * (static_cast<double>(b[6 * i + d]) + b[6 * i + 3 + d]);
-      });
+      }, Exec::kParallelMinVector);
       const double above = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
         return 0.5 * (static_cast<double>(b[6 * i + d]) + b[6 * i + 3 + d]) - static_cast<double>(cd);
-      });
+      }, Exec::kParallelMinVector);
       lo[d] = static_cast<float>(cd - below);
       ext[d] = static_cast<float>(below + above);
     }
@@ -189,7 +189,7 @@ class Lbvh {
       const uint32_t code = lbvh::morton3((0.5f * (bi[0] + bi[3]) - l0) * inv, (0.5f * (bi[1] + bi[4]) - l1) * inv,
                                           (0.5f * (bi[2] + bi[5]) - l2) * inv);
       keys[i] = (static_cast<uint64_t>(code) << 32) | static_cast<uint32_t>(i);
-    });
+    }, Exec::kParallelMinVector);
     Exec::sort(keys_);
     // Leaves in key order: their box index and box.
     Exec::resize_for_overwrite(order_, n_);
@@ -200,7 +200,7 @@ class Lbvh {
       const int k = static_cast<int>(keys[i] & 0xffffffffu);
       order[i] = k;
       for (int c = 0; c < 6; ++c) leaf_box[6 * i + c] = b[6 * k + c];
-    });
+    }, Exec::kParallelMinVector);
     if (n_ == 1) return;
     // 2. The radix tree, with parent links (the root, node 0, has none).
     const int m = n_ - 1;
@@ -228,7 +228,7 @@ class Lbvh {
       }
       arrivals[i] = 0;
       if (i == 0) parent_node[0] = -1;
-    });
+    }, Exec::kParallelMinHeavy);  // a binary search per node (below kParallelMin, a garment's trees were built on one thread)
     // 3. Boxes (and largest box indices) bottom-up: the second child to reach a node makes its
     //    box and goes on.
     float* node_box = Exec::ptr(node_box_);

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/contact/broad_phase.h"
 #include "sim/contact/lbvh.h"
 #include "sim/demand.h"
@@ -135,7 +136,8 @@ class LbvhBroadPhase final : public BroadPhase {
     const double* a = Exec::ptr(x0_);
     const double* b = Exec::ptr(x1_);
     float* o = Exec::ptr(*out);
-    Exec::for_each(count, [=] GD_HD_LAMBDA(int p) { lbvh::swept_box<K>(idx, p, a, b, pad, o + 6 * p); });
+    Exec::for_each(count, [=] GD_HD_LAMBDA(int p) { lbvh::swept_box<K>(idx, p, a, b, pad, o + 6 * p); },
+                   Exec::kParallelMinVector);
   }
 
   /// The query's keys (first << 32 | second) as pairs sorted lexicographically (each query's pairs
@@ -158,20 +160,50 @@ class LbvhBroadPhase final : public BroadPhase {
       });
       out->resize(n);
       if (n > 0) Exec::download_to(out->front().data(), pairs_);
-      return;
+    } else {
+      finish_on_host(out);
     }
-    Exec::download(host_keys_, keys_);
-    size_t b = 0;
-    while (b < host_keys_.size()) {
-      size_t e = b + 1;
-      while (e < host_keys_.size() && (host_keys_[e] >> 32) == (host_keys_[b] >> 32)) ++e;
-      std::sort(host_keys_.begin() + static_cast<long>(b), host_keys_.begin() + static_cast<long>(e));
-      b = e;
-    }
-    out->resize(host_keys_.size());
-    for (size_t k = 0; k < host_keys_.size(); ++k)
-      (*out)[k] = Eigen::Vector2i(static_cast<int>(host_keys_[k] >> 32), static_cast<int>(host_keys_[k] & 0xffffffffu));
   }
+
+  /// finish() where the pairs are sorted and unpacked on the host.
+  void finish_on_host(std::vector<Eigen::Vector2i>* out) {
+    // Host memory is sorted where it lies; the keys are cut into chunks at query boundaries, each
+    // chunk's queries sorted and unpacked by one thread (the same pairs in the same order at any
+    // thread count: this was a serial pass, with a copy, of every 2-thread broad phase).
+    uint64_t* keys;
+    int64_t nk;
+    if constexpr (Exec::kHostMemory) {
+      keys = Exec::ptr(keys_);
+      nk = static_cast<int64_t>(keys_.size());
+    } else {
+      Exec::download(host_keys_, keys_);
+      keys = host_keys_.data();
+      nk = static_cast<int64_t>(host_keys_.size());
+    }
+    out->resize(static_cast<size_t>(nk));
+    Eigen::Vector2i* o = out->data();
+    const int chunks = nk >= kParallelFinish ? 4 * std::max(1, omp_threads()) : 1;
+    auto chunk_start = [=](int j) {  // the first query starting at or after chunk j's share
+      int64_t s = nk * j / chunks;
+      while (s > 0 && s < nk && (keys[s] >> 32) == (keys[s - 1] >> 32)) ++s;
+      return s;
+    };
+#pragma omp parallel for schedule(static) if (chunks > 1)
+    for (int j = 0; j < chunks; ++j) {
+      const int64_t end = chunk_start(j + 1);
+      for (int64_t b = chunk_start(j); b < end;) {
+        int64_t e = b + 1;
+        while (e < end && (keys[e] >> 32) == (keys[b] >> 32)) ++e;
+        std::sort(keys + b, keys + e);
+        for (int64_t k = b; k < e; ++k)
+          o[k] = Eigen::Vector2i(static_cast<int>(keys[k] >> 32), static_cast<int>(keys[k] & 0xffffffffu));
+        b = e;
+      }
+    }
+  }
+
+  /// finish() sorts and unpacks on one thread below this many keys.
+  static constexpr int64_t kParallelFinish = 4096;
 
  private:
   int n_, nt_, ne_;

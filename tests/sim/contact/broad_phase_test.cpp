@@ -523,6 +523,38 @@ TEST(BroadPhase, LbvhMatchesBruteForceAndEmbree) {
   EXPECT_GT(pairs, 10000u);  // the sheets do bring their parts together
 }
 
+/// A sheet large enough that every loop of the LBVH broad phase runs in parallel at two threads
+/// (its boxes, the trees' Morton keys, their sort and radix nodes, the pairs' sort and unpacking
+/// in finish): the brute force's pairs in the brute force's order at one and at two threads.
+TEST(BroadPhase, LbvhOnALargeSheetGivesTheSamePairsAtOneAndTwoThreads) {
+  const int before = omp_threads();
+  const Flat f = crumpled_sheet(0.6, 0.009, 4, 0.15, 0.04);
+  ASSERT_GT(f.tris.size() / 3, 2u * CpuExec::kParallelMinVector);
+  auto brute = make_brute_force_broad_phase(f.tris, f.edges, f.n);
+  const std::vector<double> x1 = displaced(f, 104, 0.12, 0.015);
+  ContactCandidates cb;
+  std::vector<Eigen::Vector2i> tb;
+  brute->find(f.x, x1, 0.006, &cb);
+  brute->triangle_pairs(f.x, x1, 0.006, &tb);
+  ASSERT_GT(cb.vf.size(), 4u * CpuExec::kParallelMinVector);
+  ASSERT_GT(cb.ee.size(), 4u * CpuExec::kParallelMinVector);
+  ASSERT_GT(tb.size(), 4u * CpuExec::kParallelMinVector);
+  for (int threads : {1, 2}) {
+    set_omp_threads(threads);
+    auto lbvh = make_lbvh_broad_phase(f.tris, f.edges, f.n);
+    ContactCandidates c;
+    std::vector<Eigen::Vector2i> tp;
+    for (int repeat = 0; repeat < 2; ++repeat) {  // the second query reuses the buffers
+      ASSERT_TRUE(lbvh->find(f.x, x1, 0.006, &c));
+      lbvh->triangle_pairs(f.x, x1, 0.006, &tp);
+      EXPECT_EQ(c.vf, cb.vf) << threads << " threads";
+      EXPECT_EQ(c.ee, cb.ee) << threads << " threads";
+      EXPECT_EQ(tp, tb) << threads << " threads";
+    }
+  }
+  set_omp_threads(before);
+}
+
 TEST(BroadPhase, LbvhOnAFoldedSheetAndWithAHugeMargin) {
   const Flat folded = folded_sheet(0.2, 0.08, 0.01, 0.004);
   auto lbvh = make_lbvh_broad_phase(folded.tris, folded.edges, folded.n);

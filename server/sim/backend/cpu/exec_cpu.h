@@ -174,8 +174,30 @@ struct CpuExec {
   /// visible after it).
   static inline int atomic_increment(int* p) { return std::atomic_ref<int>(*p).fetch_add(1, std::memory_order_acq_rel); }
 
-  /// Sorts 64-bit keys ascending.
-  static void sort(Vector<uint64_t>& v) { std::sort(v.begin(), v.end()); }
+  /// Sorts 64-bit keys ascending. From kParallelMinVector keys on, contiguous runs (one per
+  /// thread) are sorted in parallel and then merged pairwise, each round's merges in parallel:
+  /// the LBVH's Morton keys were a serial sort on the main thread of every 2-thread broad phase.
+  /// Keys are plain integers, so every correct sort gives the same array: the same bits at any
+  /// thread count.
+  static void sort(Vector<uint64_t>& v) {
+    const int n = static_cast<int>(v.size());
+    const int runs = n >= kParallelMinVector ? std::min(omp_threads(), 16) : 1;
+    if (runs <= 1) {
+      std::sort(v.begin(), v.end());
+      return;
+    }
+    auto bound = [&](int r) { return v.begin() + static_cast<long>(static_cast<int64_t>(n) * r / runs); };
+#pragma omp parallel for schedule(static, 1)
+    for (int r = 0; r < runs; ++r) std::sort(bound(r), bound(r + 1));
+    for (int width = 1; width < runs; width *= 2) {
+      const int merges = (runs + 2 * width - 1) / (2 * width);
+#pragma omp parallel for schedule(static, 1) if (merges > 1)
+      for (int m = 0; m < merges; ++m) {
+        const int lo = 2 * width * m, mid = std::min(lo + width, runs), hi = std::min(lo + 2 * width, runs);
+        if (mid < hi) std::inplace_merge(bound(lo), bound(mid), bound(hi));
+      }
+    }
+  }
   /// In-place exclusive prefix sum of v[0, count).
   template <class T>
   static void exclusive_scan(Vector<T>& v, int count) {

@@ -1,9 +1,16 @@
-// CpuExec::sum2_effects_to, the two sums of PCG's fused update pass: each term summed exactly
-// as CpuExec::sum sums it (the same blocks in the same order, so the same bits), every
-// iteration's effect applied once, and the same bits at any thread count.
+// CpuExec's reductions and sort.
+// sum2_effects_to, the two sums of PCG's fused update pass: each term summed exactly as
+// CpuExec::sum sums it (the same blocks in the same order, so the same bits), every iteration's
+// effect applied once, and the same bits at any thread count.
+// sort: from kParallelMinVector keys on, runs sorted by the threads and merged pairwise; every
+// count of threads and keys gives std::sort's array, duplicates and sorted or reversed input
+// included.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <random>
 #include <vector>
 
 #include "sim/backend/cpu/exec_cpu.h"
@@ -59,6 +66,39 @@ TEST(ExecSums, GpuPathsPolicySumsAsTheCpuDoes) {
   const Result gpu_paths = sum2<CpuGpuPathsExec>(20000, CpuExec::kParallelMinVector / 3);
   EXPECT_EQ(cpu.a, gpu_paths.a);
   EXPECT_EQ(cpu.b, gpu_paths.b);
+}
+
+std::vector<uint64_t> random_keys(int n, uint64_t range, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<uint64_t> u(0, range);
+  std::vector<uint64_t> v(n);
+  for (uint64_t& k : v) k = u(rng);
+  return v;
+}
+
+TEST(ExecSort, EveryThreadCountGivesStdSortsArray) {
+  const int before = omp_threads();
+  for (int threads : {1, 2, 3, 5}) {
+    set_omp_threads(threads);
+    for (int n : {0, 1, 7, CpuExec::kParallelMinVector - 1, CpuExec::kParallelMinVector, 10007, 65536}) {
+      for (uint64_t range : {uint64_t{5}, ~uint64_t{0}}) {  // many duplicates, then nearly none
+        std::vector<uint64_t> v = random_keys(n, range, 17u + static_cast<unsigned>(n));
+        std::vector<uint64_t> expected = v;
+        std::sort(expected.begin(), expected.end());
+        CpuExec::sort(v);
+        EXPECT_EQ(v, expected) << n << " keys, range " << range << ", " << threads << " threads";
+      }
+    }
+    std::vector<uint64_t> sorted = random_keys(20000, ~uint64_t{0}, 3);
+    std::sort(sorted.begin(), sorted.end());
+    std::vector<uint64_t> v = sorted;
+    CpuExec::sort(v);
+    EXPECT_EQ(v, sorted) << threads << " threads, sorted input";
+    std::reverse(v.begin(), v.end());
+    CpuExec::sort(v);
+    EXPECT_EQ(v, sorted) << threads << " threads, reversed input";
+  }
+  set_omp_threads(before);
 }
 
 }  // namespace
