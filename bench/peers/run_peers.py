@@ -228,6 +228,9 @@ class MujocoSim:
                             "separate bending/membrane damping (one Rayleigh coefficient)",
         }
 
+    # MuJoCo's arena (<size memory>, e.g. "8G"); None: MuJoCo's own default (--mujoco-memory).
+    memory: str | None = None
+
     def __init__(self, scene: Scene):
         import mujoco
 
@@ -242,8 +245,10 @@ class MujocoSim:
         plane = (f'<geom name="table" type="plane" size="0 0 1" pos="0 0 {fmt(table["height"])}" '
                  f'friction="{fmt(table["friction"])} 0.005 0.0001"/>') if table["present"] else ""
         pin = f'<pin id="{" ".join(map(str, scene.pins))}"/>' if scene.pins else ""
+        size = f'<size memory="{self.memory}"/>' if self.memory else ""
         xml = f"""<mujoco model="{scene.name}">
   <compiler usethread="false"/>
+  {size}
   <option timestep="{fmt(scene.dt)}" gravity="{' '.join(fmt(g) for g in meta['gravity'])}"
           integrator="discrete" solver="Newton"/>
   <worldbody>
@@ -290,9 +295,28 @@ class MujocoSim:
     def positions(self) -> np.ndarray:
         return np.array(self.data.flexvert_xpos[self.va:self.va + self.scene.n])
 
+    # MuJoCo's own warnings that make its timing a different computation: a full constraint or
+    # contact arena drops contacts (fold/20000 overflowed the default 1.6 GB arena in the landing),
+    # an ill-conditioned inertia leaves accelerations under-converged.
+    SERIOUS_WARNINGS = {"CNSTRFULL": "constraint arena full (contacts dropped)",
+                        "CONTACTFULL": "contact buffer full (contacts dropped)",
+                        "INERTIA": "inertia ill-conditioned (under-converged)",
+                        "BADQACC": "bad accelerations (simulation reset)"}
+
+    def warning_counts(self) -> dict:
+        """MuJoCo's warning counters since the model was built (mjData.warning), nonzero only."""
+        out = {}
+        for name in self.SERIOUS_WARNINGS:
+            n = int(self.data.warning[int(getattr(self.mj.mjtWarning, "mjWARN_" + name))].number)
+            if n > 0:
+                out[name] = n
+        return out
+
     def info(self) -> dict:
+        counts = self.warning_counts()
         return {"nv": int(self.model.nv), "contacts": int(self.data.ncon),
-                "solver_iters": int(self.data.solver_niter[0])}
+                "solver_iters": int(self.data.solver_niter[0]), "mujoco_warnings": counts,
+                "peer_warnings": [f"MuJoCo: {self.SERIOUS_WARNINGS[k]} x{n}" for k, n in counts.items()]}
 
     def close(self) -> None:
         pass
@@ -813,7 +837,8 @@ def run_case(case: str, args, gd_bench: Path, workdir: Path) -> dict:
             "status": "ok" if not errors else ("exploded" if any("exploded" in e for e in errors) else "error"),
             "error": errors[-1] if errors else None,
             "state": state,
-            "warnings": warnings_of(scene, state) if state else [],
+            "warnings": (warnings_of(scene, state) if state else [])
+                        + (list(rs[-1].info.get("peer_warnings", [])) if s != OURS and rs else []),
             "vertices": next((r.info.get("vertices") for r in rs if r.info.get("vertices") is not None), None),
         }
         if s != OURS:
@@ -952,6 +977,8 @@ def parse_args(argv=None):
     ap.add_argument("--pybullet-substeps", default="1",
                     help="PyBullet substeps per 5 ms step: 1 (the same dt as ours; explicit springs at cotton's "
                          "stiffness then explode), an integer, or 'auto' (the explicit stability estimate)")
+    ap.add_argument("--mujoco-memory", help="MuJoCo's arena size (<size memory>, e.g. 8G; default: MuJoCo's own): "
+                                         "a full arena drops contacts and is flagged in the notes")
     ap.add_argument("--peer-max-seconds", type=float, default=120,
                     help="stop a peer's round after this many seconds (at least one timed step; 0: no limit)")
     ap.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of the table")
@@ -999,11 +1026,13 @@ def main(argv=None) -> int:
             skipped[p] = f"{', '.join(missing)} not installed (pip install -r bench/peers/{req})"
             log(f"skipping peer {p}: {skipped[p]}")
             args.peers.remove(p)
+    MujocoSim.memory = args.mujoco_memory
     workdir = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="gd-peers-"))
     workdir.mkdir(parents=True, exist_ok=True)
     result = {"settings": {"cases": args.case_list, "rounds": args.rounds, "steps": args.steps,
                            "warmup": args.warmup, "threads": 1, "dt": None, "gd_bench": str(gd_bench),
-                           "pybullet_substeps": args.pybullet_substeps, "peers": args.peers},
+                           "pybullet_substeps": args.pybullet_substeps, "mujoco_memory": args.mujoco_memory,
+                           "peers": args.peers},
               "versions": versions(), "skipped_peers": skipped, "cases": []}
     t0 = time.perf_counter()
     try:

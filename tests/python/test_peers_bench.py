@@ -116,6 +116,36 @@ def test_mujoco_builds_and_steps_the_exported_scene(drape500) -> None:
 
 
 @needs_gd_bench
+def test_mujoco_reports_its_own_warnings(drape500) -> None:
+    """MuJoCo's warning counters go into the peer's info and the table's notes: a full constraint
+    arena drops contacts (fold/20000 overflowed MuJoCo 4.0's default arena in the landing), which
+    makes its time that of a different computation."""
+    sim = run_peers.MujocoSim(drape500)
+    try:
+        for _ in range(3):
+            sim.step()
+        info = sim.info()
+        assert info["mujoco_warnings"] == {} and info["peer_warnings"] == []  # a drape fills no arena
+        sim.data.warning[int(mujoco.mjtWarning.mjWARN_CNSTRFULL)].number = 3
+        info = sim.info()
+        assert info["mujoco_warnings"] == {"CNSTRFULL": 3}
+        assert info["peer_warnings"] == ["MuJoCo: constraint arena full (contacts dropped) x3"]
+    finally:
+        sim.close()
+
+
+@needs_gd_bench
+def test_mujoco_arena_is_settable(drape500, monkeypatch) -> None:
+    monkeypatch.setattr(run_peers.MujocoSim, "memory", "64M")
+    sim = run_peers.MujocoSim(drape500)
+    try:
+        assert sim.model.narena == 64 * 2**20
+        _check_peer_run(sim, drape500, 2)
+    finally:
+        sim.close()
+
+
+@needs_gd_bench
 def test_pybullet_builds_and_steps_the_exported_scene(drape500) -> None:
     substeps = run_peers.PybulletSim.stable_substeps(drape500)
     assert substeps > 1  # cotton's springs are far too stiff for one explicit 5 ms step
