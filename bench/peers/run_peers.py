@@ -1001,6 +1001,11 @@ def parse_args(argv=None):
             ap.error(f"unknown peer '{p}' ({', '.join(PEERS)})")
     if a.pybullet_substeps != "auto" and not (a.pybullet_substeps.isdigit() and int(a.pybullet_substeps) >= 1):
         ap.error("--pybullet-substeps: a positive integer or 'auto'")
+    if a.mujoco_memory is not None:
+        m = a.mujoco_memory.strip()
+        if not (m[:-1] if m[-1:] in ("K", "M", "G") else m).isdigit() or int(m.rstrip("KMG") or 0) < 1:
+            ap.error(f"--mujoco-memory '{a.mujoco_memory}': a size in bytes with an optional K, M or G suffix (e.g. 8G)")
+        a.mujoco_memory = m
     return a
 
 

@@ -134,6 +134,14 @@ def test_mujoco_reports_its_own_warnings(drape500) -> None:
         sim.close()
 
 
+def test_mujoco_memory_flag_is_checked() -> None:
+    assert run_peers.parse_args(["--mujoco-memory", "8G"]).mujoco_memory == "8G"
+    assert run_peers.parse_args(["--mujoco-memory", "1048576"]).mujoco_memory == "1048576"
+    for bad in ("", "G", "8X", "-1G", "0M", "1.5G"):
+        with pytest.raises(SystemExit):
+            run_peers.parse_args(["--mujoco-memory", bad])
+
+
 @needs_gd_bench
 def test_mujoco_arena_is_settable(drape500, monkeypatch) -> None:
     monkeypatch.setattr(run_peers.MujocoSim, "memory", "64M")
