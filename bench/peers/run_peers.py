@@ -26,6 +26,7 @@ import argparse
 import json
 import math
 import os
+import re
 import shutil
 import statistics
 import subprocess
@@ -838,7 +839,7 @@ def run_case(case: str, args, gd_bench: Path, workdir: Path) -> dict:
             "error": errors[-1] if errors else None,
             "state": state,
             "warnings": (warnings_of(scene, state) if state else [])
-                        + (list(rs[-1].info.get("peer_warnings", [])) if s != OURS and rs else []),
+                        + (list(rs[-1].info.get("peer_warnings", [])) if s != OURS else []),
             "vertices": next((r.info.get("vertices") for r in rs if r.info.get("vertices") is not None), None),
         }
         if s != OURS:
@@ -1003,7 +1004,7 @@ def parse_args(argv=None):
         ap.error("--pybullet-substeps: a positive integer or 'auto'")
     if a.mujoco_memory is not None:
         m = a.mujoco_memory.strip()
-        if not (m[:-1] if m[-1:] in ("K", "M", "G") else m).isdigit() or int(m.rstrip("KMG") or 0) < 1:
+        if not re.fullmatch(r"[1-9][0-9]*[KMG]?", m):
             ap.error(f"--mujoco-memory '{a.mujoco_memory}': a size in bytes with an optional K, M or G suffix (e.g. 8G)")
         a.mujoco_memory = m
     return a
