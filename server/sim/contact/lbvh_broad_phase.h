@@ -165,21 +165,15 @@ class LbvhBroadPhase final : public BroadPhase {
     }
   }
 
-  /// finish() where the pairs are sorted and unpacked on the host.
+  /// finish() where the pairs are sorted and unpacked on the host (kHostPairs, which needs the
+  /// keys in host memory).
   void finish_on_host(std::vector<Eigen::Vector2i>* out) {
-    // Host memory is sorted where it lies; the keys are cut into chunks at query boundaries, each
-    // chunk's queries sorted and unpacked by one thread (the same pairs in the same order at any
-    // thread count: this was a serial pass, with a copy, of every 2-thread broad phase).
-    uint64_t* keys;
-    int64_t nk;
-    if constexpr (Exec::kHostMemory) {
-      keys = Exec::ptr(keys_);
-      nk = static_cast<int64_t>(keys_.size());
-    } else {
-      Exec::download(host_keys_, keys_);
-      keys = host_keys_.data();
-      nk = static_cast<int64_t>(host_keys_.size());
-    }
+    static_assert(Exec::kHostMemory, "kHostPairs sorts the keys where they lie: host memory");
+    // The keys are cut into chunks at query boundaries, each chunk's queries sorted and unpacked
+    // by one thread (the same pairs in the same order at any thread count: this was a serial pass,
+    // with a copy, of every 2-thread broad phase).
+    uint64_t* keys = Exec::ptr(keys_);
+    const int64_t nk = static_cast<int64_t>(keys_.size());
     out->resize(static_cast<size_t>(nk));
     Eigen::Vector2i* o = out->data();
     const int chunks = nk >= kParallelFinish ? 4 * std::max(1, omp_threads()) : 1;
@@ -212,7 +206,6 @@ class LbvhBroadPhase final : public BroadPhase {
   Vec<float> vertex_boxes_, edge_boxes_, tri_boxes_;
   Vec<uint64_t> keys_;
   Vec<int> pairs_;  ///< finish without kHostPairs: the sorted keys unpacked
-  std::vector<uint64_t> host_keys_;
   Lbvh<Exec> tree_;
 };
 
