@@ -35,6 +35,11 @@
 /// Writes the case's exact scene (mesh.obj, rest.obj, scene.json; scene_export.h) for the peer
 /// benchmark (bench/peers); --simulate K also steps ours K steps on one thread (ours_state.json),
 /// with the solver flags given before `export` (e.g. `gd-bench --pcg-newton-fraction 0 export ...`).
+///
+///   gd-bench stream [--json] [--megabytes 1,4.6,16,64] [--threads N] [--repeats 30]
+///
+/// This machine's memory reads at one thread and at N (all cores by default), per array size:
+/// the most a stage that only streams that much memory can gain from threads (stream_case.h).
 
 #include <CLI/CLI.hpp>
 #include <chrono>
@@ -50,6 +55,7 @@
 #include "scene_export.h"
 #include "load_case.h"
 #include "service_case.h"
+#include "stream_case.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
@@ -396,6 +402,22 @@ int main(int argc, char** argv) {
       ->add_option("--simulate", exp_opt.simulate_steps, "Also step ours this many steps (1 thread): ours_state.json")
       ->check(CLI::NonNegativeNumber);
 
+  gd::bench::StreamCaseOptions stream_opt;
+  bool stream_json = false;
+  auto* stream = app.add_subcommand(
+      "stream", "Memory read rate at one thread and at N, per array size: the ceiling of a memory-bound stage's scaling");
+  stream->add_flag("--json", stream_json, "Print one JSON array on stdout (and nothing else)");
+  stream->add_option("--megabytes", stream_opt.megabytes, "Array sizes, MB (4.6: the Hessian's blocks of RGBench's T-shirt)")
+      ->delimiter(',')
+      ->check(CLI::Range(0.001, 65536.0))
+      ->capture_default_str();
+  stream->add_option("--threads", stream_opt.threads, "Threads of the many-thread side (0: all cores)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  stream->add_option("--repeats", stream_opt.repeats, "Passes per side and size (the best counts)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+
   CLI11_PARSE(app, argc, argv);
 
   // The solver flags, shared by the timed cases and export --simulate (validated).
@@ -441,6 +463,21 @@ int main(int argc, char** argv) {
     } catch (const std::exception& e) {
       std::fprintf(stderr, "gd-bench export: %s\n", e.what());
       return 2;
+    }
+    return 0;
+  }
+
+  if (*stream) {
+    const auto rows = gd::bench::run_stream_case(stream_opt);
+    if (stream_json) {
+      nlohmann::json out = nlohmann::json::array();
+      for (const auto& r : rows) out.push_back(gd::bench::to_json(r));
+      std::printf("%s\n", out.dump(2).c_str());
+    } else {
+      std::printf("%10s %8s %16s %16s %8s\n", "MB", "threads", "1 thread GB/s", "N threads GB/s", "scaling");
+      for (const auto& r : rows)
+        std::printf("%10.1f %8d %16.1f %16.1f %7.2fx\n", r.megabytes, r.threads, r.one_thread_gb_s, r.threads_gb_s,
+                    r.scaling);
     }
     return 0;
   }

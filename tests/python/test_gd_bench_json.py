@@ -88,3 +88,18 @@ def test_load_names_an_unreachable_server():
     assert out.returncode == 1
     (c,) = json.loads(out.stdout)
     assert "error" in c and c["calls"] == 0
+
+
+def test_stream_reports_each_size_at_one_and_many_threads():
+    """gd-bench stream: one row per array size with positive read rates at one thread and at the
+    asked count, and their ratio; a size that is not positive is refused."""
+    out = subprocess.run([str(BENCH), "stream", "--json", "--megabytes", "0.5,2", "--threads", "2", "--repeats", "3"],
+                         capture_output=True, text=True, timeout=120, check=True)
+    rows = json.loads(out.stdout)
+    assert [r["megabytes"] for r in rows] == [0.5, 2]
+    for r in rows:
+        assert r["case"] == "stream" and r["threads"] == 2
+        assert r["one_thread_gb_s"] > 0 and r["threads_gb_s"] > 0
+        assert abs(r["scaling"] - r["threads_gb_s"] / r["one_thread_gb_s"]) < 1e-9 * r["scaling"]
+    bad = subprocess.run([str(BENCH), "stream", "--megabytes", "0"], capture_output=True, text=True, timeout=60)
+    assert bad.returncode != 0 and "megabytes" in (bad.stdout + bad.stderr).lower()

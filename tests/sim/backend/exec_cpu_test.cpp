@@ -2,6 +2,7 @@
 // sum2_effects_to, the two sums of PCG's fused update pass: each term summed exactly as
 // CpuExec::sum sums it (the same blocks in the same order, so the same bits), every iteration's
 // effect applied once, and the same bits at any thread count.
+// The blocks are shared out as whole runs within half a block of an even split of the items.
 // sort: from kParallelMinVector keys on, runs sorted by the threads and merged pairwise; every
 // count of threads and keys gives std::sort's array, duplicates and sorted or reversed input
 // included.
@@ -50,15 +51,44 @@ TEST(ExecSums, Sum2AddsEachTermAsSumDoes) {
   }
 }
 
-TEST(ExecSums, Sum2HasTheSameBitsAtOneAndTwoThreads) {
+TEST(ExecSums, Sum2HasTheSameBitsAtAnyThreadCount) {
   const int before = omp_threads();
-  set_omp_threads(1);
-  const Result one = sum2<CpuExec>(300000, CpuExec::kParallelMinHeavy);
-  set_omp_threads(2);
-  const Result two = sum2<CpuExec>(300000, CpuExec::kParallelMinHeavy);
+  // 4867: RGBench's T-shirt's rows, 39 product blocks (an odd count, the last one 3 rows long).
+  for (const int n : {300000, 4867}) {
+    set_omp_threads(1);
+    const Result one = sum2<CpuExec>(n, CpuExec::kParallelMinHeavy);
+    for (const int threads : {2, 3}) {
+      set_omp_threads(threads);
+      const Result more = sum2<CpuExec>(n, CpuExec::kParallelMinHeavy);
+      EXPECT_EQ(one.a, more.a) << n << " terms, " << threads << " threads";
+      EXPECT_EQ(one.b, more.b) << n << " terms, " << threads << " threads";
+      for (int i = 0; i < n; ++i) ASSERT_EQ(more.visits[i], 1) << "iteration " << i << " of " << n;
+    }
+  }
   set_omp_threads(before);
-  EXPECT_EQ(one.a, two.a);
-  EXPECT_EQ(one.b, two.b);
+}
+
+TEST(ExecSums, EachThreadTakesWholeBlocksWithinHalfABlockOfAnEvenShare) {
+  for (const int n : {1, 100, 4096, 4867, 14601, 20000, 300001}) {
+    for (const int block : {64, 128, 512}) {
+      const int blocks = (n + block - 1) / block;
+      for (int threads = 1; threads <= 5; ++threads) {
+        EXPECT_EQ(CpuExec::first_block_of(0, threads, n, block, blocks), 0);
+        EXPECT_EQ(CpuExec::first_block_of(threads, threads, n, block, blocks), blocks);
+        for (int t = 0; t < threads; ++t) {
+          const int b0 = CpuExec::first_block_of(t, threads, n, block, blocks);
+          const int b1 = CpuExec::first_block_of(t + 1, threads, n, block, blocks);
+          ASSERT_LE(b0, b1) << "thread " << t << " of " << threads;
+          const double items = std::min(n, b1 * block) - std::min(n, b0 * block);
+          EXPECT_LE(std::abs(items - static_cast<double>(n) / threads), block + 1.0)
+              << "thread " << t << " of " << threads << ", " << n << " items in blocks of " << block;
+        }
+      }
+    }
+  }
+  // The T-shirt's product at 2 threads: 2432 and 2435 rows (a static schedule of the blocks: 2560
+  // and 2307).
+  EXPECT_EQ(CpuExec::first_block_of(1, 2, 4867, 128, 39), 19);
 }
 
 TEST(ExecSums, GpuPathsPolicySumsAsTheCpuDoes) {

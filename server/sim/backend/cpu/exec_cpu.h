@@ -117,15 +117,30 @@ struct CpuExec {
     T stack[kOnStack];
     std::vector<T> heap(blocks > kOnStack ? blocks : 0);
     T* part = blocks > kOnStack ? heap.data() : stack;
-#pragma omp parallel for schedule(static)
-    for (int b = 0; b < blocks; ++b) {
-      T p{};
-      const int end = std::min(n, (b + 1) * block);
-      for (int i = b * block; i < end; ++i) p += f(i);
-      part[b] = p;
+#pragma omp parallel
+    {
+      const int threads = omp_team_size(), t = omp_thread();
+      for (int b = first_block_of(t, threads, n, block, blocks); b < first_block_of(t + 1, threads, n, block, blocks);
+           ++b) {
+        T p{};
+        const int end = std::min(n, (b + 1) * block);
+        for (int i = b * block; i < end; ++i) p += f(i);
+        part[b] = p;
+      }
     }
     for (int b = 0; b < blocks; ++b) s += part[b];
     return s;
+  }
+
+  /// The first of thread t's blocks in block_sum: each thread takes a run of whole blocks whose
+  /// items come within half a block of an even split of the n items. (OpenMP's static schedule of
+  /// the blocks gave the first thread one whole block more than the second: at 2 threads 20 of
+  /// the 4867-vertex T-shirt's 39 product blocks, 2560 rows against 2307, and 15 of a PCG
+  /// vector's 29, 11% more items.) Only who computes a block changes, not its sum.
+  static int first_block_of(int t, int threads, int n, int block, int blocks) {
+    if (t >= threads) return blocks;
+    const int64_t share = static_cast<int64_t>(n) * t / threads;
+    return static_cast<int>(std::min<int64_t>(blocks, (share + block / 2) / block));
   }
 
   /// Sum of f(i) over [0, n) where f also writes memory (each i evaluated exactly once).

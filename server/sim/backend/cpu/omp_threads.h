@@ -29,6 +29,16 @@ inline int omp_thread() {
 #endif
 }
 
+/// Threads in the calling thread's parallel region (omp_get_num_threads; 1 outside one and
+/// without OpenMP).
+inline int omp_team_size() {
+#ifdef _OPENMP
+  return omp_get_num_threads();
+#else
+  return 1;
+#endif
+}
+
 /// Sets the calling thread's team size for later parallel regions (omp_set_num_threads; nothing
 /// without OpenMP).
 inline void set_omp_threads(int n) {
