@@ -5,9 +5,10 @@
 /// iteration: about 4.6 MB on RGBench's 4867-vertex T-shirt).
 ///
 /// For each array size, the array of doubles is read `repeats` times by one thread and by
-/// `threads` threads (one value of each cache line summed, so that the arithmetic never limits) (each thread a contiguous share, as the solver's static schedules split
-/// rows); the best pass of each gives a read rate in GB/s, and their ratio is the most a loop
-/// that only streams that much memory can gain from the threads. The two sides alternate pass
+/// `threads` threads, each thread a contiguous share as the solver's static schedules split rows
+/// (one value of each cache line summed, so that the arithmetic never limits); the best pass of
+/// each gives a read rate in GB/s, and their ratio is the most a loop that only streams that much
+/// memory can gain from the threads. The two sides alternate pass
 /// by pass, so that a machine whose speed drifts affects both alike.
 
 #include <nlohmann/json.hpp>
