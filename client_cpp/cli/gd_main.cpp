@@ -192,6 +192,13 @@ int main(int argc, char** argv) {
   run->add_option("--finger-friction", cfg.robot.finger_friction,
                   "robot mode: friction of the finger pads on the cloth (< 0: the material's)")
       ->capture_default_str();
+  double lift_max_tilt_deg = cfg.robot.lift_max_tilt * 180 / M_PI;
+  run->add_option("--lift-max-tilt", lift_max_tilt_deg,
+                  "robot mode: a generated grasp's lift or fling's height left to its default is lowered to the "
+                  "highest the arms follow with no hand tilted more than this from pointing down, degrees "
+                  "(docs/robot.md, \"Within reach\")")
+      ->check(CLI::Range(0.0, 180.0))
+      ->capture_default_str();
   run->add_option("--urdf-package-path", cfg.robot.arm.package_paths,
                   "robot mode: a directory where the URDF's package://NAME/... meshes are found (DIR/NAME/... or DIR "
                   "named NAME); the links with collision geometry found collide with the cloth (repeatable)");
@@ -339,6 +346,7 @@ int main(int argc, char** argv) {
     for (const std::string& kv : garment_params) cfg.garment_params.insert(gd::cli::parse_name_value(kv, "--garment-param"));
     for (const std::string& kv : material_params)
       cfg.material_params.insert(gd::cli::parse_name_value(kv, "--material-param"));
+    cfg.robot.lift_max_tilt = lift_max_tilt_deg * M_PI / 180;
     for (const std::string& knot : grip_schedule)
       cfg.robot.grip_force_schedule.push_back(gd::cli::parse_knot(knot, "--grip-force-schedule"));
     std::map<std::string, double> task_param_values;
@@ -351,7 +359,7 @@ int main(int argc, char** argv) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic", "--garment-position",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--newton-max", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf-package-path",
-                                     "--no-link-colliders", "--grip-force-schedule"})
+                                     "--no-link-colliders", "--grip-force-schedule", "--lift-max-tilt"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

@@ -199,6 +199,26 @@ def test_robot_job_runs_with_the_urdf_sent(client, piper_urdf):
     summary = report["summary"]
     assert summary["mode"] == "robot" and not summary["failed"]
     assert set(summary["robot"]["arms"]) == {"left", "right"} and summary["robot"]["ik_samples"] > 0
+    assert "height_fitted" not in summary["robot"]  # the lift given is taken as it is
+
+
+def test_a_robot_jobs_default_lift_is_fitted_to_the_arms_reach(client, piper_urdf):
+    # no lift_height given: pseudo mode's (the towel's length + 0.1 m) unless the Piper would tilt
+    # a hand more than 30 degrees from pointing down to follow it, then the highest lift it can
+    job = client.submit_job(garment="towel", task="grasp", vertices=TOWEL_VERTICES, mode="robot",
+                            urdf=piper_urdf.read_text(), grip_force=8.0, dt=0.02, time_scale=0.25, settle=0.1,
+                            self_contact=False, label="robot job, default lift")
+    report = client.wait_report(job, progress=False)
+    assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+    summary = report["summary"]
+    fit = summary["robot"]["height_fitted"]
+    assert fit["wanted_m"] == pytest.approx(summary["garment_length"] + 0.1)
+    assert 0 < fit["height_m"] <= fit["wanted_m"]
+    assert fit["lowered"] == (fit["height_m"] < fit["wanted_m"])
+    assert summary["task_params"]["lift_height"] == pytest.approx(fit["height_m"])
+    assert fit["tilt_deg"] <= fit["tilt_bound_deg"] and fit["tilt_bound_deg"] >= 30.0 - 1e-9
+    # the run solved every sample, the fit every eighth: the same tilt to within a degree
+    assert summary["robot"]["ik_max_tilt_deg"] == pytest.approx(fit["tilt_deg"], abs=1.0)
 
 
 def test_gym_env_with_joint_actions(client, piper_urdf):

@@ -25,6 +25,7 @@
 #include "sim/mesh.h"
 #include "sim/scene.h"
 #include "tasks/frames.h"
+#include "tasks/robot_reach.h"
 #include "tasks/trajectory.h"
 
 namespace gd::experiment {
@@ -346,6 +347,40 @@ Settled settle_before_planning(const sim::Mesh& mesh, const sim::Material& mater
   return st;
 }
 
+/// Robot mode: a generated grasp's lift or fling's height left to its default (pseudo mode's:
+/// the garment's length plus 0.1 / 0.15 m) lowered to the highest one the arms reach with their
+/// hands within RobotOptions::lift_max_tilt of pointing down (tasks/robot_reach.h), written into
+/// *planned. A height the user gave is kept as it is (an unreachable one is refused by the
+/// controller, naming the pose). Nothing for the fold.
+std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
+                                            const Eigen::Isometry3d& place,
+                                            const std::shared_ptr<const robot::ArmModel>& arms,
+                                            tasks::TaskParams* planned) {
+  const bool grasp = config.task == "grasp";
+  if (!(grasp && planned->lift_height < 0) && !(config.task == "fling" && planned->fling_height < 0))
+    return std::nullopt;
+  auto height_of = [grasp](tasks::TaskParams& p) -> double& { return grasp ? p.lift_height : p.fling_height; };
+  const double wanted = garment.length + (grasp ? tasks::kLiftAboveLength : tasks::kFlingAboveLength);
+  const auto t0 = std::chrono::steady_clock::now();
+  const tasks::ReachFit fit = tasks::fit_height_to_reach(
+      [&](double h) {
+        tasks::TaskParams p = *planned;
+        height_of(p) = h;
+        return tasks::make_task(config.task, garment, place, p);
+      },
+      wanted, config.robot, arms, config.robot.lift_max_tilt);
+  height_of(*planned) = fit.height;
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  constexpr double kDeg = 180 / 3.14159265358979323846;
+  if (fit.lowered())
+    gd::log().warn("robot mode: the {} height lowered from {:.3f} m (pseudo mode's) to {:.3f} m, the highest at which "
+                   "the arms keep their hands within {:.0f} deg of pointing down ({:.1f} deg; {} inverse-kinematics "
+                   "trials, {:.1f} s); give --task-param {}=H to choose",
+                   config.task, fit.wanted, fit.height, fit.bound * kDeg, fit.tilt * kDeg, fit.trials, s,
+                   grasp ? "lift_height" : "fling_height");
+  return fit;
+}
+
 /// Runs argv[0] (looked up in PATH) with its stdout sent to our stderr (or to /dev/null when
 /// quiet) and waits. No shell, so paths need no quoting. Returns the exit status (-1: could not run).
 int run_process(const std::vector<std::string>& args, bool quiet) {
@@ -429,6 +464,16 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   tasks::TaskParams planned = config.task_params;
   if (planned.grasp_depth < 0) planned.grasp_depth = config.mode == "robot" ? kRobotGraspDepth : 0.0;
   std::optional<Settled> settled;  // generated tasks: the garment settled before planning
+  // Robot mode: the arms, loaded once (the reach fit and the controller share them).
+  std::shared_ptr<const robot::ArmModel> arms;
+  auto arm_model = [&] {
+    if (!arms) {
+      config.robot.validate();
+      arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(config.robot.urdf, config.robot.arm));
+    }
+    return arms;
+  };
+  std::optional<tasks::ReachFit> reach;  // robot mode: a generated lift or fling fitted to the arms' reach
   if (!config.trajectory_file.empty()) {
     traj = tasks::read_trajectory(config.trajectory_file);
     traj_source = config.trajectory_file;
@@ -441,6 +486,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     traj_source = "capture joints";
   } else {
     settled = settle_before_planning(mesh, material, config.scene, config.task_params.start_delay, place, &garment);
+    if (config.mode == "robot") reach = fit_to_reach(config, garment, place, arm_model(), &planned);
     traj = tasks::make_task(config.task, garment, place, planned);
     traj_source = "generated " + config.task;
   }
@@ -460,7 +506,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   std::unique_ptr<tasks::TaskController> controller;
   const tasks::RobotController* robot = nullptr;
   if (config.mode == "robot") {
-    auto r = std::make_unique<tasks::RobotController>(traj, config.robot);
+    auto r = std::make_unique<tasks::RobotController>(traj, config.robot, arm_model());
     robot = r.get();
     // The arms' joints (recorded or solved) as RGBench's joints CSVs: its own robot mode replays them.
     tasks::write_rgbench_joints(out + "/joints", r->trajectory());
@@ -682,6 +728,12 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                          robot->state(tasks::Arm::kRight).link_colliders.size()},
                   {"link_meshes_not_found", robot->arm_model().skipped_meshes()},
                   {"arms", arms}};
+    if (reach)  // the generated lift or fling height fitted to the arms' reach (null: not lowered)
+      s["robot"]["height_fitted"] = {{"wanted_m", reach->wanted},
+                                     {"height_m", reach->height},
+                                     {"tilt_deg", reach->tilt * 180 / 3.14159265358979323846},
+                                     {"tilt_bound_deg", reach->bound * 180 / 3.14159265358979323846},
+                                     {"lowered", reach->lowered()}};
   }
   {
     std::ofstream f(out + "/summary.json");

@@ -329,7 +329,7 @@ void turn_over_and_let_go(Builder& b, const std::array<Vec3, 2>& from, const std
 DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
   const Setup s = setup(g, T, p);
   const double k = p.time_scale;
-  const double lift = p.lift_height >= 0 ? p.lift_height : s.length + 0.1;
+  const double lift = p.lift_height >= 0 ? p.lift_height : s.length + kLiftAboveLength;
   Builder b = approach_and_close(s, p);
   b.move(at(raised(s.grasp, lift), 0.0), p.lift_duration * k);
   b.hold(p.hold_duration * k);
@@ -339,7 +339,7 @@ DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d
 DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
   const Setup s = setup(g, T, p);
   const double k = p.time_scale;
-  const double height = p.fling_height >= 0 ? p.fling_height : s.length + 0.15;
+  const double height = p.fling_height >= 0 ? p.fling_height : s.length + kFlingAboveLength;
   Builder b = approach_and_close(s, p);
   const std::array<Vec3, 2> up = raised(s.grasp, height);
   b.move(at(up, 0.0), p.lift_duration * k);

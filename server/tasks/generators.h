@@ -105,6 +105,11 @@ std::vector<std::string> task_param_names();
 /// Every parameter of `params` as (name, value), in TaskParams order (e.g. for a run's summary).
 std::vector<std::pair<std::string, double>> task_param_values(const TaskParams& params);
 
+/// m above the garment's length by which a grasp lifts (TaskParams::lift_height < 0) and a
+/// fling raises (fling_height < 0) its grasp points: the garment hangs clear of the table.
+inline constexpr double kLiftAboveLength = 0.1;
+inline constexpr double kFlingAboveLength = 0.15;
+
 /// Grasp: approach, close on the shoulders, lift by lift_height, hold.
 DualArmTrajectory make_grasp(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
                              const TaskParams& p = {});

@@ -50,6 +50,8 @@ void RobotOptions::validate(bool need_urdf) const {
   check(table_clearance, "table_clearance");
   check(max_tilt, "max_tilt");
   if (max_tilt < 0) throw InputError("robot option max_tilt must be >= 0 rad");
+  check(lift_max_tilt, "lift_max_tilt");
+  if (lift_max_tilt < 0) throw InputError("robot option lift_max_tilt must be >= 0 rad");
   if (grip_force == 0) throw InputError("robot option grip_force must be > 0 N (or < 0 for the URDF's effort limit)");
   for (size_t k = 0; k < grip_force_schedule.size(); ++k) {
     const auto [t, f] = grip_force_schedule[k];
@@ -118,8 +120,8 @@ RobotController::RobotController(DualArmTrajectory traj, RobotOptions options)
       }()) {}
 
 RobotController::RobotController(DualArmTrajectory traj, RobotOptions options,
-                                 std::shared_ptr<const robot::ArmModel> model)
-    : traj_(std::move(traj)), options_(std::move(options)), model_(std::move(model)),
+                                 std::shared_ptr<const robot::ArmModel> model, bool log_ik)
+    : traj_(std::move(traj)), options_(std::move(options)), model_(std::move(model)), log_ik_(log_ik),
       poses_(std::make_shared<PadPoses>()), link_poses_(std::make_shared<LinkPoses>()) {
   GD_DEMAND(model_ != nullptr, "RobotController needs an arm model");
   options_.validate(false);
@@ -168,7 +170,7 @@ RobotController::RobotController(DualArmTrajectory traj, RobotOptions options,
     gd::log().warn("robot mode: {} recorded samples have joints outside the URDF's limits (by up to {:.4f}); clamped "
                    "to the limits",
                    joints_clamped_, joint_clamp_max_);
-  if (ik_solved_ > 0)
+  if (ik_solved_ > 0 && log_ik_)
     gd::log().info("robot mode: inverse kinematics for {} trajectory samples (orientation missed by up to {:.1f} deg)",
                    ik_solved_, ik_max_tilt_ * 180 / 3.14159265358979323846);
 }
@@ -240,7 +242,7 @@ ArmSample RobotController::resolve(Arm a, ArmSample s, const std::vector<double>
   s.joints.assign(r.q.data(), r.q.data() + dofs);
   // A jump between neighbouring samples (another branch of the inverse kinematics) would sweep
   // the pads through the cloth within one step.
-  if (static_cast<int>(seed_joints.size()) == dofs && (r.q - seed).cwiseAbs().maxCoeff() > kIkJumpWarning)
+  if (log_ik_ && static_cast<int>(seed_joints.size()) == dofs && (r.q - seed).cwiseAbs().maxCoeff() > kIkJumpWarning)
     gd::log().warn("robot mode: the {} arm's joints jump by {:.2f} rad up to t={:.3f} s (inverse kinematics changed "
                    "branch); sample the trajectory more finely",
                    arm_name(a), (r.q - seed).cwiseAbs().maxCoeff(), s.t);

@@ -80,6 +80,13 @@ struct RobotOptions {
   /// (the position is always reached within 1 mm); the Piper cannot point straight down high
   /// above the table.
   double max_tilt = 2.1;
+  /// rad: generated tasks whose lift (grasp) or fling height was left to its default (the
+  /// garment's length plus 0.1 or 0.15 m, pseudo mode's) are lowered, in robot mode, to the
+  /// highest height whose inverse kinematics tilts no hand more than this from pointing down
+  /// (tasks/robot_reach.h; experiment::run_experiment). Pseudo mode's height is out of the
+  /// Piper's reach for a T-shirt, and a pinch tilted by 68 degrees took 2-5 s per step to
+  /// converge and was never seen to hold (docs/robot.md, "Within reach").
+  double lift_max_tilt = 30 * 3.14159265358979323846 / 180;
   /// The arms' links collide with the cloth where the URDF gives them collision geometry that
   /// was found (robot::ArmModel::link_shapes; meshes on arm.package_paths): every link's shapes
   /// but the fingers' (the pads hold the cloth), each a kinematic collider posed by forward
@@ -120,8 +127,11 @@ class RobotController final : public TaskController {
   /// arm cannot reach (naming the arm, the time and by how far).
   RobotController(DualArmTrajectory traj, RobotOptions options);
   /// The same with the arms already loaded (the service loads a URDF once for many scenes);
-  /// options.urdf then only names it.
-  RobotController(DualArmTrajectory traj, RobotOptions options, std::shared_ptr<const robot::ArmModel> model);
+  /// options.urdf then only names it. `log_ik`: log how many samples inverse kinematics solved,
+  /// the orientation it missed and where the joints jump between samples (off for trial
+  /// trajectories, tasks/robot_reach.h).
+  RobotController(DualArmTrajectory traj, RobotOptions options, std::shared_ptr<const robot::ArmModel> model,
+                  bool log_ik = true);
 
   /// `s` with its joints filled in: given joints are checked (count, finite, within the URDF's
   /// limits up to kJointLimitSlack, then clamped to them; with clamp_to_limits, joints farther
@@ -184,6 +194,7 @@ class RobotController final : public TaskController {
   DualArmTrajectory traj_;
   RobotOptions options_;
   std::shared_ptr<const robot::ArmModel> model_;
+  bool log_ik_ = true;
   std::array<RobotArmState, 2> state_;
   std::shared_ptr<PadPoses> poses_;  ///< shared with the colliders' pose functions
   std::shared_ptr<LinkPoses> link_poses_;  ///< the same for the links' colliders
