@@ -23,38 +23,11 @@ namespace gd::tasks {
 namespace {
 
 using testing::make_scene;
+using testing::piper_urdf;
+using testing::two_arms;
 using testing::task_options;
 
-std::string piper_urdf() {
-  std::filesystem::path shared;
-  if (const char* s = std::getenv("GD_SHARED_DIR"); s && *s) shared = s;
-  const auto p = shared / "data" / "rgbench" / "piper_with_gripper.urdf";
-  return !shared.empty() && std::filesystem::exists(p) ? p.string() : "";
-}
-
 constexpr double kGripX = 0.25, kGripY = 0.25, kTipZ = 0.05;  // left hand's fingertips, world
-
-/// Both arms' trajectories at these times: the left hand top down at left_at(t) with opening
-/// left_gripper(t); the right arm waits open, out of the way.
-template <class At, class Gripper>
-DualArmTrajectory two_arms(const std::vector<double>& times, At left_at, Gripper left_gripper) {
-  std::vector<ArmSample> left, right;
-  for (const double t : times) {
-    ArmSample s;
-    s.t = t;
-    s.orientation = top_down_orientation();
-    s.gripper = left_gripper(t);
-    s.position = left_at(t);
-    left.push_back(s);
-    s.gripper = kGripperOpen;
-    s.position = Vec3(0.2, -0.25, 0.3);
-    right.push_back(s);
-  }
-  DualArmTrajectory traj;
-  traj.left = ArmTrajectory(left, "left");
-  traj.right = ArmTrajectory(right, "right");
-  return traj;
-}
 
 /// The left hand: top down over the strip (moved by `offset`), open, closing at t = 0.1 s,
 /// lifting 8 cm from 0.6 s to 1.0 s.

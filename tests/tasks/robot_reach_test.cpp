@@ -6,48 +6,30 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdlib>
-#include <filesystem>
 
 #include "sim/demand.h"
 #include "tasks/frames.h"
+#include "tasks/task_test_util.h"
 
 namespace gd::tasks {
 namespace {
 
-std::string reach_test_urdf() {
-  std::filesystem::path shared;
-  if (const char* s = std::getenv("GD_SHARED_DIR"); s && *s) shared = s;
-  const auto p = shared / "data" / "rgbench" / "piper_with_gripper.urdf";
-  return !shared.empty() && std::filesystem::exists(p) ? p.string() : "";
-}
-
 /// The left hand, top down, goes down onto (x, 0.178) in 0.4 s and lifts it by h until t = 2 s
 /// (samples every 20 ms); the right hand waits open 8 cm above the mirror point.
 DualArmTrajectory lift_by(double h, double x = 0.163) {
-  std::vector<ArmSample> left, right;
-  for (int k = 0; k <= 100; ++k) {
-    ArmSample s;
-    s.t = 0.02 * k;
-    s.orientation = top_down_orientation();
-    s.gripper = kGripperOpen;
-    s.position = Vec3(x, 0.178, s.t <= 0.4 ? 0.08 - 0.125 * s.t : 0.03 + h * (s.t - 0.4) / 1.6);
-    left.push_back(s);
-    s.position = Vec3(0.163, -0.178, 0.08);
-    right.push_back(s);
-  }
-  DualArmTrajectory traj;
-  traj.left = ArmTrajectory(left, "left");
-  traj.right = ArmTrajectory(right, "right");
-  return traj;
+  std::vector<double> times;
+  for (int k = 0; k <= 100; ++k) times.push_back(0.02 * k);
+  return testing::two_arms(
+      times, [&](double t) { return Vec3(x, 0.178, t <= 0.4 ? 0.08 - 0.125 * t : 0.03 + h * (t - 0.4) / 1.6); },
+      [](double) { return kGripperOpen; }, Vec3(0.163, -0.178, 0.08));
 }
 
 constexpr double kReachDeg = 3.14159265358979323846 / 180;
 
 TEST(RobotReach, AnUnreachableLiftIsLoweredToTheHighestWithinTheTiltBound) {
-  if (reach_test_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  if (testing::piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
   RobotOptions ro;
-  ro.urdf = reach_test_urdf();
+  ro.urdf = testing::piper_urdf();
   const auto arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(ro.urdf, ro.arm));
   // 0.8 m above a grasp 16 cm in front of the base: the Piper cannot point down there at all.
   EXPECT_THROW(RobotController(lift_by(0.8), ro, arms), sim::InputError);
@@ -71,9 +53,9 @@ TEST(RobotReach, AnUnreachableLiftIsLoweredToTheHighestWithinTheTiltBound) {
 }
 
 TEST(RobotReach, AReachableLiftIsKeptAndATaskOutOfReachFromTheStartIsRefused) {
-  if (reach_test_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  if (testing::piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
   RobotOptions ro;
-  ro.urdf = reach_test_urdf();
+  ro.urdf = testing::piper_urdf();
   const auto arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(ro.urdf, ro.arm));
   const ReachFit low = fit_height_to_reach([](double h) { return lift_by(h); }, 0.05, ro, arms, 30 * kReachDeg);
   EXPECT_FALSE(low.lowered());

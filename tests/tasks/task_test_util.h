@@ -2,13 +2,18 @@
 // Small garments and scenes for the tasks tests (the garment generator is not used here).
 
 #include <algorithm>
+#include <cstdlib>
+#include <filesystem>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "garments/garment.h"
 #include "sim/material.h"
 #include "sim/mesh.h"
 #include "sim/scene.h"
 #include "tasks/frames.h"
+#include "tasks/trajectory.h"
 
 namespace gd::tasks::testing {
 
@@ -65,6 +70,37 @@ inline double extent(const std::vector<sim::Vec3>& x, int c) {
   double lo = 1e9, hi = -1e9;
   for (const auto& p : x) lo = std::min(lo, p[c]), hi = std::max(hi, p[c]);
   return hi - lo;
+}
+
+/// RGBench's Piper URDF under $GD_SHARED_DIR, or "" where it is absent (robot tests skip).
+inline std::string piper_urdf() {
+  std::filesystem::path shared;
+  if (const char* s = std::getenv("GD_SHARED_DIR"); s && *s) shared = s;
+  const auto p = shared / "data" / "rgbench" / "piper_with_gripper.urdf";
+  return !shared.empty() && std::filesystem::exists(p) ? p.string() : "";
+}
+
+/// Both arms' trajectories at these times: the left hand top down at left_at(t) with opening
+/// left_gripper(t); the right hand top down and open at `right_at`, waiting out of the way.
+template <class At, class Gripper>
+DualArmTrajectory two_arms(const std::vector<double>& times, At left_at, Gripper left_gripper,
+                           const sim::Vec3& right_at = sim::Vec3(0.2, -0.25, 0.3)) {
+  std::vector<ArmSample> left, right;
+  for (const double t : times) {
+    ArmSample s;
+    s.t = t;
+    s.orientation = top_down_orientation();
+    s.gripper = left_gripper(t);
+    s.position = left_at(t);
+    left.push_back(s);
+    s.gripper = kGripperOpen;
+    s.position = right_at;
+    right.push_back(s);
+  }
+  DualArmTrajectory traj;
+  traj.left = ArmTrajectory(left, "left");
+  traj.right = ArmTrajectory(right, "right");
+  return traj;
 }
 
 }  // namespace gd::tasks::testing
