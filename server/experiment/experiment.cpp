@@ -465,13 +465,13 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   if (planned.grasp_depth < 0) planned.grasp_depth = config.mode == "robot" ? kRobotGraspDepth : 0.0;
   std::optional<Settled> settled;  // generated tasks: the garment settled before planning
   // Robot mode: the arms, loaded once (the reach fit and the controller share them).
-  std::shared_ptr<const robot::ArmModel> arms;
+  std::shared_ptr<const robot::ArmModel> loaded_arms;
   auto arm_model = [&] {
-    if (!arms) {
+    if (!loaded_arms) {
       config.robot.validate();
-      arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(config.robot.urdf, config.robot.arm));
+      loaded_arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(config.robot.urdf, config.robot.arm));
     }
-    return arms;
+    return loaded_arms;
   };
   std::optional<tasks::ReachFit> reach;  // robot mode: a generated lift or fling fitted to the arms' reach
   if (!config.trajectory_file.empty()) {
@@ -728,7 +728,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                          robot->state(tasks::Arm::kRight).link_colliders.size()},
                   {"link_meshes_not_found", robot->arm_model().skipped_meshes()},
                   {"arms", arms}};
-    if (reach)  // the generated lift or fling height fitted to the arms' reach (null: not lowered)
+    if (reach)  // a generated grasp's or fling's default height fitted to the arms' reach (absent: none fitted)
       s["robot"]["height_fitted"] = {{"wanted_m", reach->wanted},
                                      {"height_m", reach->height},
                                      {"tilt_deg", reach->tilt * 180 / 3.14159265358979323846},

@@ -28,7 +28,8 @@ ReachFit fit_height_to_reach(const std::function<DualArmTrajectory(double)>& mak
   if (stride < 1) throw sim::InputError(fmt::format("the reach fit's stride must be >= 1 (got {})", stride));
   GD_DEMAND(model != nullptr, "fit_height_to_reach needs an arm model");
   if (!std::isfinite(wanted) || wanted < 0)
-    throw sim::InputError(fmt::format("the height to fit to the arms' reach must be finite and >= 0 m (got {})", wanted));
+    throw sim::InputError(
+        fmt::format("the height to fit to the arms' reach must be finite and >= 0 m (got {})", wanted));
   if (!std::isfinite(max_tilt) || max_tilt < 0)
     throw sim::InputError(fmt::format("the hands' tilt bound must be finite and >= 0 rad (got {})", max_tilt));
   if (!(resolution > 0)) throw sim::InputError("the reach fit's resolution must be > 0 m");

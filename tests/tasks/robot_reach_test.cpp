@@ -34,7 +34,8 @@ TEST(RobotReach, AnUnreachableLiftIsLoweredToTheHighestWithinTheTiltBound) {
   // 0.8 m above a grasp 16 cm in front of the base: the Piper cannot point down there at all.
   EXPECT_THROW(RobotController(lift_by(0.8), ro, arms), sim::InputError);
   const double resolution = 0.01;
-  const ReachFit fit = fit_height_to_reach([](double h) { return lift_by(h); }, 0.8, ro, arms, 30 * kReachDeg, resolution);
+  const ReachFit fit =
+      fit_height_to_reach([](double h) { return lift_by(h); }, 0.8, ro, arms, 30 * kReachDeg, resolution);
   EXPECT_TRUE(fit.lowered());
   EXPECT_EQ(fit.wanted, 0.8);
   EXPECT_GT(fit.height, 0.05);
