@@ -202,6 +202,9 @@ int main(int argc, char** argv) {
   run->add_option("--urdf-package-path", cfg.robot.arm.package_paths,
                   "robot mode: a directory where the URDF's package://NAME/... meshes are found (DIR/NAME/... or DIR "
                   "named NAME); the links with collision geometry found collide with the cloth (repeatable)");
+  run->add_flag("!--independent-pads", cfg.robot.rigid_hands,
+                "robot mode: each finger pad yields to the cloth on its own, not with its hand's other pad "
+                "(for comparison; docs/robot.md, \"Pads that stop together\")");
   run->add_flag("!--no-link-colliders", cfg.robot.link_colliders,
                 "robot mode: the finger pads alone collide with the cloth, not the arms' links");
   run->add_option("--vertices", cfg.vertices, "target vertex count of a generated garment")->capture_default_str();
@@ -359,7 +362,7 @@ int main(int argc, char** argv) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic", "--garment-position",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--newton-max", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf-package-path",
-                                     "--no-link-colliders", "--grip-force-schedule", "--lift-max-tilt"})
+                                     "--no-link-colliders", "--grip-force-schedule", "--lift-max-tilt", "--independent-pads"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

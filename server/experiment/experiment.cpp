@@ -727,6 +727,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                   {"link_colliders", robot->state(tasks::Arm::kLeft).link_colliders.size() +
                                          robot->state(tasks::Arm::kRight).link_colliders.size()},
                   {"link_meshes_not_found", robot->arm_model().skipped_meshes()},
+                  {"rigid_hands", config.robot.rigid_hands},
                   {"arms", arms}};
     if (reach)  // a generated grasp's or fling's default height fitted to the arms' reach (absent: none fitted)
       s["robot"]["height_fitted"] = {{"wanted_m", reach->wanted},

@@ -318,6 +318,7 @@ void RobotController::attach(sim::Scene& scene) {
       c.set_pose([poses, k](double time) { return poses->at(k, time); });
       c.set_friction(mu);
       c.set_yielding(true);  // stops short where the cloth it pushes cannot get out of the way in time
+      if (options_.rigid_hands) c.set_yield_group(static_cast<int>(a));  // and with it its hand's other pad
       // The barrier's stiffness as calibrated for the table balances a vertex's weight at half
       // the contact distance; a pad must carry the grip force there instead, spread over the
       // cloth under its face: the grip force over the weight of that much cloth.

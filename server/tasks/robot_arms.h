@@ -93,6 +93,12 @@ struct RobotOptions {
   /// kinematics every step, with the pads' friction; the hand's lifted with the pads off the
   /// table. false: the pads alone (RGBench's Piper URDF without its meshes gives no shapes).
   bool link_colliders = true;
+  /// A hand's two pads are one yield group (sim::Collider::set_yield_group): the predictor moves
+  /// the cloth pinched between them with them, and where the cloth stops one short the other stops
+  /// with it. false: each pad yields on its own (before 2026-12-02; a hand sweeping across its
+  /// pads' faces then opened its pinch by the trailing pad's lag: docs/robot.md, "Pads that stop
+  /// together").
+  bool rigid_hands = true;
   /// Rotation from the trajectory's tool frame to the end-effector link (IK targets only). Piper
   /// default: link7 y = tool z (approach), link7 z = tool x (closing direction).
   Eigen::Matrix3d tool_to_ee = (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished();

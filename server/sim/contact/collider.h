@@ -480,6 +480,13 @@ class Collider {
   /// false: the pose function is followed exactly.
   void set_yielding(bool yielding) { yielding_ = yielding; }
   bool yielding() const { return yielding_; }
+  /// Yielding colliders with the same group id (>= 0) are parts of one rigid body, the two finger
+  /// pads of one hand: where the cloth stops one of them short, all of them stop at the same
+  /// fraction of their motion over the step. Pads stopped one by one opened the pinch they held by
+  /// the lag of the pad pushing the cloth, and a hand sweeping across its pads' faces let the cloth
+  /// go (docs/robot.md, "Pads that stop together"). Default -1: no group.
+  void set_yield_group(int group) { yield_group_ = group; }
+  int yield_group() const { return yield_group_; }
 
   /// A lower bound of the distance of a world point at `pose`, found without a query: for a mesh
   /// its distance to the box around the mesh (0 inside the box), -infinity for other shapes. The
@@ -539,6 +546,7 @@ class Collider {
   Real mu_ = 0;
   Real kappa_scale_ = 1;
   bool yielding_ = false;
+  int yield_group_ = -1;
 };
 
 /// Packed shapes and mesh triangles of several colliders, e.g. for upload to a device: shapes[i]

@@ -93,6 +93,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     }
     detail::store3(x, i, xt + step);
   });
+  if (n_col_ > 0) carry_pinched_cloth();            // cloth pinched by a hand's pads goes with the hand
   if (n_col_ > 0) project_out_of_colliders(false);  // a collider may have moved into the cloth
   if (self_) {
     // One broad phase on the predictor's motion x_t -> x: its candidates hold every pair within
@@ -192,6 +193,61 @@ void Solver<Exec>::project_out_of_colliders(bool skip_clear) {
   Exec::upload(x_, host_x_);
 }
 
+/// The guess for cloth pinched between the pads of one hand (a yield group of two colliders,
+/// Collider::yield_group): across the pads, the pads' motions over the step (start pose to end
+/// pose), each weighted by the vertex's nearness to it; along their faces, the inertial guess. A
+/// free vertex is pinched when at the step's start it lies between the two pads (the pads' outward
+/// normals at its closest points face each other, n0 . n1 < -0.5) within kPinchReach contact
+/// distances of both. Only Newton's starting point changes (CCD guards it as any guess); but the
+/// inertial guess left the stack where it was, so a hand sweeping across its pads' faces drove the
+/// trailing pad into it, CCD cut the whole guess back and the pad stopped at a fraction of its
+/// motion, step after step (docs/robot.md, "Pads that stop together"). Carrying the cloth round
+/// the pinch along too, fading over 5 cm, held no more hands through a T-shirt's fling.
+template <class Exec>
+void Solver<Exec>::carry_pinched_cloth() {
+  std::vector<std::pair<int, int>> hands;  // the two pads of each group
+  for (int k = 0; k < n_col_; ++k) {
+    const Collider& a = (*colliders_)[k];
+    if (!a.yielding() || a.yield_group() < 0) continue;
+    for (int j = k + 1; j < n_col_; ++j)
+      if ((*colliders_)[j].yielding() && (*colliders_)[j].yield_group() == a.yield_group()) hands.emplace_back(k, j);
+  }
+  if (hands.empty()) return;
+  Exec::download(host_x_, x_);
+  Exec::download(host_xt_, x_t_);
+  const double reach = kPinchReach * P_.dhat;
+  bool moved = false;
+  for (const auto& [k0, k1] : hands) {
+    const Collider& c0 = (*colliders_)[k0];
+    const Collider& c1 = (*colliders_)[k1];
+    const Eigen::Isometry3d s0 = c0.checked_pose(col_t0_), s1 = c1.checked_pose(col_t0_);
+    const Eigen::Isometry3d m0 = col_end_[k0] * s0.inverse(), m1 = col_end_[k1] * s1.inverse();
+    for (int i = 0; i < n_; ++i) {
+      if (kin_fixed_host_[i]) continue;
+      const Vec3 p(host_xt_[3 * i], host_xt_[3 * i + 1], host_xt_[3 * i + 2]);
+      if (c0.distance_bound(p, s0) > reach || c1.distance_bound(p, s1) > reach) continue;
+      const ColliderQuery q0 = c0.query(p, s0);
+      if (q0.distance > reach) continue;
+      const ColliderQuery q1 = c1.query(p, s1);
+      if (q1.distance > reach || !(q0.normal.dot(q1.normal) < -0.5)) continue;
+      // Each pad's motion weighted by nearness: a vertex on a pad goes with it, one midway with
+      // both halves (the fingers closing or turning squeeze the stack evenly).
+      const double d0 = std::max(0.0, q0.distance), d1 = std::max(0.0, q1.distance);
+      const double w0 = d0 + d1 > 0 ? d1 / (d0 + d1) : 0.5;
+      const Vec3 to = w0 * (m0 * p) + (1 - w0) * (m1 * p);
+      // Across the pads only: along their faces the inertial guess stays, so a pinch that slips
+      // (too little friction for the load) keeps slipping; carried along the faces too, a
+      // frictionless pinch lifted a strip with the hand (the inexact Newton solve stopped near
+      // the carried guess, RobotArms.FingersHoldAStripByFrictionAndLiftIt).
+      const Vec3 inertial(host_x_[3 * i], host_x_[3 * i + 1], host_x_[3 * i + 2]);
+      const Vec3 guess = inertial + q0.normal * q0.normal.dot(to - inertial);
+      for (int r = 0; r < 3; ++r) host_x_[3 * i + r] = guess[r];
+      moved = true;
+    }
+  }
+  if (moved) Exec::upload(x_, host_x_);
+}
+
 /// After CCD scaled the predictor's motion back, the guess may lie inside a collider's end pose.
 /// Moving it out again is not guarded by CCD: where a gripper pad presses a stack of pinched
 /// layers, the layer under the pad went onto the layer beneath (they met at 1e-17 m, Newton's step
@@ -204,7 +260,8 @@ void Solver<Exec>::project_out_of_colliders(bool skip_clear) {
 /// clears them all; then each collider goes on from b as far as that guess allows. The backend's
 /// poses, x_, col_reached_ and col_clear_ follow. The barrier then pushes the whole stack in the
 /// Newton solve, and the collider's owner starts the next step where it stopped
-/// (Scene::collider_reached).
+/// (Scene::collider_reached). Colliders of one yield group (Collider::yield_group: the two pads of
+/// a hand) stop together, at the fraction the least advanced of them reached.
 template <class Exec>
 void Solver<Exec>::stop_yielding_colliders() {
   Exec::download(host_x_, x_);
@@ -236,8 +293,19 @@ void Solver<Exec>::stop_yielding_colliders() {
     return true;
   };
   std::vector<int> stop;
+  auto stops = [&](int k) { return std::find(stop.begin(), stop.end(), k) != stop.end(); };
+  // A stopped collider's group (Collider::yield_group: the pads of one hand) stops with it.
+  auto add_groups = [&] {
+    for (size_t s = 0; s < stop.size(); ++s) {
+      const int g = (*colliders_)[stop[s]].yield_group();
+      if (g < 0) continue;
+      for (int k = 0; k < n_col_; ++k)
+        if ((*colliders_)[k].yielding() && (*colliders_)[k].yield_group() == g && !stops(k)) stop.push_back(k);
+    }
+  };
   for (int k = 0; k < n_col_; ++k)
     if ((*colliders_)[k].yielding() && !clear(k, col_end_[k], 1.0)) stop.push_back(k);
+  add_groups();
   if (stop.empty()) {
     for (int k = 0; k < n_col_; ++k) col_clear_[k] = (*colliders_)[k].yielding();
     return;
@@ -263,19 +331,44 @@ void Solver<Exec>::stop_yielding_colliders() {
     b = lo;
     grew = false;
     for (int k = 0; k < n_col_; ++k)
-      if ((*colliders_)[k].yielding() && std::find(stop.begin(), stop.end(), k) == stop.end() &&
-          !clear(k, col_end_[k], b)) {
+      if ((*colliders_)[k].yielding() && !stops(k) && !clear(k, col_end_[k], b)) {
         stop.push_back(k);
         grew = true;
       }
+    add_groups();
   }
   for (int k = 0; k < n_col_; ++k) col_clear_[k] = (*colliders_)[k].yielding();
-  for (const int k : stop) {  // then each as far on as the guess at b allows
+  // Then each as far on as the guess at b allows; a group as far as its member that got least far
+  // (each member clear there, else where they all went back to: at b every stopped one is clear).
+  std::vector<double> reach(n_col_, 1.0);
+  for (const int k : stop) {
     double lo = b, hi = 1;
     for (int it = 0; it < 12; ++it) {
       const double mid = 0.5 * (lo + hi);
       (clear(k, pose_at(k, mid), b) ? lo : hi) = mid;
     }
+    reach[k] = lo;
+  }
+  for (const int k : stop) {
+    const int g = (*colliders_)[k].yield_group();
+    if (g < 0) continue;
+    double s = reach[k];
+    for (const int j : stop)
+      if ((*colliders_)[j].yield_group() == g) s = std::min(s, reach[j]);
+    reach[k] = s;
+  }
+  for (const int k : stop) {
+    const int g = (*colliders_)[k].yield_group();
+    if (g < 0 || reach[k] <= b) continue;
+    bool all_clear = true;
+    for (const int j : stop)
+      if ((*colliders_)[j].yield_group() == g) all_clear = all_clear && clear(j, pose_at(j, reach[k]), b);
+    if (!all_clear)
+      for (const int j : stop)
+        if ((*colliders_)[j].yield_group() == g) reach[j] = b;
+  }
+  for (const int k : stop) {
+    const double lo = reach[k];
     col_reached_[k] = lo;
     col_end_[k] = pose_at(k, lo);
     double* q = col_pose_host_.data() + 24 * k + 12;

@@ -335,6 +335,7 @@ class Solver final : public SolverBase {
   bool inside_a_collider(const std::vector<double>& x) const;
   void project_out_of_colliders(bool skip_clear);  ///< predictor.h
   void stop_yielding_colliders();                    ///< predictor.h
+  void carry_pinched_cloth();                        ///< predictor.h
   double max_strain() override;
   size_t bytes() const override;
 
@@ -429,6 +430,7 @@ class Solver final : public SolverBase {
   /// adapt_barrier_stiffness halves the stiffness when every active pair is this far apart (x dhat).
   static constexpr double kRelaxGapFraction = 0.5;
   static constexpr double kClearanceFloor = 1e-3;  // project_out_of_colliders: least clearance kept, in dhat
+  static constexpr double kPinchReach = 4.0;  // carry_pinched_cloth: a pinched vertex's farthest pad, in dhat
   static constexpr double kPressedGapFloors = 10;  // stiffen_pressed_pairs: gap in CCD floors
   /// converged(): no estimate after a correction this many times the threshold (fold/5000: no
   /// step the estimate stopped had taken one above 9x; docs/physics.md "Thirty-fifth round").

@@ -247,6 +247,7 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   EXPECT_LT(s.at("robot").at("ik_max_tilt_deg").get<double>(), 120.0);
   EXPECT_DOUBLE_EQ(s.at("task_params").at("grasp_depth").get<double>(), 0.005);  // down to the table
   EXPECT_EQ(s.at("robot").at("hands_half_turned").size(), 2u);
+  EXPECT_EQ(s.at("robot").at("rigid_hands"), true);  // a hand's pads yield together (--independent-pads: not)
   // The time series carries each hand's opening (within the finger's travel), squeeze, lift
   // off the table and squeeze limit (the URDF's 10 N without a schedule), and the hands close.
   std::ifstream ts(dir / "local" / "timeseries.csv");
@@ -297,6 +298,10 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
          (dir / "remote_schedule").string());
   EXPECT_EQ(r.rc, 2) << r.err;
   EXPECT_NE(r.err.find("--grip-force-schedule is not available with --server"), std::string::npos) << r.err;
+  r = gd(server_flag() + " run --garment towel --task grasp --mode robot --independent-pads --out " +
+         (dir / "remote_pads").string());
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--independent-pads is not available with --server"), std::string::npos) << r.err;
   // The same as a job: the URDF's text goes with it, and the job's report says robot mode.
   r = gd(server_flag() + run.substr(0, run.find(" --no-plots")) + " --quiet --mode robot --urdf " + urdf + " --out " +
          (dir / "remote").string());
