@@ -240,8 +240,12 @@ void Solver<Exec>::carry_pinched_cloth() {
       // frictionless pinch lifted a strip with the hand (the inexact Newton solve stopped near
       // the carried guess, RobotArms.FingersHoldAStripByFrictionAndLiftIt).
       const Vec3 inertial(host_x_[3 * i], host_x_[3 * i + 1], host_x_[3 * i + 2]);
-      const Vec3 guess = inertial + q0.normal * q0.normal.dot(to - inertial);
-      for (int r = 0; r < 3; ++r) host_x_[3 * i + r] = guess[r];
+      Vec3 step = inertial + q0.normal * q0.normal.dot(to - inertial) - p;
+      if (P_.table) {  // kept clear of the table as the inertial guess is (pads close on lying cloth)
+        const double d = P_.table_n.dot(p) - P_.table_offset, dn = P_.table_n.dot(step);
+        if (dn < 0 && d + dn < 0.5 * d) step *= 0.5 * d / (-dn);
+      }
+      for (int r = 0; r < 3; ++r) host_x_[3 * i + r] = p[r] + step[r];
       moved = true;
     }
   }
