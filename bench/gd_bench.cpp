@@ -327,7 +327,7 @@ int main(int argc, char** argv) {
   app.add_option("--compression-ratio", compression_ratio,
                  "Compressive / tensile stretch stiffness, (0, 1] (negative: default)");
   app.add_option("--contact-hessian", contact_hessian_arg, "Self-contact barrier Hessian")
-      ->check(CLI::IsMember({"default", "projected", "gauss-newton"}))
+      ->check(CLI::IsMember({"default", "auto", "termwise", "projected", "gauss-newton"}))
       ->capture_default_str();
   app.add_option("--broad-phase", broad_phase_arg,
                  "Self-contact broad phase (the same pairs; auto: lbvh, on the CPU or on the device with CUDA; "
@@ -444,8 +444,7 @@ int main(int argc, char** argv) {
     if (self_friction >= 0) opt.self_friction = self_friction;
     if (table_friction >= 0) opt.table_friction = table_friction;
     if (friction_eps > 0) opt.friction_eps_v = friction_eps;
-    if (contact_hessian_arg == "projected") opt.contact_hessian = gd::sim::ContactHessianKind::kProjected;
-    if (contact_hessian_arg == "gauss-newton") opt.contact_hessian = gd::sim::ContactHessianKind::kGaussNewton;
+    if (contact_hessian_arg != "default") gd::sim::contact_hessian_from_name(contact_hessian_arg, &opt.contact_hessian);
     if (bending_hessian_arg == "gauss-newton") opt.bending_hessian = gd::sim::BendingHessianKind::kGaussNewton;
     if (bending_hessian_arg == "projected-exact") opt.bending_hessian = gd::sim::BendingHessianKind::kProjectedExact;
     if (broad_phase_arg == "lbvh") opt.broad_phase = gd::sim::BroadPhaseKind::kLbvh;

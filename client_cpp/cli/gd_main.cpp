@@ -237,8 +237,9 @@ int main(int argc, char** argv) {
   run->add_flag("--deterministic", cfg.scene.deterministic,
                 "CUDA: assembly in a fixed order instead of atomic adds (the same steps bit for bit on every run; "
                 "slower); the CPU backend is deterministic either way");
-  std::string contact_hessian = "projected";
-  run->add_option("--contact-hessian", contact_hessian, "self-contact Hessian: gauss-newton | projected")
+  std::string contact_hessian = gd::sim::contact_hessian_name(cfg.scene.contact_hessian);
+  run->add_option("--contact-hessian", contact_hessian, "self-contact Hessian: auto (termwise without colliders, projected with them) | termwise | projected | "
+                  "gauss-newton")
       ->capture_default_str();
   run->add_option("--newton-rtol", cfg.scene.newton_rtol,
                   "Newton stops when the next correction is below this fraction of the first (0: off)")
@@ -404,10 +405,9 @@ int main(int argc, char** argv) {
       if (no_plots) cfg.plots = false;
       cfg.scene.grip_force_limit = grip_force_limit == 0 ? INFINITY : grip_force_limit;  // < 0: validate() says
       if (shoulders.size() == 2) cfg.shoulder_vertices = {shoulders[0], shoulders[1]};
-      if (contact_hessian == "projected") cfg.scene.contact_hessian = gd::sim::ContactHessianKind::kProjected;
-      else if (contact_hessian == "gauss-newton") cfg.scene.contact_hessian = gd::sim::ContactHessianKind::kGaussNewton;
-      else
-        throw gd::sim::InputError("unknown --contact-hessian '" + contact_hessian + "'; use gauss-newton or projected");
+      if (!gd::sim::contact_hessian_from_name(contact_hessian, &cfg.scene.contact_hessian))
+        throw gd::sim::InputError("unknown --contact-hessian '" + contact_hessian +
+                                  "'; use auto, termwise, projected or gauss-newton");
       if (preconditioner == "mas") cfg.scene.preconditioner = gd::sim::PreconditionerKind::kMas;
       else if (preconditioner == "block-jacobi") cfg.scene.preconditioner = gd::sim::PreconditionerKind::kBlockJacobi;
       else if (preconditioner == "auto") cfg.scene.preconditioner = gd::sim::PreconditionerKind::kAuto;

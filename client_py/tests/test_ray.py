@@ -2,6 +2,7 @@
 (ray.init(num_cpus=2), two servers, one killed mid-rollout) and over plain server addresses, and
 the experiment matrix as Ray tasks. Real gd-server processes, real gRPC over loopback."""
 
+import os
 import time
 
 import numpy as np
@@ -21,7 +22,10 @@ VERTICES = 200
 @pytest.fixture(scope="module")
 def ray_cluster(server_bin):
     # A fresh virtual environment's first Ray start (bytecode, the raylet's first launch) on a
-    # loaded 2-core machine once outlasted Ray's fixed 30 s wait for its raylet: try twice.
+    # loaded 2-core machine once outlasted Ray's fixed 30 s wait for its raylet: try twice. Its GCS
+    # server, which Ray waits 30 s for by default, once missed that twice in a row (2026-12-02,
+    # right after the C++ suite): give it Ray's own override, 120 s.
+    os.environ.setdefault("RAY_gcs_server_port_wait_time_s", "120")
     kwargs = dict(num_cpus=2, include_dashboard=False, logging_level="ERROR",
                   runtime_env={"env_vars": {"GD_SERVER_BIN": server_bin}})
     try:

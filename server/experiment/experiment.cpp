@@ -680,8 +680,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["self_contact"] = config.scene.self_contact;
   s["broad_phase"] = config.scene.self_contact ? nlohmann::json(sim::broad_phase_name(config.scene)) : nlohmann::json();
   s["compression_ratio"] = config.scene.compression_ratio;
+  // The pair Hessian the run assembled (auto: the exact projection with robot mode's fingers).
   s["contact_hessian"] =
-      config.scene.contact_hessian == sim::ContactHessianKind::kGaussNewton ? "gauss-newton" : "projected";
+      sim::contact_hessian_name(sim::effective_contact_hessian(config.scene, config.mode == "robot"));
   s["contacts_max"] = run.contacts_max();
   s["intersecting_pairs_max"] = run.intersecting_max();
   s["untangle_runs"] = sc.untangle_runs();

@@ -34,6 +34,9 @@ enum class HessianKind {
   /// c >= 0 (PSD by construction, no eigen-decomposition). It drops b'(d) ∇²d, which is negative
   /// semi-definite where the distance is convex and is what a projection mostly removes.
   kGaussNewton,
+  /// Contact barriers only: b'' ∇d ∇dᵀ plus the PSD part of b' ∇²d, each term projected on its
+  /// own in closed form (contact/barrier_hessian.h, termwise_barrier_hessian).
+  kTermwise,
 };
 
 /// Standard gravity, m/s^2.

@@ -16,8 +16,8 @@
 /// The distance Hessian is that of the closest feature's formula (distance.h); across feature
 /// boundaries E is C¹. Since b' < 0, the b' ∇²D term makes the exact Hessian indefinite in
 /// general; HessianKind::kProjected returns its PSD projection, computed in the at most 5-dimensional
-/// subspace where it lives (barrier_hessian.h) rather than by a 12x12 eigen-decomposition (the
-/// mollified edge-edge pairs of near-parallel edges, whose Hessian has more terms, keep that).
+/// subspace where it lives (barrier_hessian.h) rather than by a 12x12 eigen-decomposition, and
+/// kTermwise (the solver's default) the sum of the two terms' projections, in closed form.
 
 #include <cmath>
 
@@ -131,7 +131,8 @@ GD_HD bool barrier_active(Real d2, Real offset, Real dhat) {
 /// Vertex order p, t0, t1, t2 (gradient N, Hessian N/m). Returns 0 (zero derivatives) when the gap
 /// is >= dhat and +INFINITY (zero derivatives) when it is <= 0 — the line search must reject such
 /// a configuration. grad written when non-null; hess written when non-null and kind != kNone
-/// (kExact: the true Hessian, indefinite in general; kProjected: project_psd of it). dist2, when
+/// (kExact: the true Hessian, indefinite in general; kProjected: project_psd of it; kTermwise: its
+/// two terms b''∇D∇Dᵀ and b'∇²D made PSD each on its own; kGaussNewton: the first alone). dist2, when
 /// non-null, gets the squared point-triangle distance (the same bits as point_triangle_distance2).
 GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, const Vec3& t2, Real offset,
                              Real dhat, Real kappa, VecN<12>* grad, MatN<12>* hess, HessianKind kind,
@@ -142,7 +143,7 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
   // gradient comes with its value in one evaluation (the value's bits are the same either way).
   VecN<12> g2;
   MatN<12> H2;
-  const bool closed_form = want_hess && kind == HessianKind::kProjected;
+  const bool closed_form = want_hess && (kind == HessianKind::kProjected || kind == HessianKind::kTermwise);
   const bool exact_h2 = want_hess && kind == HessianKind::kExact;
   const Real d2 = point_triangle_distance2(p, t0, t1, t2, region, want_hess ? &g2 : nullptr, exact_h2 ? &H2 : nullptr);
   if (dist2) *dist2 = d2;
@@ -158,7 +159,11 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
     Real db, d2b;
     contact_barrier(sqrt(d2) - offset, dhat, kappa, &db, &d2b);
     const Vec3 x[4] = {p, t0, t1, t2};
-    projected_barrier_hessian(x, vf_region_param(region), db, d2b, hess);
+    if (kind == HessianKind::kTermwise) {
+      termwise_barrier_hessian(x, vf_region_param(region), db, d2b, hess);
+    } else {
+      projected_barrier_hessian(x, vf_region_param(region), db, d2b, hess);
+    }
   }
   return E;
 }
@@ -172,8 +177,8 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
 /// Hessian N/m). Returns 0 when the gap is >= dhat and +INFINITY when it is <= 0 (zero
 /// derivatives; even for parallel edges, so a penetrating configuration is always rejected).
 /// grad/hess/dist2 as in vf_contact_energy. The Hessian kinds: kExact the product rule above;
-/// kProjected m times the PSD projection of ∇²B (closed form, barrier_hessian.h), kGaussNewton m
-/// times B's Gauss-Newton term. Where the mollifier is active (near-parallel edges, m < 1) the
+/// kProjected m times the PSD projection of ∇²B (closed form, barrier_hessian.h), kTermwise m times
+/// its termwise projection (the same file), kGaussNewton m times B's Gauss-Newton term. Where the mollifier is active (near-parallel edges, m < 1) the
 /// last two drop the terms with ∇m, ∇²m: the gradient, and so the solution, are exact, only the
 /// Newton model differs. Projecting the full product instead (a 12x12 eigen-decomposition per
 /// pair) cost fold/20000 18% more time per step, with 4.83 against 4.58 Newton iterations
@@ -202,9 +207,9 @@ GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, con
   if (!want) return m * contact_barrier(sqrt(d2) - offset, dhat, kappa, nullptr, nullptr);
   VecN<12> gB;
   MatN<12> HB;
-  // kProjected: m times the closed-form projection of ∇²B; kGaussNewton: m times B's Gauss-Newton
-  // term. Both leave the mollifier's derivatives out of the Hessian (see the function comment).
-  const bool closed_form = want_hess && kind == HessianKind::kProjected;
+  // kProjected / kTermwise: m times the closed-form projection of ∇²B (whole, or term by term);
+  // kGaussNewton: m times B's Gauss-Newton term. Both leave the mollifier's derivatives out of the Hessian (see the function comment).
+  const bool closed_form = want_hess && (kind == HessianKind::kProjected || kind == HessianKind::kTermwise);
   if (!want_hess) edge_edge_distance2(a0, a1, b0, b1, region, &g2, nullptr);
   const Real B = contact_detail::barrier_of_distance2(d2, g2, exact ? &H2 : nullptr, offset, dhat, kappa, &gB,
                                                       want_hess && !closed_form ? &HB : nullptr);
@@ -213,7 +218,11 @@ GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, con
     Real db, d2b;
     contact_barrier(sqrt(d2) - offset, dhat, kappa, &db, &d2b);
     const Vec3 x[4] = {a0, a1, b0, b1};
-    projected_barrier_hessian(x, ee_region_param(region), db, d2b, hess);
+    if (kind == HessianKind::kTermwise) {
+      termwise_barrier_hessian(x, ee_region_param(region), db, d2b, hess);
+    } else {
+      projected_barrier_hessian(x, ee_region_param(region), db, d2b, hess);
+    }
     if (m != Real(1)) *hess *= m;
   } else if (exact) {
     const MatN<12> cross = gm * gB.transpose();

@@ -18,6 +18,16 @@
 /// projection drops it. The rest lives in the span of the α_k and of z⊗n for z in
 /// span{c, b_1..b_m} ⊂ R⁴: at most 2m + 1 <= 5 orthonormal directions. Its matrix in that basis is
 /// eigen-decomposed (5x5 at most), negative eigenvalues clamped, and mapped back.
+///
+/// Term by term (termwise_barrier_hessian, the solver's default in scenes without colliders). The two terms of
+/// ∇²E = b'' ∇D ∇Dᵀ + b' ∇²D projected each on its own: the first is PSD already (∇D = c⊗n);
+/// in the second, with the Gram matrix of the β_k (b_k·b_l) = W diag(σ²) Wᵀ, the directions
+/// a_k = Σ_l W_lk α_l and p_k = Σ_l W_lk β_l / σ_k are orthonormal, the a's orthogonal to the p's
+/// (ê ⊥ n), and (-b')[ |c| Σ (αβᵀ + βαᵀ) + D Σ ββᵀ ] = -b' Σ_k [ |c| σ_k (a_k p_kᵀ + p_k a_kᵀ) +
+/// D σ_k² p_k p_kᵀ ]: m uncoupled 2x2 blocks [[0, |c|σ], [|c|σ, Dσ²]], whose positive
+/// eigenpair is closed-form. No eigen-solver; at most three rank-one terms. The sum is PSD and
+/// at least the exact Hessian (H - ∇²E is the dropped negative parts), so Newton's direction
+/// descends; it differs from the exact projection where ∇D has a component along the p_k.
 
 #include <cmath>
 
@@ -103,12 +113,24 @@ GD_HD RegionParam ee_region_param(EdgeEdgeRegion region) {
   }
 }
 
-/// PSD projection of the Hessian of E = b(D) over the pair's 12 coordinates, D the region's
-/// distance: db = b'(D) (<= 0) and d2b = b''(D) (>= 0). Writes zero when the closest points
-/// coincide or the feature is degenerate.
-GD_HD void projected_barrier_hessian(const Vec3 x[4], const RegionParam& R, Real db, Real d2b, MatN<12>* H) {
-  H->setZero();
+/// The closest-point structure of one pair at its positions (the file comment's notation): the
+/// weights c of r = Σ c_j x_j, |c|, the distance D and normal n = r/D, the orthonormal feature
+/// directions ê_k and their 4-vectors b_k, k < m.
+struct BarrierFrame {
+  Real c[4];
+  Real cn;
+  Real D;
+  Vec3 n;
+  Vec3 e[2];
+  Real b[2][4];
+  int m;
+};
+
+/// Fills F for the pair x in region R; false when the closest points coincide or the feature is
+/// degenerate (the Hessian is then taken as zero).
+GD_HD bool barrier_frame(const Vec3 x[4], const RegionParam& R, BarrierFrame* F) {
   const int m = R.m;
+  F->m = m;
   Vec3 r0 = Vec3::Zero(), u[2] = {Vec3::Zero(), Vec3::Zero()};
   for (int j = 0; j < 4; ++j) {
     r0 += R.c0[j] * x[j];
@@ -120,28 +142,28 @@ GD_HD void projected_barrier_hessian(const Vec3 x[4], const RegionParam& R, Real
     for (int l = 0; l < m; ++l) G[k][l] = u[k].dot(u[l]);
   Real w[2] = {0, 0};
   if (m == 1) {
-    if (!(G[0][0] > 0)) return;
+    if (!(G[0][0] > 0)) return false;
     w[0] = -u[0].dot(r0) / G[0][0];
   } else if (m == 2) {
     const Real det = G[0][0] * G[1][1] - G[0][1] * G[1][0];
-    if (!(det > 0)) return;
+    if (!(det > 0)) return false;
     const Real q0 = -u[0].dot(r0), q1 = -u[1].dot(r0);
     w[0] = (G[1][1] * q0 - G[0][1] * q1) / det;
     w[1] = (G[0][0] * q1 - G[1][0] * q0) / det;
   }
-  Real c[4];
+  Real* c = F->c;
   Vec3 r = Vec3::Zero();
   for (int j = 0; j < 4; ++j) {
     c[j] = R.c0[j];
     for (int k = 0; k < m; ++k) c[j] += w[k] * R.c1[k][j];
     r += c[j] * x[j];
   }
-  const Real D = r.norm();
-  if (!(D > 0)) return;
-  const Vec3 n = r / D;
+  F->D = r.norm();
+  if (!(F->D > 0)) return false;
+  F->n = r / F->D;
   Real cn = 0;
   for (int j = 0; j < 4; ++j) cn += c[j] * c[j];
-  cn = sqrt(cn);
+  F->cn = sqrt(cn);
   // S = L⁻ᵀ with G = L Lᵀ: orthonormal feature directions ê_k and the 4-vectors b_k.
   Real S[2][2] = {{0, 0}, {0, 0}};
   if (m == 1) {
@@ -149,20 +171,100 @@ GD_HD void projected_barrier_hessian(const Vec3 x[4], const RegionParam& R, Real
   } else if (m == 2) {
     const Real l11 = sqrt(G[0][0]), l21 = G[1][0] / l11;
     const Real l22sq = G[1][1] - l21 * l21;
-    if (!(l22sq > 0)) return;
+    if (!(l22sq > 0)) return false;
     const Real l22 = sqrt(l22sq);
     S[0][0] = 1 / l11, S[0][1] = -l21 / (l11 * l22), S[1][1] = 1 / l22;
   }
-  Vec3 e[2];
-  Real b[2][4];
   for (int k = 0; k < m; ++k) {
-    e[k] = Vec3::Zero();
-    for (int l = 0; l < m; ++l) e[k] += S[l][k] * u[l];
+    F->e[k] = Vec3::Zero();
+    for (int l = 0; l < m; ++l) F->e[k] += S[l][k] * u[l];
     for (int j = 0; j < 4; ++j) {
-      b[k][j] = 0;
-      for (int l = 0; l < m; ++l) b[k][j] += S[l][k] * R.c1[l][j];
+      F->b[k][j] = 0;
+      for (int l = 0; l < m; ++l) F->b[k][j] += S[l][k] * R.c1[l][j];
     }
   }
+  return true;
+}
+
+/// The curvature term's axes (file comment, "Term by term"): the β Gram matrix [b_k·b_l] =
+/// W diag(σ²) Wᵀ, and per k the unit directions a_k (its vertex j block (c_j/|c|) ê'_k) and p_k
+/// (block pw_k[j] n), and the 2x2 block [[0, |c|σ_k], [|c|σ_k, Dσ_k²]]'s positive eigenvalue l+_k.
+struct BetaAxes {
+  Real sigma[2];
+  Vec3 e[2];      ///< ê'_k = Σ_l W_lk ê_l
+  Real pw[2][4];  ///< p_k's weights, Σ_l W_lk b_l / σ_k (unit 4-vectors)
+  Real s[2], t[2], lp[2];
+};
+
+GD_HD BetaAxes beta_axes(const BarrierFrame& F) {
+  BetaAxes A;
+  const int m = F.m;
+  Real g[2][2] = {{0, 0}, {0, 0}};
+  for (int k = 0; k < m; ++k)
+    for (int l = 0; l < m; ++l)
+      for (int j = 0; j < 4; ++j) g[k][l] += F.b[k][j] * F.b[l][j];
+  Real sigma2[2] = {g[0][0], 0}, W[2][2] = {{1, 0}, {0, 1}};
+  if (m == 2) {
+    const Real mean = (g[0][0] + g[1][1]) / 2, half = (g[0][0] - g[1][1]) / 2;
+    const Real rad = sqrt(half * half + g[0][1] * g[0][1]);
+    sigma2[0] = mean + rad;
+    sigma2[1] = fmax(Real(0), mean - rad);
+    if (rad > 0) {  // the larger eigenvalue's vector, from the better-conditioned row
+      Real v0 = half >= 0 ? sigma2[0] - g[1][1] : g[0][1];
+      Real v1 = half >= 0 ? g[0][1] : sigma2[0] - g[0][0];
+      const Real len = sqrt(v0 * v0 + v1 * v1);
+      v0 /= len, v1 /= len;
+      W[0][0] = v0, W[1][0] = v1, W[0][1] = -v1, W[1][1] = v0;
+    }
+  }
+  for (int k = 0; k < m; ++k) {
+    A.sigma[k] = sqrt(fmax(sigma2[k], Real(0)));
+    A.e[k] = W[0][k] * F.e[0];
+    if (m == 2) A.e[k] += W[1][k] * F.e[1];
+    for (int j = 0; j < 4; ++j) {
+      Real bk = W[0][k] * F.b[0][j];
+      if (m == 2) bk += W[1][k] * F.b[1][j];
+      A.pw[k][j] = A.sigma[k] > 0 ? bk / A.sigma[k] : Real(0);
+    }
+    A.s[k] = F.cn * A.sigma[k];
+    A.t[k] = F.D * sigma2[k];
+    A.lp[k] = (A.t[k] + sqrt(A.t[k] * A.t[k] + 4 * A.s[k] * A.s[k])) / 2;
+  }
+  return A;
+}
+
+/// H = Σ_t weight[t] v_t v_tᵀ over the pair's 12 coordinates, each v_t given per vertex j as
+/// (c_j / |c|) Σ_k ea[t][k] ê'_k + normal[t][j] n; at most three terms.
+GD_HD void sum_rank_one(const BarrierFrame& F, const BetaAxes& A, int terms, const Real* weight,
+                        const Real (*ea)[2], const Real (*normal)[4], MatN<12>* H) {
+  Vec3 v[3][4];
+  for (int t = 0; t < terms; ++t) {
+    Vec3 along = Vec3::Zero();
+    for (int k = 0; k < F.m; ++k) along += ea[t][k] * A.e[k];
+    for (int j = 0; j < 4; ++j) v[t][j] = (F.c[j] / F.cn) * along + normal[t][j] * F.n;
+  }
+  for (int i = 0; i < 4; ++i)
+    for (int j = i; j < 4; ++j) {
+      Mat3 block = Mat3::Zero();
+      for (int t = 0; t < terms; ++t) block += weight[t] * v[t][i] * v[t][j].transpose();
+      H->template block<3, 3>(3 * i, 3 * j) = block;
+      if (j != i) H->template block<3, 3>(3 * j, 3 * i) = block.transpose();
+    }
+}
+
+/// PSD projection of the Hessian of E = b(D) over the pair's 12 coordinates, D the region's
+/// distance: db = b'(D) (<= 0) and d2b = b''(D) (>= 0). Writes zero when the closest points
+/// coincide or the feature is degenerate.
+GD_HD void projected_barrier_hessian(const Vec3 x[4], const RegionParam& R, Real db, Real d2b, MatN<12>* H) {
+  H->setZero();
+  BarrierFrame F;
+  if (!barrier_frame(x, R, &F)) return;
+  const int m = F.m;
+  const Real* c = F.c;
+  const Real cn = F.cn, D = F.D;
+  const Vec3 n = F.n;
+  const Vec3* e = F.e;
+  const Real(*b)[4] = F.b;
   // Orthonormal basis z of span{c, b_1..b_m} in R⁴ (modified Gram-Schmidt).
   Real z[3][4];
   int nz = 0;
@@ -214,6 +316,29 @@ GD_HD void projected_barrier_hessian(const Vec3 x[4], const RegionParam& R, Real
   // GEMM kernel, whose packing costs more than the 1,000 multiply-adds themselves.
   const Eigen::Matrix<Real, 12, 5> BH = Bm.lazyProduct(Hr);
   *H = BH.lazyProduct(Bm.transpose());
+}
+
+/// The Hessian of E = b(D) with its two terms made PSD each on its own (file comment, "Term by
+/// term"): b'' ∇D ∇Dᵀ plus the positive part of b' ∇²D, in closed form. db, d2b as in
+/// projected_barrier_hessian; zero where the frame is degenerate.
+GD_HD void termwise_barrier_hessian(const Vec3 x[4], const RegionParam& R, Real db, Real d2b, MatN<12>* H) {
+  H->setZero();
+  BarrierFrame F;
+  if (!barrier_frame(x, R, &F)) return;
+  const int m = F.m;
+  const BetaAxes A = beta_axes(F);
+  // H = d2b ∇D∇Dᵀ + Σ_k -db λ_k q_k q_kᵀ, q_k the unit positive eigenvector (|c|σ a_k + λ p_k) / norm.
+  Real weight[3] = {d2b, 0, 0}, ea[3][2] = {{0, 0}, {0, 0}, {0, 0}}, normal[3][4];
+  for (int j = 0; j < 4; ++j) normal[0][j] = F.c[j];
+  int terms = 1;
+  for (int k = 0; k < m; ++k) {
+    if (!(A.sigma[k] > 0)) continue;
+    const Real norm = sqrt(A.s[k] * A.s[k] + A.lp[k] * A.lp[k]);
+    for (int l = 0; l < 2; ++l) ea[terms][l] = l == k ? A.s[k] / norm : Real(0);
+    for (int j = 0; j < 4; ++j) normal[terms][j] = A.lp[k] / norm * A.pw[k][j];
+    weight[terms++] = -db * A.lp[k];
+  }
+  sum_rank_one(F, A, terms, weight, ea, normal, H);
 }
 
 }  // namespace gd::sim

@@ -43,7 +43,12 @@ enum class BroadPhaseKind {
 enum class ContactHessianKind {
   kGaussNewton,  ///< curvature along the distance gradient only: PSD by construction, cheaper per pair
                  ///< but weaker (more Newton/PCG iterations in motion; leaves more for untangling)
-  kProjected,    ///< the exact 12x12 Hessian with negative eigenvalues clamped (Jacobi): the default
+  kProjected,    ///< the exact 12x12 Hessian with negative eigenvalues clamped (a <= 5x5 eigen-solve)
+  kTermwise,     ///< b''∇d∇dᵀ plus the PSD part of b'∇²d, each term projected on its own in closed
+                 ///< form: the projected Hessian's Newton counts on free cloth-cloth contact at about
+                 ///< the Gauss-Newton one's cost, but weaker where kinematic colliders press layers
+                 ///< together (docs/physics.md, "Contact Hessian term by term")
+  kAuto,         ///< the default: kTermwise while the scene has no colliders, kProjected with them
 };
 
 /// Smallest time step a scene takes, s: below it a step no longer advances the clock in any
@@ -129,7 +134,7 @@ struct SceneOptions {
   Real self_friction = -1;         ///< cloth-cloth Coulomb coefficient (< 0: the material's)
   bool check_intersections = true; ///< exact intersecting-pair count after every step
   bool untangle = true;            ///< run the untangling fail-safe when intersections are found
-  ContactHessianKind contact_hessian = ContactHessianKind::kProjected;
+  ContactHessianKind contact_hessian = ContactHessianKind::kAuto;
   BroadPhaseKind broad_phase = BroadPhaseKind::kAuto;
   /// The most pairs one self-contact broad-phase query may hold (0: SelfContact's default, 200
   /// per vertex and at least 100,000). A motion whose query would hold more (a wild Newton
@@ -180,6 +185,38 @@ inline const char* preconditioner_name(const SceneOptions& o) {
 /// summary.json).
 inline const char* broad_phase_name(const SceneOptions& o) {
   return o.broad_phase == BroadPhaseKind::kEmbree ? "embree" : "lbvh";
+}
+
+/// "auto", "termwise", "projected" or "gauss-newton": a contact Hessian kind's name (command
+/// lines, summary.json).
+inline const char* contact_hessian_name(ContactHessianKind k) {
+  switch (k) {
+    case ContactHessianKind::kGaussNewton: return "gauss-newton";
+    case ContactHessianKind::kProjected: return "projected";
+    case ContactHessianKind::kTermwise: return "termwise";
+    default: return "auto";
+  }
+}
+
+/// The kind named by contact_hessian_name into *k; false for any other name.
+inline bool contact_hessian_from_name(const std::string& name, ContactHessianKind* k) {
+  for (const ContactHessianKind c : {ContactHessianKind::kAuto, ContactHessianKind::kTermwise,
+                                     ContactHessianKind::kProjected, ContactHessianKind::kGaussNewton}) {
+    if (name == contact_hessian_name(c)) {
+      *k = c;
+      return true;
+    }
+  }
+  return false;
+}
+
+/// The self-contact Hessian a scene's solver assembles (kAuto resolved): with colliders in the
+/// scene (robot fingers, user-defined kinematic bodies) the exact projection, whose Newton model
+/// keeps a stack that a pad pushes through space apart, where the termwise one let it cross
+/// (tests/sim/solver/yielding_collider_test.cpp); without them the termwise one.
+inline ContactHessianKind effective_contact_hessian(const SceneOptions& o, bool colliders) {
+  if (o.contact_hessian != ContactHessianKind::kAuto) return o.contact_hessian;
+  return colliders ? ContactHessianKind::kProjected : ContactHessianKind::kTermwise;
 }
 
 /// The barrier activation distance a scene uses: options.contact_distance, or else the cloth's

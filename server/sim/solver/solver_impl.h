@@ -91,8 +91,7 @@ class Solver final : public SolverBase {
     P_.beta_bend = opt.bending_damping;
     P_.alpha_mass = opt.mass_damping;
     P_.bending_exact_projected = opt.bending_hessian == BendingHessianKind::kProjectedExact;
-    P_.contact_hessian = opt.contact_hessian == ContactHessianKind::kGaussNewton ? HessianKind::kGaussNewton
-                                                                                 : HessianKind::kProjected;
+    select_contact_hessian(false);
     P_.membrane_ref = d.stiffness_ref;
     P_.kin_stiffness = opt.grip_stiffness;
     P_.kin_force_max = opt.grip_force_limit;
@@ -200,6 +199,7 @@ class Solver final : public SolverBase {
     col_reached_.assign(n_col_, 1.0);
     col_clear_.assign(n_col_, 0);
     col_end_.clear();
+    select_contact_hessian(n_col_ > 0);  // SceneOptions::contact_hessian's kAuto
     if (n_col_ == 0) return;
     PackedColliders packed = pack_colliders(colliders);
     for (ColliderShape& s : packed.shapes) s.mesh_cull = 2 * P_.dhat;  // meshes: the far cull (collider.h)
@@ -386,6 +386,16 @@ class Solver final : public SolverBase {
     f();
     Exec::sync();
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+
+  /// The pair Hessian the assembly makes, from SceneOptions::contact_hessian (kAuto: by whether the
+  /// scene has colliders, effective_contact_hessian).
+  void select_contact_hessian(bool colliders) {
+    switch (effective_contact_hessian(opt_, colliders)) {
+      case ContactHessianKind::kGaussNewton: P_.contact_hessian = HessianKind::kGaussNewton; break;
+      case ContactHessianKind::kProjected: P_.contact_hessian = HessianKind::kProjected; break;
+      default: P_.contact_hessian = HessianKind::kTermwise; break;
+    }
   }
 
   /// Whether the residual stopping rule is on (SceneOptions::newton_rtol / newton_atol): in

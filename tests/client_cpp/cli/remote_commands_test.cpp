@@ -176,10 +176,12 @@ TEST_F(CliTest, ContactHessianReachesTheSceneAndTheSummary) {
   };
   CliRun r = gd(run + (dir / "default").string());
   ASSERT_EQ(r.rc, 0) << r.err;
-  EXPECT_EQ(kind("default"), "projected");
-  r = gd(run + (dir / "gn").string() + " --contact-hessian gauss-newton");
-  ASSERT_EQ(r.rc, 0) << r.err;
-  EXPECT_EQ(kind("gn"), "gauss-newton");
+  EXPECT_EQ(kind("default"), "termwise");  // auto, without colliders
+  for (const std::string name : {"gauss-newton", "projected"}) {
+    r = gd(run + (dir / name).string() + " --contact-hessian " + name);
+    ASSERT_EQ(r.rc, 0) << r.err;
+    EXPECT_EQ(kind(name), name);
+  }
   r = gd(run + (dir / "bad").string() + " --contact-hessian exact");
   EXPECT_EQ(r.rc, 2) << r.err;
   EXPECT_NE(r.err.find("--contact-hessian"), std::string::npos) << r.err;
@@ -248,6 +250,7 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   EXPECT_DOUBLE_EQ(s.at("task_params").at("grasp_depth").get<double>(), 0.005);  // down to the table
   EXPECT_EQ(s.at("robot").at("hands_half_turned").size(), 2u);
   EXPECT_EQ(s.at("robot").at("rigid_hands"), true);  // a hand's pads yield together (--independent-pads: not)
+  EXPECT_EQ(s.at("contact_hessian"), "projected");  // auto: the exact projection where fingers press the cloth
   // The time series carries each hand's opening (within the finger's travel), squeeze, lift
   // off the table and squeeze limit (the URDF's 10 N without a schedule), and the hands close.
   std::ifstream ts(dir / "local" / "timeseries.csv");

@@ -58,9 +58,10 @@ struct Cfg {
 constexpr Cfg kCfgs[] = {{2.6e-4, 1e-3, 1e5}, {1.9e-4, 5e-4, 3e3}, {0.0, 1e-3, 1e4}};
 
 // FD check of a 12-coordinate energy, skipped (returns false) when the closest-feature region
-// changes within the stencil.
+// changes within the stencil. db, d2b: the barrier's b'(gap) and b''(gap) at x (for the termwise
+// Hessian's reference; used where there is no projected_reference).
 template <class E, class R>
-bool fd_check_energy(const E& energy, const R& region_of, const V12& x, Real h, Real tol_h = 1e-4,
+bool fd_check_energy(const E& energy, const R& region_of, const V12& x, Real h, Real tol_h, Real db, Real d2b,
                      const std::function<M12()>& projected_reference = nullptr) {
   const auto r0 = region_of(x);
   for (int i = 0; i < 12; ++i)
@@ -99,6 +100,19 @@ bool fd_check_energy(const E& energy, const R& region_of, const V12& x, Real h, 
     // Projection only removes the negative part: Hp - H is positive semi-definite (to the closed
     // form's rounding, ~1e-9 of |H| where the barrier's curvature spans many decades).
     EXPECT_GE(test::min_eigenvalue(M12(Hp - H)), -1e-8 * H.norm());
+    // Term by term (barrier_hessian.h): b'' ∇D ∇Dᵀ + project_psd(b' ∇²D), with ∇D = ∇E / b'.
+    const V12 grad_d = g / db;
+    M12 curvature = H - d2b * grad_d * grad_d.transpose();
+    project_psd<12>(&curvature);
+    const M12 termwise_reference = d2b * grad_d * grad_d.transpose() + curvature;
+    M12 Ht;
+    V12 gt;
+    EXPECT_EQ(energy(x, &gt, &Ht, HessianKind::kTermwise), e);
+    EXPECT_EQ((gt - g).norm(), 0.0);
+    EXPECT_LE((Ht - termwise_reference).norm(), 1e-7 * H.norm()) << "region " << int(r0);
+    // PSD, and above the exact Hessian (only negative parts dropped): Newton's model descends.
+    EXPECT_TRUE(test::is_psd(Ht, 1e-9));
+    EXPECT_GE(test::min_eigenvalue(M12(Ht - H)), -1e-8 * H.norm());
   }
   // Translation invariance: the gradient blocks sum to zero.
   EXPECT_LT((seg(g, 0) + seg(g, 1) + seg(g, 2) + seg(g, 3)).norm(), 1e-9 * g.norm());
@@ -131,8 +145,11 @@ TEST(ContactBarrier, VertexFaceEnergyMatchesFiniteDifferences) {
         return vf_contact_energy(seg(y, 0), seg(y, 1), seg(y, 2), seg(y, 3), c.offset, c.dhat, c.kappa, g, H, k);
       };
       auto region = [](const V12& y) { return point_triangle_closest_feature(seg(y, 0), seg(y, 1), seg(y, 2), seg(y, 3)); };
+      Real db = 0, d2b = 0;
+      contact_barrier(dist - c.offset, c.dhat, c.kappa, &db, &d2b);
       // The barrier varies on the scale of min(gap, dhat - gap).
-      if (fd_check_energy(energy, region, x, 1e-4 * std::min(dist - c.offset, c.dhat - (dist - c.offset))))
+      if (fd_check_energy(energy, region, x, 1e-4 * std::min(dist - c.offset, c.dhat - (dist - c.offset)), 1e-4, db,
+                          d2b))
         checked[static_cast<int>(region(x))]++;
     }
   }
@@ -193,8 +210,10 @@ TEST(ContactBarrier, EdgeEdgeEnergyMatchesFiniteDifferences) {
           return M12(ee_mollifier(a0, a1, b0, b1, eps_x, nullptr, nullptr) * Hb);
         };
       }
-      if (fd_check_energy(energy, region, x, 1e-4 * std::min(dist - c.offset, c.dhat - (dist - c.offset)), 2e-4,
-                          reference)) {
+      Real db = 0, d2b = 0;
+      contact_barrier(dist - c.offset, c.dhat, c.kappa, &db, &d2b);
+      if (fd_check_energy(energy, region, x, 1e-4 * std::min(dist - c.offset, c.dhat - (dist - c.offset)), 2e-4, db,
+                          d2b, reference)) {
         checked[region(x) % 100]++;
         mollified += moll;
       }
