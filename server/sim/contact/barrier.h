@@ -17,7 +17,8 @@
 /// boundaries E is C¹. Since b' < 0, the b' ∇²D term makes the exact Hessian indefinite in
 /// general; HessianKind::kProjected returns its PSD projection, computed in the at most 5-dimensional
 /// subspace where it lives (barrier_hessian.h) rather than by a 12x12 eigen-decomposition, and
-/// kTermwise (the solver's default) the sum of the two terms' projections, in closed form.
+/// kTermwise the sum of the two terms' projections, in closed form (the solver's choice in scenes
+/// without colliders, SceneOptions::contact_hessian's kAuto).
 
 #include <cmath>
 
@@ -159,11 +160,7 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
     Real db, d2b;
     contact_barrier(sqrt(d2) - offset, dhat, kappa, &db, &d2b);
     const Vec3 x[4] = {p, t0, t1, t2};
-    if (kind == HessianKind::kTermwise) {
-      termwise_barrier_hessian(x, vf_region_param(region), db, d2b, hess);
-    } else {
-      projected_barrier_hessian(x, vf_region_param(region), db, d2b, hess);
-    }
+    closed_form_barrier_hessian(kind, x, vf_region_param(region), db, d2b, hess);
   }
   return E;
 }
@@ -178,7 +175,8 @@ GD_HD Real vf_contact_energy(const Vec3& p, const Vec3& t0, const Vec3& t1, cons
 /// derivatives; even for parallel edges, so a penetrating configuration is always rejected).
 /// grad/hess/dist2 as in vf_contact_energy. The Hessian kinds: kExact the product rule above;
 /// kProjected m times the PSD projection of ∇²B (closed form, barrier_hessian.h), kTermwise m times
-/// its termwise projection (the same file), kGaussNewton m times B's Gauss-Newton term. Where the mollifier is active (near-parallel edges, m < 1) the
+/// its termwise projection (the same file), kGaussNewton m times B's Gauss-Newton term. Where the
+/// mollifier is active (near-parallel edges, m < 1) the
 /// last two drop the terms with ∇m, ∇²m: the gradient, and so the solution, are exact, only the
 /// Newton model differs. Projecting the full product instead (a 12x12 eigen-decomposition per
 /// pair) cost fold/20000 18% more time per step, with 4.83 against 4.58 Newton iterations
@@ -208,7 +206,8 @@ GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, con
   VecN<12> gB;
   MatN<12> HB;
   // kProjected / kTermwise: m times the closed-form projection of ∇²B (whole, or term by term);
-  // kGaussNewton: m times B's Gauss-Newton term. Both leave the mollifier's derivatives out of the Hessian (see the function comment).
+  // kGaussNewton: m times B's Gauss-Newton term. All leave the mollifier's derivatives out of the
+  // Hessian (see the function comment).
   const bool closed_form = want_hess && (kind == HessianKind::kProjected || kind == HessianKind::kTermwise);
   if (!want_hess) edge_edge_distance2(a0, a1, b0, b1, region, &g2, nullptr);
   const Real B = contact_detail::barrier_of_distance2(d2, g2, exact ? &H2 : nullptr, offset, dhat, kappa, &gB,
@@ -218,11 +217,7 @@ GD_HD Real ee_contact_energy(const Vec3& a0, const Vec3& a1, const Vec3& b0, con
     Real db, d2b;
     contact_barrier(sqrt(d2) - offset, dhat, kappa, &db, &d2b);
     const Vec3 x[4] = {a0, a1, b0, b1};
-    if (kind == HessianKind::kTermwise) {
-      termwise_barrier_hessian(x, ee_region_param(region), db, d2b, hess);
-    } else {
-      projected_barrier_hessian(x, ee_region_param(region), db, d2b, hess);
-    }
+    closed_form_barrier_hessian(kind, x, ee_region_param(region), db, d2b, hess);
     if (m != Real(1)) *hess *= m;
   } else if (exact) {
     const MatN<12> cross = gm * gB.transpose();

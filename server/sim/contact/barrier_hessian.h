@@ -341,4 +341,14 @@ GD_HD void termwise_barrier_hessian(const Vec3 x[4], const RegionParam& R, Real 
   sum_rank_one(F, A, terms, weight, ea, normal, H);
 }
 
+/// The closed-form Hessian of E = b(D) of either kind: kTermwise's, else the exact projection.
+GD_HD void closed_form_barrier_hessian(HessianKind kind, const Vec3 x[4], const RegionParam& R, Real db, Real d2b,
+                                       MatN<12>* H) {
+  if (kind == HessianKind::kTermwise) {
+    termwise_barrier_hessian(x, R, db, d2b, H);
+  } else {
+    projected_barrier_hessian(x, R, db, d2b, H);
+  }
+}
+
 }  // namespace gd::sim
