@@ -379,6 +379,7 @@ int main(int argc, char** argv) {
       }
       if (run->count("--grip-force") > 0) r.job.robot.grip_force = cfg.robot.grip_force;
       if (run->count("--finger-friction") > 0) r.job.robot.finger_friction = cfg.robot.finger_friction;
+      if (run->count("--lift-max-tilt") > 0) r.job.robot.lift_max_tilt_deg = lift_max_tilt_deg;
       r.job.vertices = cfg.vertices;
       r.job.garment_params = cfg.garment_params;
       r.job.task_params = task_param_values;

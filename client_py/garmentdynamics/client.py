@@ -161,10 +161,11 @@ def read_urdf(urdf: Union[str, bytes, "os.PathLike[str]"]) -> bytes:
     return data
 
 
-def _robot_settings(mode: str, urdf, grip_force: Optional[float],
-                    finger_friction: Optional[float]) -> Optional["pb.RobotSettings"]:
+def _robot_settings(mode: str, urdf, grip_force: Optional[float], finger_friction: Optional[float],
+                    lift_max_tilt_deg: Optional[float] = None) -> Optional["pb.RobotSettings"]:
     """RobotSettings of a robot-mode request (None in the other modes, which take none)."""
-    given = [name for name, v in (("urdf", urdf), ("grip_force", grip_force), ("finger_friction", finger_friction))
+    given = [name for name, v in (("urdf", urdf), ("grip_force", grip_force), ("finger_friction", finger_friction),
+                                  ("lift_max_tilt_deg", lift_max_tilt_deg))
              if v is not None]
     if mode != "robot":
         if given:
@@ -173,7 +174,8 @@ def _robot_settings(mode: str, urdf, grip_force: Optional[float],
     out = pb.RobotSettings()
     if urdf is not None:
         out.urdf = read_urdf(urdf)
-    for name, value in (("grip_force", grip_force), ("finger_friction", finger_friction)):
+    for name, value in (("grip_force", grip_force), ("finger_friction", finger_friction),
+                        ("lift_max_tilt_deg", lift_max_tilt_deg)):
         if value is not None:
             value = float(value)
             if not np.isfinite(value):
@@ -591,7 +593,7 @@ class Client:
                    task_params: Optional[Dict[str, float]] = None,
                    material_params: Optional[Dict[str, float]] = None,
                    urdf: Union[None, str, bytes, "os.PathLike[str]"] = None, grip_force: Optional[float] = None,
-                   finger_friction: Optional[float] = None) -> str:
+                   finger_friction: Optional[float] = None, lift_max_tilt_deg: Optional[float] = None) -> str:
         """Submits a whole rollout (garment + task) to run on the server; returns the job id.
 
         trajectory: a path to our trajectory CSV/JSON file (docs/tasks.md), or its text/bytes;
@@ -601,7 +603,9 @@ class Client:
         name, e.g. {"fold_duration": 5.0} (docs/tasks.md). material_params: parameters of the
         material replaced, as in create_scenes. mode "robot": the arms of urdf (a path, its text
         or bytes; None: the server's --robot-urdf) with grip_force and finger_friction, as in
-        create_scenes. The other arguments mirror `gd run`.
+        create_scenes; lift_max_tilt_deg: a generated grasp's lift (fling's height) left to its
+        default is lowered until no hand tilts more than this from pointing down (default 30,
+        `gd run --lift-max-tilt`). The other arguments mirror `gd run`.
         """
         if (garment is None) == (mesh_id is None):
             raise ValueError("give exactly one of garment= and mesh_id=")
@@ -610,7 +614,7 @@ class Client:
                                   garment_params={str(k): float(v) for k, v in (garment_params or {}).items()},
                                   task_params={str(k): float(v) for k, v in (task_params or {}).items()},
                                   material_params={str(k): float(v) for k, v in (material_params or {}).items()})
-        robot = _robot_settings(mode, urdf, grip_force, finger_friction)
+        robot = _robot_settings(mode, urdf, grip_force, finger_friction, lift_max_tilt_deg)
         if robot is not None:
             req.robot.SetInParent()  # present even when empty: the server's own URDF
             req.robot.MergeFrom(robot)

@@ -221,6 +221,25 @@ def test_a_robot_jobs_default_lift_is_fitted_to_the_arms_reach(client, piper_urd
     assert summary["robot"]["ik_max_tilt_deg"] == pytest.approx(fit["tilt_deg"], abs=1.0)
 
 
+def test_a_robot_jobs_lift_tilt_bound_is_the_requests(client, piper_urdf):
+    # a tighter bound than the default 30 degrees: the fitted lift keeps the hands within it, and the
+    # bound the run used is the one sent (or what the task needs at height 0, where that is more)
+    job = client.submit_job(garment="towel", task="grasp", vertices=TOWEL_VERTICES, mode="robot",
+                            urdf=piper_urdf.read_text(), grip_force=8.0, dt=0.02, time_scale=0.25, settle=0.1,
+                            self_contact=False, lift_max_tilt_deg=12.0, label="robot job, 12 degrees")
+    report = client.wait_report(job, progress=False)
+    assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+    summary = report["summary"]
+    fit = summary["robot"]["height_fitted"]
+    assert fit["tilt_bound_deg"] >= 12.0 - 1e-9 and fit["tilt_deg"] <= fit["tilt_bound_deg"]
+    assert fit["lowered"] and fit["height_m"] < fit["wanted_m"]
+    assert summary["robot"]["lift_max_tilt_deg"] == pytest.approx(12.0)
+    with pytest.raises(ValueError, match="lift_max_tilt_deg must be finite"):
+        client.submit_job(garment="towel", mode="robot", lift_max_tilt_deg=float("nan"))
+    with pytest.raises(ValueError, match="robot settings are for mode='robot'"):
+        client.submit_job(garment="towel", lift_max_tilt_deg=20.0)
+
+
 def test_gym_env_with_joint_actions(client, piper_urdf):
     pytest.importorskip("gymnasium")
     from garmentdynamics.envs import GarmentEnv, GarmentVectorEnv

@@ -146,6 +146,7 @@ class Run {
       ++steps_;
       intersecting_max_ = std::max(intersecting_max_, s.intersecting_pairs);
       contacts_max_ = std::max(contacts_max_, s.contacts);
+      contact_hessians_ |= 1u << static_cast<unsigned>(s.contact_hessian);
       newton_ += s.newton_iters;
       pcg_ += s.pcg_iters;
       converged_ += s.converged ? 1 : 0;
@@ -168,6 +169,17 @@ class Run {
   double stepping_seconds() const { return stepping_seconds_; }
   int intersecting_max() const { return intersecting_max_; }
   int contacts_max() const { return contacts_max_; }
+  /// The self-contact pair Hessians the steps assembled (StepStats::contact_hessian), in the enum's
+  /// order, joined by '+' (one name unless colliders came or went); "" when no step had self-contact.
+  std::string contact_hessians() const {
+    std::string out;
+    for (unsigned k = 0; k < 32; ++k) {
+      const auto kind = static_cast<sim::ContactHessianKind>(k);
+      if (kind == sim::ContactHessianKind::kAuto || !(contact_hessians_ & (1u << k))) continue;
+      out += (out.empty() ? "" : "+") + std::string(sim::contact_hessian_name(kind));
+    }
+    return out;
+  }
   long newton() const { return newton_; }
   long pcg() const { return pcg_; }
   long converged() const { return converged_; }
@@ -250,6 +262,7 @@ class Run {
   const tasks::RobotController* robot_;  ///< the controller in robot mode (its arms' columns), else null
   double next_record_ = 0;
   int steps_ = 0, intersecting_max_ = 0, contacts_max_ = 0;
+  unsigned contact_hessians_ = 0;  ///< bit k: a step assembled ContactHessianKind k
   double stepping_seconds_ = 0;
   long newton_ = 0, pcg_ = 0, converged_ = 0;
   sim::StageTimes stage_;
@@ -680,9 +693,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["self_contact"] = config.scene.self_contact;
   s["broad_phase"] = config.scene.self_contact ? nlohmann::json(sim::broad_phase_name(config.scene)) : nlohmann::json();
   s["compression_ratio"] = config.scene.compression_ratio;
-  // The pair Hessian the run assembled (auto: the exact projection with robot mode's fingers).
-  s["contact_hessian"] =
-      sim::contact_hessian_name(sim::effective_contact_hessian(config.scene, config.mode == "robot"));
+  // The pair Hessian the run's steps assembled (auto resolved by the solver: the exact projection
+  // with robot mode's fingers); null without self-contact.
+  const std::string hessians = run.contact_hessians();
+  s["contact_hessian"] = hessians.empty() ? nlohmann::json() : nlohmann::json(hessians);
   s["contacts_max"] = run.contacts_max();
   s["intersecting_pairs_max"] = run.intersecting_max();
   s["untangle_runs"] = sc.untangle_runs();
@@ -722,6 +736,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     s["robot"] = {{"urdf", config.robot.urdf},
                   {"ik_samples", robot->ik_solved()},
                   {"ik_max_tilt_deg", robot->ik_max_tilt() * 180 / 3.14159265358979323846},
+                  {"lift_max_tilt_deg", config.robot.lift_max_tilt * 180 / 3.14159265358979323846},
                   {"hands_half_turned", {robot->hand_half_turned(tasks::Arm::kLeft), robot->hand_half_turned(tasks::Arm::kRight)}},
                   {"joints_clamped", robot->joints_clamped()},
                   {"joint_clamp_max", robot->joint_clamp_max()},

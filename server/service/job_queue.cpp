@@ -239,7 +239,8 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
                                     {"robot", cfg->mode != "robot" ? nlohmann::json()
                                                                    : nlohmann::json{{"urdf", urdf_text.empty() ? cfg->robot.urdf : "sent"},
                                                                                     {"grip_force", cfg->robot.grip_force},
-                                                                                    {"finger_friction", cfg->robot.finger_friction}}},
+                                                                                    {"finger_friction", cfg->robot.finger_friction},
+                                                                                    {"lift_max_tilt_deg", cfg->robot.lift_max_tilt * 180 / 3.14159265358979323846}}},
                                     {"trajectory", traj ? spec.trajectory_format : std::string()}}
                          .dump();
   {

@@ -29,6 +29,13 @@ Status apply_robot_spec(const RobotSpec& spec, bool server_has_urdf, tasks::Robo
           fmt::format("robot finger_friction must be a finite number >= 0 (got {})", *spec.finger_friction));
     options->finger_friction = *spec.finger_friction;
   }
+  if (spec.lift_max_tilt_deg) {
+    const double deg = *spec.lift_max_tilt_deg;
+    if (!std::isfinite(deg) || deg < 0 || deg > 180)
+      return Status::InvalidArgument(
+          fmt::format("robot lift_max_tilt_deg must be a finite angle in [0, 180] degrees (got {})", deg));
+    options->lift_max_tilt = deg * 3.14159265358979323846 / 180;
+  }
   return Status::Ok();
 }
 

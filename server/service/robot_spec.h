@@ -26,16 +26,19 @@ struct RobotSpec {
   /// Scenes: each arm's joints at t = 0 and after a reset ([left, right]; empty: robot_home_pose()
   /// through inverse kinematics).
   std::array<std::vector<double>, 2> initial_joints;
+  /// Jobs: RobotOptions::lift_max_tilt in degrees (default: its 30).
+  std::optional<double> lift_max_tilt_deg;
 
   bool empty() const {
-    return urdf_xml.empty() && !grip_force && !finger_friction && initial_joints[0].empty() && initial_joints[1].empty();
+    return urdf_xml.empty() && !grip_force && !finger_friction && initial_joints[0].empty() && initial_joints[1].empty() &&
+           !lift_max_tilt_deg;
   }
 };
 
 /// What scenes and jobs check alike before they parse the URDF: its size (RESOURCE_EXHAUSTED),
 /// that there is one (the request's or, when `server_has_urdf`, the server's; else
-/// FAILED_PRECONDITION saying how to give one), and the grip force (finite, > 0) and finger
-/// friction (finite, >= 0), which go into `options`.
+/// FAILED_PRECONDITION saying how to give one), and the grip force (finite, > 0), finger
+/// friction (finite, >= 0) and lift tilt bound (finite, 0-180 degrees), which go into `options`.
 Status apply_robot_spec(const RobotSpec& spec, bool server_has_urdf, tasks::RobotOptions* options);
 
 }  // namespace gd::service

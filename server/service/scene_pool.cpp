@@ -400,6 +400,10 @@ Status check_alive(const std::vector<std::shared_ptr<ScenePool::Entry>>& entries
 
 Status ScenePool::robot_arms(const RobotSpec& spec, std::shared_ptr<const robot::ArmModel>* arms,
                              tasks::RobotOptions* options) const {
+  if (spec.lift_max_tilt_deg)
+    return Status::InvalidArgument(
+        "robot lift_max_tilt_deg is for jobs (it bounds a generated task's lift); a scene's arms follow the joint or "
+        "pose commands they are sent");
   GD_RETURN_IF_ERROR(apply_robot_spec(spec, robot_model_ != nullptr, options));
   if (spec.urdf_xml.empty()) {
     *arms = robot_model_;

@@ -152,6 +152,9 @@ struct RobotSettings {
   /// Scenes: each arm's joints at t = 0 and after a reset (empty: the tool 0.25 m in front of the
   /// arm's base and 0.25 m up, through inverse kinematics).
   std::vector<double> left_initial_joints, right_initial_joints;
+  /// Jobs: a generated grasp's lift (fling's height) left to its default is lowered until no hand
+  /// tilts more than this from pointing down (degrees; default 30, `gd run --lift-max-tilt`).
+  std::optional<double> lift_max_tilt_deg;
 };
 
 /// What to create: a generated garment (`garment`) or an uploaded mesh (`mesh_id`), one of them.

@@ -129,6 +129,16 @@ GD_HD Vec3 inertia_target(const View& V, const Params& P, int i) {
   return P.quasi_static ? xt : Vec3(xt + P.h * load3(V.v_t, i));
 }
 
+/// A predictor's motion `step` of a vertex at p, cut so that it goes at most halfway to the table
+/// (Params::table): the starting guesses (the inertial one, the pinch carried by a hand's pads)
+/// stay clear of the table's barrier.
+GD_HD Vec3 clear_of_table(const Params& P, const Vec3& p, Vec3 step) {
+  if (!P.table) return step;
+  const Real d = P.table_n.dot(p) - P.table_offset, dn = P.table_n.dot(step);
+  if (dn < 0 && d + dn < 0.5 * d) step *= 0.5 * d / (-dn);
+  return step;
+}
+
 /// Stiffness of the grip spring of a held vertex of mass m, N/m: far stiffer than its inertia and
 /// the membrane (SceneOptions::grip_stiffness).
 GD_HD Real grip_stiffness(const Params& P, Real m) { return P.kin_stiffness * (m / (P.h * P.h) + P.membrane_ref); }

@@ -86,11 +86,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
       return;
     }
     const Vec3 xt = detail::load3(V.x_t, i);
-    Vec3 step = detail::inertia_target(V, P, i) - xt;
-    if (P.table) {  // keep the predictor clear of the table
-      const Real d = P.table_n.dot(xt) - P.table_offset, dn = P.table_n.dot(step);
-      if (dn < 0 && d + dn < 0.5 * d) step *= 0.5 * d / (-dn);
-    }
+    const Vec3 step = detail::clear_of_table(P, xt, detail::inertia_target(V, P, i) - xt);  // clear of the table
     detail::store3(x, i, xt + step);
   });
   if (n_col_ > 0) carry_pinched_cloth();            // cloth pinched by a hand's pads goes with the hand
@@ -240,11 +236,8 @@ void Solver<Exec>::carry_pinched_cloth() {
       // frictionless pinch lifted a strip with the hand (the inexact Newton solve stopped near
       // the carried guess, RobotArms.FingersHoldAStripByFrictionAndLiftIt).
       const Vec3 inertial(host_x_[3 * i], host_x_[3 * i + 1], host_x_[3 * i + 2]);
-      Vec3 step = inertial + q0.normal * q0.normal.dot(to - inertial) - p;
-      if (P_.table) {  // kept clear of the table as the inertial guess is (pads close on lying cloth)
-        const double d = P_.table_n.dot(p) - P_.table_offset, dn = P_.table_n.dot(step);
-        if (dn < 0 && d + dn < 0.5 * d) step *= 0.5 * d / (-dn);
-      }
+      // Kept clear of the table as the inertial guess is (pads close on lying cloth).
+      const Vec3 step = detail::clear_of_table(P_, p, inertial + q0.normal * q0.normal.dot(to - inertial) - p);
       for (int r = 0; r < 3; ++r) host_x_[3 * i + r] = p[r] + step[r];
       moved = true;
     }

@@ -85,6 +85,10 @@ struct StepStats {
   /// Halvings of motions (the predictor's, Newton steps) whose broad phase would have held more
   /// than the pair budget (SceneOptions::self_contact_pair_budget); 0 in ordinary steps.
   int flood_halvings = 0;
+  /// The self-contact pair Hessian this step assembled (SceneOptions::contact_hessian with kAuto
+  /// resolved by the colliders the solver had: effective_contact_hessian); kAuto when the scene
+  /// has no self-contact.
+  ContactHessianKind contact_hessian = ContactHessianKind::kAuto;
   StageTimes stage;            ///< where the step's time went
   double seconds = 0;          ///< wall time of the step
 };

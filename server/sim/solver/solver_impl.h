@@ -177,6 +177,7 @@ class Solver final : public SolverBase {
       st.broad_phase_seconds = self_->broad_phase_seconds() - bp_seconds_at_start;
       st.broad_phase_queries = static_cast<int>(self_->broad_phase_queries() - bp_queries_at_start);
       st.flood_halvings = static_cast<int>(self_->flood_halvings() - halvings_at_start);
+      st.contact_hessian = contact_kind_;
     }
     st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return st;
@@ -391,7 +392,8 @@ class Solver final : public SolverBase {
   /// The pair Hessian the assembly makes, from SceneOptions::contact_hessian (kAuto: by whether the
   /// scene has colliders, effective_contact_hessian).
   void select_contact_hessian(bool colliders) {
-    switch (effective_contact_hessian(opt_, colliders)) {
+    contact_kind_ = effective_contact_hessian(opt_, colliders);
+    switch (contact_kind_) {
       case ContactHessianKind::kGaussNewton: P_.contact_hessian = HessianKind::kGaussNewton; break;
       case ContactHessianKind::kProjected: P_.contact_hessian = HessianKind::kProjected; break;
       default: P_.contact_hessian = HessianKind::kTermwise; break;
@@ -436,6 +438,7 @@ class Solver final : public SolverBase {
   // self-contact (host bookkeeping, device pair lists)
   std::unique_ptr<SelfContact> self_;
   double kappa_scale_ = 1;
+  ContactHessianKind contact_kind_ = ContactHessianKind::kAuto;  ///< select_contact_hessian's resolved kind
   static constexpr double kKappaScaleMax = 1e4;  // adaptive barrier stiffness: at most this x
   /// adapt_barrier_stiffness halves the stiffness when every active pair is this far apart (x dhat).
   static constexpr double kRelaxGapFraction = 0.5;

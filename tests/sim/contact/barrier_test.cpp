@@ -59,10 +59,12 @@ constexpr Cfg kCfgs[] = {{2.6e-4, 1e-3, 1e5}, {1.9e-4, 5e-4, 3e3}, {0.0, 1e-3, 1
 
 // FD check of a 12-coordinate energy, skipped (returns false) when the closest-feature region
 // changes within the stencil. db, d2b: the barrier's b'(gap) and b''(gap) at x (for the termwise
-// Hessian's reference; used where there is no projected_reference).
+// Hessian's reference; used where there is no projected_reference). A model other than the exact
+// Hessian's projections (the mollified edge-edge barrier) gives both of its references.
 template <class E, class R>
 bool fd_check_energy(const E& energy, const R& region_of, const V12& x, Real h, Real tol_h, Real db, Real d2b,
-                     const std::function<M12()>& projected_reference = nullptr) {
+                     const std::function<M12()>& projected_reference = nullptr,
+                     const std::function<M12()>& termwise_reference = nullptr) {
   const auto r0 = region_of(x);
   for (int i = 0; i < 12; ++i)
     for (Real s : {-h, h}) {
@@ -92,6 +94,15 @@ bool fd_check_energy(const E& energy, const R& region_of, const V12& x, Real h, 
     // Near-parallel edges: the eigenvalues span ~18 decades (the line-line distance's curvature
     // grows as 1/sin² of the angle), so the two computations agree to ~1e-7 of the largest.
     EXPECT_LE((Hp - reference).norm(), 1e-6 * reference.norm()) << "region " << int(r0);
+    if (termwise_reference) {
+      const M12 termwise = termwise_reference();
+      M12 Ht;
+      V12 gt;
+      EXPECT_EQ(energy(x, &gt, &Ht, HessianKind::kTermwise), e);
+      EXPECT_EQ((gt - g).norm(), 0.0);
+      EXPECT_LE((Ht - termwise).norm(), 1e-6 * termwise.norm()) << "region " << int(r0);
+      EXPECT_TRUE(test::is_psd(Ht, 1e-9));
+    }
   } else {
     // The closed-form projection (barrier_hessian.h) is the eigen-projection of the exact Hessian.
     M12 reference = H;
@@ -201,7 +212,10 @@ TEST(ContactBarrier, EdgeEdgeEnergyMatchesFiniteDifferences) {
       SCOPED_TRACE(::testing::Message() << "gap " << dist - c.offset << " moll " << moll << " x/eps " << u.cross(v).squaredNorm() / eps_x << " it " << it);
       // Where the mollifier is active the projected Hessian is m times the projection of the
       // unmollified barrier's exact Hessian (ee_contact_energy's comment).
-      std::function<M12()> reference;
+      // Term by term likewise: m times b'' ∇D ∇Dᵀ + project_psd(b' ∇²D) of the unmollified barrier.
+      Real db = 0, d2b = 0;
+      contact_barrier(dist - c.offset, c.dhat, c.kappa, &db, &d2b);
+      std::function<M12()> reference, termwise;
       if (moll) {
         reference = [&] {
           M12 Hb;
@@ -209,11 +223,19 @@ TEST(ContactBarrier, EdgeEdgeEnergyMatchesFiniteDifferences) {
           project_psd<12>(&Hb);
           return M12(ee_mollifier(a0, a1, b0, b1, eps_x, nullptr, nullptr) * Hb);
         };
+        termwise = [&] {
+          V12 gb;
+          M12 Hb;
+          ee_contact_energy(a0, a1, b0, b1, c.offset, c.dhat, c.kappa, 0.0, &gb, &Hb, HessianKind::kExact);
+          const V12 grad_d = gb / db;
+          M12 curvature = Hb - d2b * grad_d * grad_d.transpose();
+          project_psd<12>(&curvature);
+          return M12(ee_mollifier(a0, a1, b0, b1, eps_x, nullptr, nullptr) *
+                     (d2b * grad_d * grad_d.transpose() + curvature));
+        };
       }
-      Real db = 0, d2b = 0;
-      contact_barrier(dist - c.offset, c.dhat, c.kappa, &db, &d2b);
       if (fd_check_energy(energy, region, x, 1e-4 * std::min(dist - c.offset, c.dhat - (dist - c.offset)), 2e-4, db,
-                          d2b, reference)) {
+                          d2b, reference, termwise)) {
         checked[region(x) % 100]++;
         mollified += moll;
       }

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <memory>
 
@@ -29,14 +30,17 @@ struct PadMotion {
 
 struct SqueezeRun {
   int found = 0, untangled = 0, stopped = 0, newton = 0;
+  int partner_stopped = 0;    // steps the still pad reported less than its whole motion (grouped)
+  double max_disagree = 0;    // largest difference of the two pads' reached fractions in a step (grouped)
   double min_reached = 1;
   double min_gap = std::numeric_limits<double>::infinity();  // the layers' least distance, m
   bool failed = false;
 };
 
 // The two layers between the pads as in carry_sideways; the +y pad then closes on the -y one (which
-// stands still) at `speed` until their faces would be 0.2 dhat apart, and holds.
-SqueezeRun squeeze(bool yielding, double speed, double seconds) {
+// stands still) at `speed` until their faces would be 0.2 dhat apart, and holds. With `grouped` the
+// still pad yields too and both are one yield group (one hand: Collider::set_yield_group).
+SqueezeRun squeeze(bool yielding, double speed, double seconds, bool grouped = false) {
   const Material cotton = MaterialLibrary::load_default().get("cotton");
   const SceneOptions o = testing_layers::pinch_options();
   const double dhat = effective_contact_distance(o, cotton.thickness);
@@ -48,7 +52,7 @@ SqueezeRun squeeze(bool yielding, double speed, double seconds) {
   auto target = [=](double t) { return Vec3(0.5 * W, std::max(y_end, y_start - speed * t), z); };
   auto moving = std::make_shared<PadMotion>();
   moving->from = moving->to = target(0);
-  int id = -1;
+  int id = -1, still = -1;
   for (const double side : {-1.0, 1.0}) {
     Collider pad = Collider::box(Vec3(W, thick, 0.5 * grip));
     if (side > 0) {
@@ -56,11 +60,13 @@ SqueezeRun squeeze(bool yielding, double speed, double seconds) {
       pad.set_yielding(yielding);
     } else {
       pad.set_pose([=](double) { return Eigen::Isometry3d(Eigen::Translation3d(0.5 * W, -y_start, z)); });
+      pad.set_yielding(grouped);
     }
+    if (grouped) pad.set_yield_group(0);
     pad.set_friction(1.5);
     pad.set_stiffness_scale(20);
     const int k = scene->add_collider(pad);
-    if (side > 0) id = k;
+    (side > 0 ? id : still) = k;
   }
   SqueezeRun r;
   while (scene->time() < seconds - 1e-9 && !scene->failed()) {
@@ -75,9 +81,12 @@ SqueezeRun squeeze(bool yielding, double speed, double seconds) {
     r.untangled += st.untangled;
     r.newton += st.newton_iters;
     r.min_gap = std::min(r.min_gap, st.min_self_distance);
-    const double s = scene->collider_reached({id})[0];
+    const std::vector<double> got = scene->collider_reached({id, still});
+    const double s = got[0];
     r.stopped += s < 1.0;
     r.min_reached = std::min(r.min_reached, s);
+    r.partner_stopped += got[1] < 1.0;
+    r.max_disagree = std::max(r.max_disagree, std::abs(got[1] - got[0]));
   }
   r.failed = scene->failed();
   return r;
@@ -109,6 +118,27 @@ TEST(YieldingCollider, APadClosingFasterThanTheStackCanMoveStopsShort) {
     EXPECT_GT(r.min_gap, 1e-6);
     EXPECT_EQ(fixed.stopped, 0);  // a collider that does not yield always makes its whole motion
   }
+}
+
+// The same squeeze with the two pads one yield group (one hand whose one finger closes on the
+// stack, the other holding still): where the closing pad stops short, its partner is stopped with
+// it at the same fraction of the step's motion (predictor.h, stop_yielding_colliders: a group stops
+// at the fraction the least advanced member reached), the still pad reports it (collider_reached),
+// and the pinch stays apart as with one yielding pad. Without the group the still pad, which does
+// not yield, always reports its whole motion (the test above).
+TEST(YieldingCollider, AGroupedPadStopsWithItsPartner) {
+  const SqueezeRun r = squeeze(true, 0.4, 0.05, true);
+  std::printf("one hand closing at 0.4 m/s: the closing pad stopped %d times (least fraction %.3f), the still one "
+              "%d times, the pads' fractions %.3g apart at most; layers %.2e m apart at least, intersecting "
+              "found %d\n",
+              r.stopped, r.min_reached, r.partner_stopped, r.max_disagree, r.min_gap, r.found);
+  EXPECT_FALSE(r.failed);
+  EXPECT_GT(r.stopped, 0) << "the closing pad never stopped short: the test does not exercise the group";
+  EXPECT_EQ(r.partner_stopped, r.stopped) << "the still pad did not stop with its partner";
+  EXPECT_EQ(r.max_disagree, 0.0) << "the pads of one group stopped at different fractions";
+  EXPECT_EQ(r.found, 0);
+  EXPECT_EQ(r.untangled, 0);
+  EXPECT_GT(r.min_gap, 1e-6);
 }
 
 struct CarryRun {
