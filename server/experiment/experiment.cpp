@@ -173,11 +173,10 @@ class Run {
   /// order, joined by '+' (one name unless colliders came or went); "" when no step had self-contact.
   std::string contact_hessians() const {
     std::string out;
-    for (unsigned k = 0; k < 32; ++k) {
-      const auto kind = static_cast<sim::ContactHessianKind>(k);
-      if (kind == sim::ContactHessianKind::kAuto || !(contact_hessians_ & (1u << k))) continue;
-      out += (out.empty() ? "" : "+") + std::string(sim::contact_hessian_name(kind));
-    }
+    for (const auto kind : {sim::ContactHessianKind::kGaussNewton, sim::ContactHessianKind::kProjected,
+                            sim::ContactHessianKind::kTermwise})
+      if (contact_hessians_ & (1u << static_cast<unsigned>(kind)))
+        out += (out.empty() ? "" : "+") + std::string(sim::contact_hessian_name(kind));
     return out;
   }
   long newton() const { return newton_; }
