@@ -363,7 +363,7 @@ int main(int argc, char** argv) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic", "--garment-position",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--newton-max", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf-package-path",
-                                     "--no-link-colliders", "--grip-force-schedule", "--lift-max-tilt", "--independent-pads"})
+                                     "--no-link-colliders", "--grip-force-schedule", "--independent-pads"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

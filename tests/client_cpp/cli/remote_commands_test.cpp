@@ -305,13 +305,16 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
          (dir / "remote_pads").string());
   EXPECT_EQ(r.rc, 2) << r.err;
   EXPECT_NE(r.err.find("--independent-pads is not available with --server"), std::string::npos) << r.err;
-  // The same as a job: the URDF's text goes with it, and the job's report says robot mode.
-  r = gd(server_flag() + run.substr(0, run.find(" --no-plots")) + " --quiet --mode robot --urdf " + urdf + " --out " +
-         (dir / "remote").string());
+  // The same as a job: the URDF's text and the lift tilt bound go with it, and the job's report says
+  // robot mode with that bound.
+  r = gd(server_flag() + run.substr(0, run.find(" --no-plots")) + " --quiet --mode robot --urdf " + urdf +
+         " --lift-max-tilt 20 --out " + (dir / "remote").string());
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto rs = nlohmann::json::parse(slurp(dir / "remote" / "summary.json"));
   EXPECT_EQ(rs.at("mode"), "robot");
   EXPECT_GT(rs.at("robot").at("ik_samples").get<int>(), 100);
+  EXPECT_NEAR(rs.at("robot").at("lift_max_tilt_deg").get<double>(), 20.0, 1e-9);
+  EXPECT_NEAR(s.at("robot").at("lift_max_tilt_deg").get<double>(), 30.0, 1e-9);  // the local run's default
   // Without a URDF: this server has no --robot-urdf of its own.
   r = gd(server_flag() + " run --garment towel --task grasp --mode robot --out " + (dir / "remote_no_urdf").string());
   EXPECT_NE(r.rc, 0);
