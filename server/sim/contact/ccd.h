@@ -44,7 +44,7 @@ inline constexpr Real kCcdGapFraction = Real(0.9);
 inline constexpr int kCcdMaxIterations = 1000;
 /// The self-contact solver's CCD floor as a fraction of the barrier distance dhat: pairs keep at
 /// least this gap (1e-6 m at dhat = 1 mm), far above the rounding of distances and of the exact
-/// triangle-triangle test (solver/step_bounds.h self_ccd_bound).
+/// triangle-triangle test (solver/step_bounds.h self_ccd_inverse_to).
 inline constexpr Real kCcdFloorFraction = Real(1e-3);
 
 /// The offset to pass to the CCD of a pair now at distance d0 (m): the floor (m) for a pair more

@@ -49,9 +49,11 @@ double Solver<Exec>::evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessi
   const double* x = Exec::ptr(xs);
   double* g = Exec::ptr(gs);
   double* H = hessian ? Exec::ptr(vals_) : nullptr;
+  // Each term's sum into its slot of red_ on the backend, the five read back at once.
+  double* R = Exec::ptr(red_);
   // The vertex pass also clears vertex i's gradient and Hessian row for the element adds below
   // (in parallel, row by row, instead of two serial fills of the whole arrays).
-  double e = Exec::sum_effects(n_, [=] GD_HD_LAMBDA(int i) {
+  Exec::sum_effects_to(n_, [=] GD_HD_LAMBDA(int i) {
     if (H)
       for (int k = 9 * V.row_ptr[i]; k < 9 * V.row_ptr[i + 1]; ++k) H[k] = 0.0;
     if (V.fixed[i]) {
@@ -68,16 +70,16 @@ double Solver<Exec>::evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessi
         for (int c = 0; c < 3; ++c) b[3 * r + c] = Hi(r, c);
     }
     return ei;
-  }, Exec::kParallelMinHeavy);
-  e += sum_elements(data_->tri_colors, tri_order_, V.nt, [=] GD_HD_LAMBDA(int t) {
+  }, R + kRedVertex, Exec::kParallelMinHeavy);
+  sum_elements(data_->tri_colors, tri_order_, V.nt, [=] GD_HD_LAMBDA(int t) {
     if (H && t + 1 < V.nt) detail::prefetch_blocks<3>(H, V.tri_slots + 9 * (t + 1));
     Vec9 ge;
     Mat9 He;
     const double et = detail::triangle_terms(V, P, t, x, &ge, H ? &He : nullptr);
     scatter<3>(V, V.tris + 3 * t, V.tri_slots + 9 * t, ge, He, g, H);
     return et;
-  });
-  e += sum_elements(data_->hinge_colors, hinge_order_, V.nh, [=] GD_HD_LAMBDA(int h) {
+  }, R + kRedTriangles);
+  sum_elements(data_->hinge_colors, hinge_order_, V.nh, [=] GD_HD_LAMBDA(int h) {
     if (H && h + 1 < V.nh) detail::prefetch_blocks<4>(H, V.hinge_slots + 16 * (h + 1));
     Vec12 ge;
     if (P.bending_exact_projected) {
@@ -90,16 +92,22 @@ double Solver<Exec>::evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessi
     const double eh = detail::hinge_terms_rank2(V, P, h, x, &ge, H ? &He : nullptr);
     scatter_rank2(V, V.hinges + 4 * h, V.hinge_slots + 16 * h, ge, He, g, H);
     return eh;
-  });
-  if (self_) e += evaluate_pairs(x, g, H);
+  }, R + kRedHinges);
+  if (self_) evaluate_pairs(x, g, H, R + kRedPairs, R + kRedFriction);
+  const double* r = read_reductions();
+  double e = r[kRedVertex];
+  e += r[kRedTriangles];
+  e += r[kRedHinges];
+  if (self_) e += r[kRedPairs] + r[kRedFriction];
   return e;
 }
 
 /// The self-contact pairs' share of evaluate(): the pair terms in parallel into per-pair storage,
 /// then their gradient (and diagonal blocks) added into shared rows (each thread its own rows on
 /// the CPU, atomics on the GPU). The off-diagonal blocks stay with the pair until merge_pair_blocks.
+/// The energies go to *e_pairs and *e_friction, the backend's memory.
 template <class Exec>
-double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
+void Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H, double* e_pairs, double* e_friction) {
   const detail::View V = view();
   const detail::Params P = P_;
   const bool want_h = H != nullptr;
@@ -119,7 +127,7 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
   // Over the candidates (no Hessian): each pair's squared distance too, which select_active and
   // min_active_distance reuse once the line search accepts these positions (accept_step).
   double* D2 = want_h ? nullptr : Exec::ptr(cand_d2_);
-  double e = Exec::sum_effects(L.n, [=] GD_HD_LAMBDA(int c) {
+  Exec::sum_effects_to(L.n, [=] GD_HD_LAMBDA(int c) {
     const int* vs = L.v + 4 * c;
     live[c] = 0;
     if (D2) D2[c] = -1.0;  // not measured
@@ -140,14 +148,14 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
     live[c] = 1;
     store_pair(V, L.v + 4 * c, ge, want_h ? &He : nullptr, HA + kPairBlockValues * c, GA + gs * c);
     return ec;
-  }, Exec::kParallelMinHeavy);
-  e += Exec::sum_effects(V.n_fr, [=] GD_HD_LAMBDA(int k) {
+  }, e_pairs, Exec::kParallelMinHeavy);
+  Exec::sum_effects_to(V.n_fr, [=] GD_HD_LAMBDA(int k) {
     Vec12 ge;
     Mat12 He;
     const double ek = detail::pair_friction(V, P, k, x, &ge, want_h ? &He : nullptr);
     store_pair(V, V.fr_v + 4 * k, ge, want_h ? &He : nullptr, HF + kPairBlockValues * k, GF + gs * k);
     return ek;
-  }, Exec::kParallelMinHeavy);
+  }, e_friction, Exec::kParallelMinHeavy);
   if constexpr (Exec::kColoring) {
     // The CPU: each thread walks every pair in order and adds the corners of the vertices it
     // owns (vertex_owner), so each row gets its adds in pair order, as a serial loop adds them:
@@ -167,7 +175,6 @@ double Solver<Exec>::evaluate_pairs(const double* x, double* g, double* H) {
     }, 0);
     Exec::for_each(V.n_fr, [=] GD_HD_LAMBDA(int k) { add_pair(V, V.fr_v + 4 * k, GF + gs * k, g, H); }, 0);
   }
-  return e;
 }
 
 /// The pairs' adds of evaluate_pairs on an atomic policy with SceneOptions::deterministic: one
@@ -285,12 +292,13 @@ GD_HD void Solver<Exec>::scatter_rank2(const detail::View& V, const int* vs, con
   }
 }
 
-/// Sum of f over an element loop that scatters into shared rows: on the CPU colour by colour,
-/// a colour's chunks in parallel and each chunk's elements in mesh order (SceneData's
-/// Coloring); all at once with atomics on the GPU.
+/// Sum of f over an element loop that scatters into shared rows, into *out (the backend's
+/// memory): on the CPU colour by colour, a colour's chunks in parallel and each chunk's elements
+/// in mesh order (SceneData's Coloring); all at once with atomics on the GPU.
 template <class Exec>
 template <class F>
-double Solver<Exec>::sum_elements(const Coloring& coloring, const ElementOrder& order, int count, const F& f) {
+void Solver<Exec>::sum_elements(const Coloring& coloring, const ElementOrder& order, int count, const F& f,
+                                double* out) {
   if constexpr (Exec::kColoring) {
     GD_DEMAND(coloring.elements == count, "element colouring built for another mesh");
     const Coloring* C = &coloring;
@@ -317,7 +325,7 @@ double Solver<Exec>::sum_elements(const Coloring& coloring, const ElementOrder& 
     }
     double e = 0;
     for (double v : chunk_energy_) e += v;
-    return e;
+    *out = e;  // kColoring: the backend's memory is the host's
   } else if (deterministic_) {
     // Colour by colour (no two elements of a colour share a vertex, so each add lands alone),
     // the energies summed by one fixed-order reduction.
@@ -330,9 +338,9 @@ double Solver<Exec>::sum_elements(const Coloring& coloring, const ElementOrder& 
         e[i] = f(i);
       }, Exec::kParallelMinHeavy);
     }
-    return Exec::sum(count, [=] GD_HD_LAMBDA(int i) { return e[i]; });
+    Exec::sum_to(count, [=] GD_HD_LAMBDA(int i) { return e[i]; }, out);
   } else {
-    return Exec::sum_effects(count, f, Exec::kParallelMinHeavy);
+    Exec::sum_effects_to(count, f, out, Exec::kParallelMinHeavy);
   }
 }
 

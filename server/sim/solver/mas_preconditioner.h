@@ -197,6 +197,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
   MultilevelAdditiveSchwarz(int n, int domain_size) : n_(n), B_(domain_size) {
     GD_DEMAND(domain_size >= 2 && domain_size <= 64, "MAS domain size must be in [2, 64]");
     Exec::resize(keys_, n_);
+    Exec::resize(box_, 5);
   }
 
   void setup(const BlockMatrixView& A) override {
@@ -272,17 +273,23 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     const int n = n_;
     const double* x = A.x;
     const int* fixed = A.fixed;
-    // A cube around the free vertices: their centroid +- their largest distance from it.
-    const double free_count_d = Exec::sum(n, [=] GD_HD_LAMBDA(int i) { return fixed[i] ? 0.0 : 1.0; });
-    const int free_count = static_cast<int>(free_count_d);
-    double c[3] = {0, 0, 0};
+    // A cube around the free vertices: their centroid +- their largest distance from it, reduced
+    // into box_ on the backend (count, centroid, radius) and read back once.
+    double* b = Exec::ptr(box_);
+    Exec::sum_to(n, [=] GD_HD_LAMBDA(int i) { return fixed[i] ? 0.0 : 1.0; }, b);
     for (int k = 0; k < 3; ++k)
-      if (free_count > 0) c[k] = Exec::sum(n, [=] GD_HD_LAMBDA(int i) { return fixed[i] ? 0.0 : x[3 * i + k]; }) / free_count_d;
-    const double c0 = c[0], c1 = c[1], c2 = c[2];
-    const double radius = Exec::max(n, [=] GD_HD_LAMBDA(int i) {
-      if (fixed[i]) return 0.0;
-      return fmax(fabs(x[3 * i] - c0), fmax(fabs(x[3 * i + 1] - c1), fabs(x[3 * i + 2] - c2)));
+      Exec::sum_to(n, [=] GD_HD_LAMBDA(int i) { return fixed[i] ? 0.0 : x[3 * i + k]; }, b + 1 + k);
+    Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // the centroid (0 without free vertices)
+      for (int k = 1; k < 4; ++k) b[k] = b[0] >= 1 ? b[k] / b[0] : 0.0;
     });
+    Exec::max_to(n, [=] GD_HD_LAMBDA(int i) {
+      if (fixed[i]) return 0.0;
+      return fmax(fabs(x[3 * i] - b[1]), fmax(fabs(x[3 * i + 1] - b[2]), fabs(x[3 * i + 2] - b[3])));
+    }, b + 4);
+    double box[5];
+    Exec::download_to(box, box_);
+    const int free_count = static_cast<int>(box[0]);
+    const double c0 = box[1], c1 = box[2], c2 = box[3], radius = box[4];
     const double inv = radius > 0 ? 0.5 / radius : 0.0;
     const double l0 = c0 - radius, l1 = c1 - radius, l2 = c2 - radius;
     uint64_t* keys = Exec::ptr(keys_);
@@ -713,6 +720,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
   int n_, B_;
   int levels_ = 0;
   Vec<uint64_t> keys_;
+  Vec<double> box_;  ///< order_vertices: free vertex count, centroid, radius
   Vec<int> xref_;    ///< per free vertex, at cross_offset: its cross entries (filter_cross)
   Vec<int> xcount_;  ///< per vertex: how many
   LevelStore store_[kMaxLevels];

@@ -106,7 +106,8 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] = host_x_[k] - host_xt_[k];
     Exec::upload(dx_, host_dx_);
     copy(x_t_, x_);
-    const double alpha = std::min(self_ccd_bound(), table_ccd_bound());
+    const CcdBounds b = ccd_bounds(true, true, false);
+    const double alpha = std::min(b.self, b.table);
     axpy(alpha < 1.0 ? 0.9 * alpha : 1.0, dx_, x_);
     // The scaled motion may stop short inside a collider, and a vertex squeezed between two may be
     // left inside one by the projection itself.

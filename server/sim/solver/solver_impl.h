@@ -56,6 +56,8 @@ class Solver final : public SolverBase {
     for (auto* vec : {&x_t_, &v_t_, &g_, &g_trial_, &dx_, &dx_full_, &r_, &z_, &p_, &ap_, &x_trial_}) Exec::resize(*vec, 3 * n_);
     Exec::resize(vals_, 9 * static_cast<size_t>(d.blocks()));
     Exec::resize(pcg_s_, kPcgScalars);
+    Exec::resize(red_, kReductions);
+    host_red_.assign(kReductions, 0.0);
     Exec::resize(hinge_grad_t_, 12 * static_cast<size_t>(d.hinge_count()));
     if (!Exec::kColoring && opt.deterministic) {  // atomic policy asked for fixed-order sums
       deterministic_ = true;
@@ -147,9 +149,10 @@ class Solver final : public SolverBase {
       gradient_known = accept_step(alpha);                          // x += alpha dx
       st.newton_iters = k + 1;
       st.min_alpha = std::min(st.min_alpha, alpha);
-      taken = alpha * rms_velocity(dx_);                            // the correction just made, m/s
+      const double* dxn = dx_norms();                               // |dx|_M and max |dx|, read together
+      taken = alpha * rms_of_sum(dxn[kRedDxMass]);                  // the correction just made, m/s
       if (k == 0) scale = taken;
-      st.step_norm = max_abs(dx_) / P_.h;
+      st.step_norm = dxn[kRedDxMax] / P_.h;
       gd::log().trace("newton {}: step rms {:.3g} m/s (max |dx|/h {:.3g}), alpha {:.3g} (max {:.3g}), pcg {}, "
                       "candidates {}, evaluations {}", k, taken, st.step_norm, alpha, alpha_max, st.pcg_iters, cand_.n,
                       st.energy_evals);
@@ -254,11 +257,13 @@ class Solver final : public SolverBase {
   double residual_bound();
   void update_free_mass();
   double rms_velocity(const Vec<double>& d);
+  void rms_velocity_to(const Vec<double>& d, double* out);
+  double rms_of_sum(double num) const { return std::sqrt(num / free_mass()) / P_.h; }
 
   // L, its gradient and PSD-projected Hessian (assembly.h)
   double assemble();
   double evaluate(const Vec<double>& xs, Vec<double>& gs, bool hessian);
-  double evaluate_pairs(const double* x, double* g, double* H);
+  void evaluate_pairs(const double* x, double* g, double* H, double* e_pairs, double* e_friction);
   GD_HD static void store_pair(const detail::View& V, const int* vs, const Vec12& ge, const Mat12* Hp,
                                double* Hpair, double* gd);
   GD_HD static void add_pair(const detail::View& V, const int* vs, const double* gd, double* g, double* H,
@@ -279,7 +284,7 @@ class Solver final : public SolverBase {
     }
   };
   template <class F>
-  double sum_elements(const Coloring& coloring, const ElementOrder& order, int count, const F& f);
+  void sum_elements(const Coloring& coloring, const ElementOrder& order, int count, const F& f, double* out);
   void add_pairs_in_order(const detail::View& V, const detail::PairView& L, const int* live, const double* GA,
                           const double* GF, int gs, double* g, double* H);
 
@@ -299,9 +304,14 @@ class Solver final : public SolverBase {
 
   // CCD step bounds and line search (step_bounds.h)
   double max_step();
-  double collider_step_bound();
-  double table_ccd_bound();
-  double self_ccd_bound();
+  /// The CCD bounds along dx_ (1 where none applies), read back together.
+  struct CcdBounds {
+    double table = 1, self = 1, collider = 1;
+  };
+  CcdBounds ccd_bounds(bool table, bool self, bool collider, bool slope = false);
+  void collider_step_inverse_to(double* out);
+  void table_ccd_inverse_to(double* out);
+  void self_ccd_inverse_to(double* out);
   double step_length(double alpha_max, double e0, StepStats* st);
   double table_cut_step(double alpha_max, double e0, int* evals);
   double line_search(double alpha_max, double e0, int* evals);
@@ -309,12 +319,19 @@ class Solver final : public SolverBase {
   // Vector operations over 3n values (vector_ops.h)
   double dot(const Vec<double>& a, const Vec<double>& b);
   double max_abs(const Vec<double>& a);
+  void max_abs_to(const Vec<double>& a, double* out);
+  /// |dx_|²_M and max |dx_| into their slots of red_, read back together (host_red_).
+  const double* dx_norms() {
+    rms_velocity_to(dx_, Exec::ptr(red_) + kRedDxMass);
+    max_abs_to(dx_, Exec::ptr(red_) + kRedDxMax);
+    return read_reductions();
+  }
   void axpy(double a, const Vec<double>& xs, Vec<double>& ys);
   void xpby(const Vec<double>& xs, double b, Vec<double>& ys);
   void scale(double a, Vec<double>& ys);
   void copy(const Vec<double>& src, Vec<double>& dst);
   // ... and with the result or a coefficient in the backend's memory (no round trip to the host)
-  void dot_to(const Vec<double>& a, const Vec<double>& b, double* out);
+  void dot_to(const Vec<double>& a, const Vec<double>& b, double* out, int parallel_min = Exec::kParallelMinVector);
   void mass_norm_to(const Vec<double>& d, double* out);  ///< sum of m_i |d_i|² over free vertices
   /// x += a p, r -= a q and |r|² into *rr, one pass (PCG's update; a in the backend's memory).
   void pcg_update_to(const double* a, const Vec<double>& ps, const Vec<double>& qs, Vec<double>& xs, Vec<double>& rs,
@@ -506,6 +523,19 @@ class Solver final : public SolverBase {
   Vec<int> mrun_, mblock_start_, mblock_row_;
   /// PCG's scalars in the backend's memory (solve_pcg), at these indices.
   Vec<double> pcg_s_;
+  /// Reductions queued on the backend into these slots and read back together (read_reductions):
+  /// one round trip for an evaluation's five energy terms (with the line search's slope, queued
+  /// before its first trial), one for the CCD bounds, one for an accepted step's two norms.
+  Vec<double> red_;
+  std::vector<double> host_red_;
+  static constexpr int kRedVertex = 0, kRedTriangles = 1, kRedHinges = 2, kRedPairs = 3, kRedFriction = 4,
+                       kRedTable = 5, kRedSelf = 6, kRedCollider = 7, kRedSlope = 8, kRedDxMass = 9, kRedDxMax = 10,
+                       kReductions = 11;
+  /// The slots of red_, on the host (one copy from the backend).
+  const double* read_reductions() {
+    Exec::download_to(host_red_.data(), red_);
+    return host_red_.data();
+  }
   static constexpr int kPcgRz = 0, kPcgPap = 1, kPcgRr = 2, kPcgRzNew = 3, kPcgAlpha = 4, kPcgBeta = 5,
                        kPcgStop = 6, kPcgIters = 7, kPcgZm = 8, kPcgDxm = 9, kPcgScalars = 10;
   bool precond_ready_ = false;  ///< precond_ was set up in this step (not with the direct solver)

@@ -12,8 +12,33 @@ namespace gd::sim {
 /// bound is kept in table_bound_.
 template <class Exec>
 double Solver<Exec>::max_step() {
-  table_bound_ = table_ccd_bound();  // kept for table_cut_step
-  return std::min({table_bound_, self_ccd_bound(), collider_step_bound()});
+  const CcdBounds b = ccd_bounds(true, true, true);
+  table_bound_ = b.table;  // kept for table_cut_step
+  return std::min({b.table, b.self, b.collider});
+}
+
+/// The bounds asked for (each where it applies: a table, self-contact candidates, colliders),
+/// each the inverse of its largest admissible fraction reduced on the backend into its slot of
+/// red_, then read back together: one round trip. With `slope`, g·dx is queued too and left in
+/// host_red_[kRedSlope].
+template <class Exec>
+typename Solver<Exec>::CcdBounds Solver<Exec>::ccd_bounds(bool table, bool self, bool collider, bool slope) {
+  table = table && P_.table;
+  self = self && self_ && cand_.n > 0;
+  collider = collider && n_col_ > 0;
+  double* R = Exec::ptr(red_);
+  if (table) table_ccd_inverse_to(R + kRedTable);
+  if (self) self_ccd_inverse_to(R + kRedSelf);
+  if (collider) collider_step_inverse_to(R + kRedCollider);
+  if (slope) dot_to(g_, dx_, R + kRedSlope, Exec::kParallelMin);
+  CcdBounds b;
+  if (!table && !self && !collider && !slope) return b;
+  const double* r = read_reductions();
+  auto bound = [](double inv) { return inv > 1.0 ? 1.0 / inv : 1.0; };
+  if (table) b.table = bound(r[kRedTable]);
+  if (self) b.self = bound(r[kRedSelf]);
+  if (collider) b.collider = bound(r[kRedCollider]);
+  return b;
 }
 
 /// Conservative bound against colliders: no free vertex closes more than 90% of its distance to
@@ -23,12 +48,11 @@ double Solver<Exec>::max_step() {
 /// freely; so for a convex mesh (a URDF link's hull). Another mesh may be non-convex: there the
 /// distance's 1-Lipschitz bound, |dx| <= 0.9 d, holds.
 template <class Exec>
-double Solver<Exec>::collider_step_bound() {
-  if (n_col_ == 0) return 1.0;
+void Solver<Exec>::collider_step_inverse_to(double* out) {
   const detail::View V = view();
   const double* x = Exec::ptr(x_);
   const double* dx = Exec::ptr(dx_);
-  const double inv = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
+  Exec::max_to(n_, [=] GD_HD_LAMBDA(int i) {
     if (V.fixed[i]) return 0.0;
     const Real len = detail::load3(dx, i).norm();
     if (len == 0) return 0.0;
@@ -49,28 +73,25 @@ double Solver<Exec>::collider_step_bound() {
       }
     }
     return worst;
-  }, Exec::kParallelMinHeavy);
-  return inv > 1.0 ? 1.0 / inv : 1.0;
+  }, out, Exec::kParallelMinHeavy);
 }
 
 /// Largest step fraction keeping every free vertex at least 10% of its distance above the
 /// table (continuous collision detection against a plane is exact and cheap).
 template <class Exec>
-double Solver<Exec>::table_ccd_bound() {
-  if (!P_.table) return 1.0;
+void Solver<Exec>::table_ccd_inverse_to(double* out) {
   const detail::View V = view();
   const detail::Params P = P_;
   const double* x = Exec::ptr(x_);
   const double* dx = Exec::ptr(dx_);
   // max over vertices of the inverse admissible fraction
-  const double inv = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
+  Exec::max_to(n_, [=] GD_HD_LAMBDA(int i) {
     if (V.fixed[i]) return 0.0;
     const Real d = P.table_n.dot(detail::load3(x, i)) - P.table_offset;
     const Real dn = P.table_n.dot(detail::load3(dx, i));
     if (dn >= 0) return 0.0;
     return -dn / (0.9 * d);
-  });
-  return inv > 1.0 ? 1.0 / inv : 1.0;
+  }, out);
 }
 
 /// Largest fraction of dx along which no candidate pair closes more than 90% of its gap above
@@ -80,13 +101,12 @@ double Solver<Exec>::table_ccd_bound() {
 /// read the touching edges as crossing, and the untangling fail-safe made real crossings of them.
 /// A pair within twice the floor may close to about half its distance (ccd_floor_offset).
 template <class Exec>
-double Solver<Exec>::self_ccd_bound() {
-  if (!self_ || cand_.n == 0) return 1.0;
+void Solver<Exec>::self_ccd_inverse_to(double* out) {
   const detail::View V = view();
   const double* x = Exec::ptr(x_);
   const double* dx = Exec::ptr(dx_);
   const Real ccd_floor = P_.ccd_floor;
-  const double inv = Exec::max(V.cand.n, [=] GD_HD_LAMBDA(int c) {
+  Exec::max_to(V.cand.n, [=] GD_HD_LAMBDA(int c) {
     const int* v = V.cand.v + 4 * c;
     const Vec3 a = detail::load3(x, v[0]), b = detail::load3(x, v[1]), q = detail::load3(x, v[2]),
                d = detail::load3(x, v[3]);
@@ -97,8 +117,7 @@ double Solver<Exec>::self_ccd_bound() {
             ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor)
             : edge_edge_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor);
     return alpha >= 1.0 ? 0.0 : (alpha > 1e-12 ? 1.0 / alpha : 1e12);
-  }, Exec::kParallelMinHeavy);
-  return inv > 1.0 ? 1.0 / inv : 1.0;
+  }, out, Exec::kParallelMinHeavy);
 }
 
 /// The step's length along dx: the per-vertex table cut where it applies (table_cut_step), else
@@ -141,8 +160,9 @@ double Solver<Exec>::table_cut_step(double alpha_max, double e0, int* evals) {
     const Real dn = P.table_n.dot(di);
     if (dn < 0 && -dn > 0.9 * d) detail::store3(dx, i, Vec3(di - (dn + 0.9 * d) * P.table_n));
   });
-  const double alpha = std::min({1.0, self_ccd_bound(), collider_step_bound()});
-  const double slope = dot(g_, dx_);
+  const CcdBounds b = ccd_bounds(false, true, true, true);  // with g·dx
+  const double alpha = std::min({1.0, b.self, b.collider});
+  const double slope = host_red_[kRedSlope];
   if (alpha >= 2 * table_bound && slope < 0) {
     copy(x_, x_trial_);
     axpy(alpha, dx_, x_trial_);
@@ -164,12 +184,14 @@ double Solver<Exec>::table_cut_step(double alpha_max, double e0, int* evals) {
 template <class Exec>
 double Solver<Exec>::line_search(double alpha_max, double e0, int* evals) {
   last_trial_alpha_ = -1;
-  const double slope = dot(g_, dx_);
+  dot_to(g_, dx_, Exec::ptr(red_) + kRedSlope, Exec::kParallelMin);  // g·dx, read back with the first trial's energy
+  double slope = 0;
   double alpha = alpha_max;
   for (int k = 0; k < 20; ++k) {
     copy(x_, x_trial_);
     axpy(alpha, dx_, x_trial_);
     const double e = evaluate(x_trial_, g_trial_, false);
+    if (k == 0) slope = host_red_[kRedSlope];
     ++*evals;
     if (std::isfinite(e) && e <= e0 + 1e-4 * alpha * std::min(slope, 0.0)) {
       last_trial_alpha_ = alpha;

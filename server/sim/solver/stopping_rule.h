@@ -99,12 +99,18 @@ void Solver<Exec>::update_free_mass() {
 /// vertices, m/s.
 template <class Exec>
 double Solver<Exec>::rms_velocity(const Vec<double>& d) {
+  rms_velocity_to(d, Exec::ptr(red_) + kRedDxMass);
+  return rms_of_sum(Exec::read(red_, kRedDxMass));
+}
+
+/// rms_velocity's sum |d|²_M into *out (the backend's memory); rms_of_sum makes it the velocity.
+template <class Exec>
+void Solver<Exec>::rms_velocity_to(const Vec<double>& d, double* out) {
   const detail::View V = view();
   const double* p = Exec::ptr(d);
-  const double num = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+  Exec::sum_to(n_, [=] GD_HD_LAMBDA(int i) {
     return V.fixed[i] ? 0.0 : V.mass[i] * detail::load3(p, i).squaredNorm();
-  });
-  return std::sqrt(num / free_mass()) / P_.h;
+  }, out);
 }
 
 }  // namespace gd::sim

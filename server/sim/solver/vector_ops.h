@@ -20,6 +20,13 @@ double Solver<Exec>::max_abs(const Vec<double>& a) {
   return Exec::max(3 * n_, [=] GD_HD_LAMBDA(int k) { return fabs(pa[k]); });
 }
 
+/// max_abs into *out (the backend's memory).
+template <class Exec>
+void Solver<Exec>::max_abs_to(const Vec<double>& a, double* out) {
+  const double* pa = Exec::ptr(a);
+  Exec::max_to(3 * n_, [=] GD_HD_LAMBDA(int k) { return fabs(pa[k]); }, out);
+}
+
 template <class Exec>
 void Solver<Exec>::axpy(double a, const Vec<double>& xs, Vec<double>& ys) {
   const double* x = Exec::ptr(xs);
@@ -34,11 +41,13 @@ void Solver<Exec>::xpby(const Vec<double>& xs, double b, Vec<double>& ys) {
   Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { y[k] = x[k] + b * y[k]; });
 }
 
+/// a·b into *out (the backend's memory); parallel_min as Exec::sum's (it sets the blocks of the
+/// CPU's sum, so dot()'s value is dot_to's with Exec::kParallelMin).
 template <class Exec>
-void Solver<Exec>::dot_to(const Vec<double>& a, const Vec<double>& b, double* out) {
+void Solver<Exec>::dot_to(const Vec<double>& a, const Vec<double>& b, double* out, int parallel_min) {
   const double* pa = Exec::ptr(a);
   const double* pb = Exec::ptr(b);
-  Exec::sum_to(3 * n_, [=] GD_HD_LAMBDA(int k) { return pa[k] * pb[k]; }, out, Exec::kParallelMinVector);
+  Exec::sum_to(3 * n_, [=] GD_HD_LAMBDA(int k) { return pa[k] * pb[k]; }, out, parallel_min);
 }
 
 template <class Exec>

@@ -180,6 +180,11 @@ struct CpuExec {
     for (int i = 0; i < n; ++i) m = std::max(m, f(i));
     return m;
   }
+  /// max() into *out, the backend's memory: no value returns to the host.
+  template <class F>
+  static void max_to(int n, const F& f, double* out, int parallel_min = kParallelMin) {
+    *out = CpuExec::max(n, f, parallel_min);
+  }
 
   /// Add into memory owned by the current element's colour (exclusive by construction).
   static inline void add(double* p, double v) { *p += v; }

@@ -216,16 +216,27 @@ struct CudaExec {
     return read_back(out);
   }
 
-  /// Maximum of f(i) over [0, n), at least 0 (the solver's maxima are of non-negative values).
+  /// Maximum of f(i) over [0, n), at least 0 (the solver's maxima are of non-negative values),
+  /// into *out, device memory: a CUB reduction queued on this thread's stream, nothing read back.
+  template <class F>
+  static void max_to(int n, const F& f, double* out, int /*parallel_min*/ = 0) {
+    if (n <= 0) {
+      check(cudaMemsetAsync(out, 0, sizeof(double)), "cudaMemsetAsync");
+      return;
+    }
+    auto in = thrust::make_transform_iterator(thrust::counting_iterator<int>(0), f);
+    size_t bytes = 0;
+    check(cub::DeviceReduce::Reduce(nullptr, bytes, in, out, n, thrust::maximum<double>(), 0.0), "reduction (size)");
+    check(cub::DeviceReduce::Reduce(scratch(0, bytes), bytes, in, out, n, thrust::maximum<double>(), 0.0), "reduction");
+  }
+
+  /// max_to, read back.
   template <class F>
   static double max(int n, const F& f, int /*parallel_min*/ = 0) {
     if (n <= 0) return 0.0;
     ++host_round_trips().reductions;
-    auto in = thrust::make_transform_iterator(thrust::counting_iterator<int>(0), f);
     double* out = static_cast<double*>(scratch(2, sizeof(double)));
-    size_t bytes = 0;
-    check(cub::DeviceReduce::Reduce(nullptr, bytes, in, out, n, thrust::maximum<double>(), 0.0), "reduction (size)");
-    check(cub::DeviceReduce::Reduce(scratch(0, bytes), bytes, in, out, n, thrust::maximum<double>(), 0.0), "reduction");
+    max_to(n, f, out);
     return read_back(out);
   }
 
