@@ -289,6 +289,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     double box[5];
     Exec::download_to(box, box_);
     const int free_count = static_cast<int>(box[0]);
+    free_count_ = free_count;
     const double c0 = box[1], c1 = box[2], c2 = box[3], radius = box[4];
     const double inv = radius > 0 ? 0.5 / radius : 0.0;
     const double l0 = c0 - radius, l1 = c1 - radius, l2 = c2 - radius;
@@ -432,7 +433,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     t.domains = (next_nodes + B - 1) / B;
     ensure(t.node_of, n_);
     ensure(t.offsets, next_nodes + 1);
-    const int total = L.nodes > 0 ? Exec::read(s.offsets, L.nodes) : 0;  // level l's vertices
+    const int total = L.nodes > 0 ? free_count_ : 0;  // level l's vertices: every level holds level 0's
     ensure(t.members, std::max(total, 1));
     int* node_of = Exec::ptr(t.node_of);
     int* offsets = Exec::ptr(t.offsets);
@@ -721,6 +722,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
   int levels_ = 0;
   Vec<uint64_t> keys_;
   Vec<double> box_;  ///< order_vertices: free vertex count, centroid, radius
+  int free_count_ = 0;  ///< level 0's nodes (order_vertices): every level's vertices
   Vec<int> xref_;    ///< per free vertex, at cross_offset: its cross entries (filter_cross)
   Vec<int> xcount_;  ///< per vertex: how many
   LevelStore store_[kMaxLevels];
