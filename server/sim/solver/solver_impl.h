@@ -318,7 +318,6 @@ class Solver final : public SolverBase {
 
   // Vector operations over 3n values (vector_ops.h)
   double dot(const Vec<double>& a, const Vec<double>& b);
-  double max_abs(const Vec<double>& a);
   void max_abs_to(const Vec<double>& a, double* out);
   /// |dx_|²_M and max |dx_| into their slots of red_, read back together (host_red_).
   const double* dx_norms() {

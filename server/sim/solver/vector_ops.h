@@ -14,13 +14,7 @@ double Solver<Exec>::dot(const Vec<double>& a, const Vec<double>& b) {
   return Exec::sum(3 * n_, [=] GD_HD_LAMBDA(int k) { return pa[k] * pb[k]; });
 }
 
-template <class Exec>
-double Solver<Exec>::max_abs(const Vec<double>& a) {
-  const double* pa = Exec::ptr(a);
-  return Exec::max(3 * n_, [=] GD_HD_LAMBDA(int k) { return fabs(pa[k]); });
-}
-
-/// max_abs into *out (the backend's memory).
+/// max |a_k| into *out (the backend's memory).
 template <class Exec>
 void Solver<Exec>::max_abs_to(const Vec<double>& a, double* out) {
   const double* pa = Exec::ptr(a);
