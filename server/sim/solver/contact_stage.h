@@ -1,7 +1,8 @@
 #pragma once
 /// \file
-/// The self-contact stage: active and candidate pair lists on the backend, lagged friction,
-/// adaptive barrier stiffness, the intersection count and the untangling fail-safe.
+/// The self-contact stage: the broad phase's candidates along each motion (SelfContact, on the
+/// host) handed to the backend, where the active pairs are selected (active_set.h); adaptive
+/// barrier stiffness, the intersection count and the untangling fail-safe.
 /// Member functions of Solver<Exec> (solver_impl.h), written once for every backend.
 
 #include "sim/solver/solver_impl.h"
@@ -12,14 +13,9 @@ namespace gd::sim {
 template <class Exec>
 void Solver<Exec>::select_contacts() {
   if (!self_) return;
-  Exec::download(host_x_, x_);
-  self_->select_active(host_x_, kin_fixed_host_);
-  stiffen_pressed_pairs();  // before the pairs go to the backend
-  const ContactPairs& a = self_->active();
-  act_.upload(a);
+  stiffen_pressed_pairs(select_active(x_, x_gen_));  // active_set.h
   Exec::resize_for_overwrite(act_H_, kPairBlockValues * static_cast<size_t>(act_.n));
   Exec::resize_for_overwrite(act_gd_, 48 * static_cast<size_t>(act_.n));
-  upload_candidates();  // select_active drops pairs already at zero distance
 }
 
 /// Candidates along the Newton step x -> x + dx (for CCD and the line search). A step whose
@@ -37,27 +33,9 @@ bool Solver<Exec>::find_contacts_along_step() {
     for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] -= host_x_[k];
     Exec::upload(dx_, host_dx_);
   }
-  self_->select_active(host_x_, kin_fixed_host_);
-  upload_candidates();
+  take_candidates();
+  select_active(x_, x_gen_);  // drops the candidates with no free vertex or at zero distance
   return true;
-}
-
-template <class Exec>
-void Solver<Exec>::upload_candidates() {
-  const ContactPairs& c = self_->candidates();
-  cand_.upload(c);
-}
-
-template <class Exec>
-void Solver<Exec>::upload_friction() {
-  const FrictionPairs& f = self_->friction();
-  n_fr_ = f.size();
-  Exec::upload(fr_v_, f.v);
-  Exec::upload(fr_w_, f.w);
-  Exec::upload(fr_T_, f.T);
-  Exec::upload(fr_lambda_, f.lambda);
-  Exec::resize_for_overwrite(fr_H_, kPairBlockValues * static_cast<size_t>(n_fr_));
-  Exec::resize_for_overwrite(fr_gd_, 48 * static_cast<size_t>(n_fr_));
 }
 
 /// IPC-style adaptive stiffness of the self-contact barrier: it starts so that a vertex's
@@ -85,11 +63,10 @@ void Solver<Exec>::adapt_barrier_stiffness(double min_distance) {
 /// otherwise squeeze the pair towards the floor, where CCD lets it close by half per iteration,
 /// until rounding decides the exact intersection test. Doubling per iteration rather than per
 /// step lifts the equilibrium gap (kappa dhat^2 / force) before the pair gets there.
-/// host_x_ holds the iterate.
+/// closest: the closest active pair at the iterate.
 template <class Exec>
-void Solver<Exec>::stiffen_pressed_pairs() {
-  if (kappa_scale_ >= kKappaScaleMax) return;  // skip the distance pass when capped
-  if (self_->min_active_distance(host_x_) < kPressedGapFloors * P_.ccd_floor) scale_barrier_stiffness(2);
+void Solver<Exec>::stiffen_pressed_pairs(double closest) {
+  if (kappa_scale_ < kKappaScaleMax && closest < kPressedGapFloors * P_.ccd_floor) scale_barrier_stiffness(2);
 }
 
 /// Multiplies the self-contact barrier stiffness by `factor`, kept within [1, kKappaScaleMax];
@@ -98,21 +75,24 @@ template <class Exec>
 void Solver<Exec>::scale_barrier_stiffness(double factor) {
   const double scale = std::clamp(kappa_scale_ * factor, 1.0, kKappaScaleMax);
   if (scale == kappa_scale_) return;
+  scale_pair_stiffness(scale / kappa_scale_);  // SelfContact::set_kappa_scale's factor
   kappa_scale_ = scale;
   self_->set_kappa_scale(kappa_scale_);
 }
 
-/// Exact count of intersecting triangle pairs after the step (host_x_ holds the positions);
-/// the untangling fail-safe runs when there are any.
+/// Exact count of intersecting triangle pairs after the step (on the host); the untangling
+/// fail-safe runs when there are any.
 template <class Exec>
 void Solver<Exec>::check_intersections(StepStats* st) {
   if (!self_ || !opt_.check_intersections) return;
+  Exec::download(host_x_, x_);
   timed(st->stage.intersections, [&] { st->intersecting_pairs = self_->count_intersections(host_x_); });
   st->intersecting_found = st->intersecting_pairs;
   if (st->intersecting_pairs > 0 && opt_.untangle) {
     st->untangled = true;
     timed(st->stage.untangle, [&] { st->intersecting_pairs = self_->untangle(&host_x_, kin_fixed_host_); });
     Exec::upload(x_, host_x_);
+    moved_x();
   }
 }
 
@@ -179,10 +159,7 @@ std::string Solver<Exec>::infinite_terms() {
     });
     if (below > 0) out += fmt::format("{} vertices at or below the table; ", below);
   }
-  if (self_) {
-    Exec::download(host_x_, x_);
-    out += fmt::format("closest self-contact pair {:.3g} m", self_->min_active_distance(host_x_));
-  }
+  if (self_) out += fmt::format("closest self-contact pair {:.3g} m", min_active_distance(x_, x_gen_));
   return out.empty() ? "no barrier (a non-finite position or element)" : out;
 }
 

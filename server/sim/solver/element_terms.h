@@ -61,7 +61,23 @@ struct PairView {
   const int* type = nullptr;
   const double* kappa = nullptr;
   const double* eps = nullptr;
+  const int* raw = nullptr;  ///< per pair: its index in the broad phase's answer (SelfContact::candidate_raw)
 };
+
+/// Writable pointers to a pair list's arrays (a compaction's destination).
+struct PairSlots {
+  int* v;
+  int* type;
+  double* kappa;
+  double* eps;
+  int* raw;
+};
+
+/// Copies pair c of L to slot k of `to`.
+GD_HD void copy_pair(const PairView& L, int c, const PairSlots& to, int k) {
+  for (int a = 0; a < 4; ++a) to.v[4 * k + a] = L.v[4 * c + a];
+  to.type[k] = L.type[c], to.kappa[k] = L.kappa[c], to.eps[k] = L.eps[c], to.raw[k] = L.raw[c];
+}
 
 /// Raw pointers into the backend's arrays (host or device), copied into kernels.
 struct View {
@@ -108,6 +124,16 @@ GD_HD Real pair_barrier(const Params& P, const PairView& L, int c, const double*
   return L.type[c] == 0
              ? vf_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], g, H, P.contact_hessian, dist2)
              : ee_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], L.eps[c], g, H, P.contact_hessian, dist2);
+}
+
+/// Distance of pair c of a list at x, m: sqrt of the closest-feature squared distance (as
+/// pair_barrier's dist2), clamped at 0; NaN stays NaN.
+GD_HD double pair_distance(const PairView& L, int c, const double* x) {
+  const int* v = L.v + 4 * c;
+  const Vec3 a = load3(x, v[0]), b = load3(x, v[1]), q = load3(x, v[2]), d = load3(x, v[3]);
+  const double d2 = L.type[c] == 0 ? point_triangle_distance2(a, b, q, d, nullptr, nullptr)
+                                   : edge_edge_distance2(a, b, q, d, nullptr, nullptr);
+  return sqrt(d2 < 0.0 ? 0.0 : d2);  // std::max(d2, 0.0)'s NaN: kept
 }
 
 /// Lagged cloth-cloth friction of friction pair k.

@@ -54,22 +54,29 @@ void Solver<Exec>::merge_pair_blocks() {
   if constexpr (!Exec::kHostMerge) {
     if (backend_merge_fits()) return merge_pair_blocks_on_backend();  // coupling_merge.h
   }
-  const ContactPairs& act = self_->active();
-  const FrictionPairs& fr = self_->friction();
+  const int* VA = nullptr;
+  const int* VF = nullptr;
   const double* HA = nullptr;
   const double* HF = nullptr;
   if constexpr (Exec::kHostMemory) {
+    VA = act_.v.data();
+    VF = fr_v_.data();
     HA = act_H_.data();
     HF = fr_H_.data();
   } else {
+    Exec::download(host_act_v_, act_.v);
+    Exec::download(host_fr_v_, fr_v_);
     Exec::download(host_act_H_, act_H_);
     Exec::download(host_fr_H_, fr_H_);
+    VA = host_act_v_.data();
+    VF = host_fr_v_.data();
     HA = host_act_H_.data();
     HF = host_fr_H_.data();
   }
-  gd::sim::merge_pair_blocks(n_, kin_fixed_host_.data(),
-                             {PairHessians{act.size(), act.v.data(), HA}, PairHessians{fr.size(), fr.v.data(), HF}},
-                             &cpl_h_);
+  std::vector<PairHessians> lists(2);
+  lists[0].count = act_.n, lists[0].v = VA, lists[0].H = HA;
+  lists[1].count = n_fr_, lists[1].v = VF, lists[1].H = HF;
+  gd::sim::merge_pair_blocks(n_, kin_fixed_host_.data(), lists, &cpl_h_);
   Exec::take(cpl_row_ptr_, cpl_h_.row_ptr);
   Exec::take(cpl_cols_, cpl_h_.cols);
   Exec::take(cpl_vals_, cpl_h_.vals);
@@ -213,8 +220,8 @@ int Solver<Exec>::solve_direct() {
       }
     }
     if (self_) {
-      auto add_pairs = [&](const std::vector<int>& vs, const Vec<double>& Hs) {
-        for (size_t c = 0; c < vs.size() / 4; ++c)
+      auto add_pairs = [&](const Vec<int>& vs, int count, const Vec<double>& Hs) {
+        for (int c = 0; c < count; ++c)
           for (int a = 0; a < 4; ++a)
             for (int b = a + 1; b < 4; ++b)
               for (int r = 0; r < 3; ++r)
@@ -225,8 +232,8 @@ int Solver<Exec>::solve_direct() {
                   trip.emplace_back(3 * vs[4 * c + b] + k, 3 * vs[4 * c + a] + r, h);
                 }
       };
-      add_pairs(self_->active().v, act_H_);
-      add_pairs(self_->friction().v, fr_H_);
+      add_pairs(act_.v, act_.n, act_H_);
+      add_pairs(fr_v_, n_fr_, fr_H_);
     }
     Eigen::SparseMatrix<double> A(3 * n_, 3 * n_);
     A.setFromTriplets(trip.begin(), trip.end());

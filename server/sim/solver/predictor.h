@@ -54,6 +54,8 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
   if (quasi_static) Exec::fill(v_, 0.0);
   copy(x_, x_t_);
   copy(v_, v_t_);
+  xt_gen_ = x_gen_;  // x_t_ holds what x_ held
+  moved_x();         // x_ gets the predictor below
   if (P_.beta_bend > 0) {  // the damping's lagged angle gradient
     const detail::View V0 = view();
     double* grad_t = Exec::ptr(hinge_grad_t_);
@@ -99,10 +101,9 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     Exec::download(host_xt_, x_t_);
     Exec::download(host_x_, x_);
     self_->find_within_budget(host_xt_, &host_x_);  // a motion that would flood it is halved: dx below
-    self_->select_active(host_xt_, kin_fixed_host_);
-    self_->build_friction(host_xt_);
-    upload_friction();
-    upload_candidates();
+    take_candidates();
+    select_active(x_t_, xt_gen_);   // the contacts at x_t (active_set.h) ...
+    build_friction(x_t_, xt_gen_);  // ... lag the friction
     for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] = host_x_[k] - host_xt_[k];
     Exec::upload(dx_, host_dx_);
     copy(x_t_, x_);
@@ -139,18 +140,12 @@ bool Solver<Exec>::accept_step(double alpha) {
   if (alpha == last_trial_alpha_) {
     std::swap(x_, x_trial_);
     std::swap(g_, g_trial_);
-    if (self_ && cand_.n > 0) {
-      Exec::download(host_x_, x_);
-      if constexpr (Exec::kHostMemory) {
-        self_->set_candidate_distances(host_x_, Exec::ptr(cand_d2_));
-      } else {
-        Exec::download(host_d2_, cand_d2_);
-        self_->set_candidate_distances(host_x_, host_d2_.data());
-      }
-    }
+    moved_x();
+    if (self_ && cand_.n > 0) store_candidate_distances(x_gen_);  // active_set.h
     return true;
   }
   axpy(alpha, dx_, x_);
+  moved_x();
   return false;
 }
 

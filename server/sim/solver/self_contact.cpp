@@ -6,9 +6,6 @@
 #include <limits>
 
 #include "sim/backend/cpu/omp_threads.h"
-#include "sim/contact/barrier.h"
-#include "sim/contact/distance.h"
-#include "sim/contact/friction.h"
 #include "sim/contact/tri_tri_intersect.h"
 #include "sim/contact/untangle.h"
 #include "sim/demand.h"
@@ -17,17 +14,10 @@
 namespace gd::sim {
 namespace {
 
-/// Pair loops shorter than this stay on the calling thread (a pair distance is ~0.1 us).
+/// Pair loops shorter than this stay on the calling thread.
 constexpr int kParallelPairs = 1024;
 
 Vec3 at(const std::vector<double>& x, int i) { return Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]); }
-
-/// Distance of a pair (VF or EE) at positions x.
-double pair_distance(const std::vector<double>& x, const int* v, int type) {
-  const double d2 = type == 0 ? point_triangle_distance2(at(x, v[0]), at(x, v[1]), at(x, v[2]), at(x, v[3]), nullptr, nullptr)
-                              : edge_edge_distance2(at(x, v[0]), at(x, v[1]), at(x, v[2]), at(x, v[3]), nullptr, nullptr);
-  return std::sqrt(std::max(d2, 0.0));
-}
 
 }  // namespace
 
@@ -111,9 +101,7 @@ bool SelfContact::find(const std::vector<double>& x0, const std::vector<double>&
     const bool fits = bp_->find(x0, x1, dhat_ + slack_, &raw_, max_pairs);
     bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ++queries_;
-    raw_stamp_.assign(raw_.vf.size() + raw_.ee.size(), -1);  // new pairs: no distance known
-    raw_dist_.resize(raw_stamp_.size());
-    active_raw_.assign(active_.size(), -1);  // the active pairs' raw indices are the old query's
+    ++pair_queries_;  // new raw indices
     if (!fits) {  // no candidates, and nothing for a later motion to reuse
       query_lo_.clear(), query_hi_.clear();
       cand_.clear(), cand_raw_.clear();
@@ -214,116 +202,10 @@ int SelfContact::find_within_budget(const std::vector<double>& x0, std::vector<d
   return halvings;
 }
 
-void SelfContact::set_candidate_distances(const std::vector<double>& x, const double* dist2) {
-  if (x != dist_x_) dist_x_ = x, ++dist_gen_;
-  const int n = cand_.size();
-  for (int c = 0; c < n; ++c) {
-    if (dist2[c] < 0) continue;  // not measured (NaN is: pair_distance gives NaN for it too)
-    const int r = cand_raw_[c];
-    raw_dist_[r] = std::sqrt(std::max(dist2[c], 0.0));  // pair_distance's arithmetic
-    raw_stamp_[r] = dist_gen_;
-  }
-}
-
-double SelfContact::active_distance(const std::vector<double>& x, bool known, int c) const {
-  const int r = active_raw_[c];
-  if (known && r >= 0 && raw_stamp_[r] == dist_gen_) return raw_dist_[r];
-  return pair_distance(x, &active_.v[4 * c], active_.type[c]);
-}
-
-void SelfContact::select_active(const std::vector<double>& x, const std::vector<int>& fixed) {
-  active_.clear();
-  active_raw_.clear();
-  dropped_ = 0;
-  if (x != dist_x_) dist_x_ = x, ++dist_gen_;  // distances known so far were measured elsewhere
-  // The distances in parallel (the costly part), then the lists in candidate order.
-  const int n = cand_.size();
-  dist_.resize(n);
-#pragma omp parallel for schedule(static) if (n >= kParallelPairs)
-  for (int c = 0; c < n; ++c) {
-    const int* v = &cand_.v[4 * c];
-    const int r = cand_raw_[c];  // each raw pair is at most one candidate: no two threads share r
-    if (fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]]) {
-      dist_[c] = -1.0;
-    } else if (raw_stamp_[r] == dist_gen_) {
-      dist_[c] = raw_dist_[r];
-    } else if (pair_certainly_beyond(at(x, v[0]), at(x, v[1]), at(x, v[2]), at(x, v[3]), cand_.type[c], dhat_)) {
-      dist_[c] = std::numeric_limits<double>::infinity();  // beyond dhat: a candidate, not active (not measured)
-    } else {
-      dist_[c] = raw_dist_[r] = pair_distance(x, v, cand_.type[c]);
-      raw_stamp_[r] = dist_gen_;
-    }
-  }
-  // The candidates kept are compacted in place (pair c moves to k <= c), in candidate order.
-  int k = 0;
-  for (int c = 0; c < n; ++c) {
-    const int* v = &cand_.v[4 * c];
-    if (fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]]) continue;  // nothing to solve
-    const double dist = dist_[c];
-    if (!(dist > 0)) {
-      ++dropped_;
-      continue;
-    }
-    if (dist < dhat_) {
-      active_.push(v, cand_.type[c], cand_.kappa[c], cand_.eps_x[c]);
-      active_raw_.push_back(cand_raw_[c]);
-    }
-    if (k != c) {
-      std::copy_n(v, 4, &cand_.v[4 * k]);
-      cand_.type[k] = cand_.type[c], cand_.kappa[k] = cand_.kappa[c], cand_.eps_x[k] = cand_.eps_x[c];
-      cand_raw_[k] = cand_raw_[c];
-    }
-    ++k;
-  }
-  cand_.v.resize(4 * static_cast<size_t>(k));
-  cand_.type.resize(k), cand_.kappa.resize(k), cand_.eps_x.resize(k), cand_raw_.resize(k);
-}
-
 void SelfContact::set_kappa_scale(Real s) {
   const Real f = s / kappa_scale_;
   for (double& k : cand_.kappa) k *= f;
-  for (double& k : active_.kappa) k *= f;
   kappa_scale_ = s;
-}
-
-double SelfContact::min_active_distance(const std::vector<double>& x) const {
-  double m = std::numeric_limits<double>::infinity();
-  const int n = active_.size();
-  const bool known = x == dist_x_;
-#pragma omp parallel for schedule(static) reduction(min : m) if (n >= kParallelPairs)
-  for (int c = 0; c < n; ++c) m = std::min(m, active_distance(x, known, c));
-  return m;
-}
-
-void SelfContact::build_friction(const std::vector<double>& x_t) {
-  // Frames in parallel (the costly part), then the list in active-pair order.
-  const int n = active_.size();
-  fr_scratch_.resize(11 * static_cast<size_t>(n));  // per pair: lambda, 4 weights, 6 of T
-  const bool known = x_t == dist_x_;
-#pragma omp parallel for schedule(static) if (n >= kParallelPairs)
-  for (int c = 0; c < n; ++c) {
-    double* o = &fr_scratch_[11 * static_cast<size_t>(c)];
-    const int* v = &active_.v[4 * c];
-    const Vec3 p0 = at(x_t, v[0]), p1 = at(x_t, v[1]), p2 = at(x_t, v[2]), p3 = at(x_t, v[3]);
-    const double dist = active_distance(x_t, known, c);
-    double lambda = contact_normal_force(dist, 0.0, dhat_, active_.kappa[c]);
-    if (active_.type[c] == 1) lambda *= ee_mollifier(p0, p1, p2, p3, active_.eps_x[c], nullptr, nullptr);
-    o[0] = lambda;
-    if (!(lambda > 0) || !std::isfinite(lambda)) continue;
-    const ContactFrictionFrame f =
-        active_.type[c] == 0 ? vf_friction_frame(p0, p1, p2, p3) : ee_friction_frame(p0, p1, p2, p3);
-    for (int k = 0; k < 4; ++k) o[1 + k] = f.w[k];
-    for (int k = 0; k < 6; ++k) o[5 + k] = f.T.data()[k];
-  }
-  friction_.clear();
-  for (int c = 0; c < n; ++c) {
-    const double* o = &fr_scratch_[11 * static_cast<size_t>(c)];
-    if (!(o[0] > 0) || !std::isfinite(o[0])) continue;
-    friction_.v.insert(friction_.v.end(), &active_.v[4 * c], &active_.v[4 * c] + 4);
-    friction_.w.insert(friction_.w.end(), o + 1, o + 5);
-    friction_.T.insert(friction_.T.end(), o + 5, o + 11);
-    friction_.lambda.push_back(o[0]);
-  }
 }
 
 int SelfContact::count_intersections(const std::vector<double>& x) {

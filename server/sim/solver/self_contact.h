@@ -1,8 +1,9 @@
 #pragma once
 /// \file
 /// Host-side bookkeeping of cloth self-contact for one scene: broad phase (behind the
-/// BroadPhase interface), the candidate and active pair lists the backend evaluates, lagged
-/// friction frames, the exact intersection count and the untangling fail-safe.
+/// BroadPhase interface), the candidate pair list the backend evaluates, the exact intersection
+/// count and the untangling fail-safe. The active pairs (closer than dhat), their distances and
+/// the lagged friction frames are the backend's (solver/active_set.h).
 ///
 /// Pairs are flat arrays so a backend can upload them as they are: 4 vertex ids per pair
 /// (VF: point, triangle corners; EE: edge a, edge b), a type (0 VF, 1 EE), the barrier stiffness
@@ -25,16 +26,6 @@ struct ContactPairs {
   int size() const { return static_cast<int>(type.size()); }
   void clear() { v.clear(), type.clear(), kappa.clear(), eps_x.clear(); }
   void push(const int* vs, int t, double k, double e);
-};
-
-/// Lagged friction of active pairs at the start of a step (see contact/friction.h).
-struct FrictionPairs {
-  std::vector<int> v;          ///< 4 per pair
-  std::vector<double> w;       ///< 4 closest-point weights per pair
-  std::vector<double> T;       ///< 3x2 tangent basis per pair, column-major (6)
-  std::vector<double> lambda;  ///< normal force, N
-  int size() const { return static_cast<int>(lambda.size()); }
-  void clear() { v.clear(), w.clear(), T.clear(), lambda.clear(); }
 };
 
 class SelfContact {
@@ -77,20 +68,6 @@ class SelfContact {
   static constexpr std::size_t kMinPairBudget = 100000;
   static constexpr int kMaxFloodHalvings = 10;
   static constexpr int kMaxFloodHalvingsDiverged = 80;
-  /// Active pairs: candidates closer than dhat at x with at least one free vertex. Pairs
-  /// already at zero distance (driven there by kinematic vertices) are dropped from both lists
-  /// and counted: the untangling fail-safe handles them. A pair's distance measured at these
-  /// same positions before (a Newton iterate's contacts, then the candidates along its
-  /// direction) is reused while the broad phase's answer is the same.
-  void select_active(const std::vector<double>& x, const std::vector<int>& fixed);
-  /// Squared distances of the current candidates at x, measured elsewhere (the line search's
-  /// evaluation of its accepted point), one per candidate in candidates() order; a negative value
-  /// means not measured. select_active and min_active_distance at these same positions read them
-  /// instead of measuring again (the same bits: the same distance functions).
-  void set_candidate_distances(const std::vector<double>& x, const double* dist2);
-  /// Lagged friction frames of the active pairs at x_t.
-  void build_friction(const std::vector<double>& x_t);
-
   /// Number of intersecting triangle pairs (exact test over broad-phase candidates; the triangle
   /// query, with margin slack, is reused while every vertex stays within slack/2 of its place
   /// after one common translation).
@@ -98,16 +75,19 @@ class SelfContact {
   /// Runs the untangling fail-safe on x (free vertices only); returns pairs left.
   int untangle(std::vector<double>* x, const std::vector<int>& fixed);
 
-  /// Sets the multiplier of the barrier stiffness (adaptive stiffness): the current candidate and
-  /// active pairs are rescaled at once, pairs found later get it too.
+  /// Sets the multiplier of the barrier stiffness (adaptive stiffness): the current candidates
+  /// are rescaled at once, pairs found later get it too.
   void set_kappa_scale(Real s);
-  /// Smallest distance over the active pairs at x (infinity when none).
-  double min_active_distance(const std::vector<double>& x) const;
 
+  /// The candidates of the last find(), in the query's order (VF pairs, then EE pairs).
   const ContactPairs& candidates() const { return cand_; }
-  const ContactPairs& active() const { return active_; }
-  const FrictionPairs& friction() const { return friction_; }
-  int dropped() const { return dropped_; }
+  /// Per candidate: its index among the query's pairs (VF pairs, then EE pairs; below
+  /// raw_pairs()). A pair keeps its index while find() reuses the query (pair_queries() unchanged).
+  const std::vector<int>& candidate_raw() const { return cand_raw_; }
+  /// Pairs the last query reported (VF and EE).
+  int raw_pairs() const { return static_cast<int>(raw_.vf.size() + raw_.ee.size()); }
+  /// Queries find() has run: when it changes, raw indices refer to a new answer.
+  long pair_queries() const { return pair_queries_; }
   double broad_phase_seconds() const { return bp_seconds_; }
   /// Broad-phase queries run, and find() calls answered from the last query's candidates.
   long broad_phase_queries() const { return queries_; }
@@ -134,22 +114,10 @@ class SelfContact {
   std::vector<unsigned char> keep_;            ///< per raw pair: its boxes of this motion overlap
   std::vector<Eigen::Vector2i> tri_raw_;  ///< count_intersections' triangle pairs (margin slack)
   std::vector<double> tri_query_x_;       ///< positions of that query
-  ContactPairs cand_, active_;
+  ContactPairs cand_;
   std::vector<int> cand_raw_;  ///< per candidate: its index in raw_ (vf pairs, then ee pairs)
-  std::vector<int> active_raw_;  ///< per active pair: its index in raw_ (-1 after a new query)
-  /// Distance of active pair c at x: the one known when `known` (x is dist_x_) and measured,
-  /// else measured now.
-  double active_distance(const std::vector<double>& x, bool known, int c) const;
-  std::vector<double> dist_;  ///< select_active's per-candidate distances
-  std::vector<double> raw_dist_;  ///< per raw pair: its distance at dist_x_ when raw_stamp_ == dist_gen_
-  std::vector<int> raw_stamp_;
-  std::vector<double> dist_x_;  ///< the positions of the distances known (select_active, set_candidate_distances)
-  int dist_gen_ = 0;            ///< bumped when those positions change
-  FrictionPairs friction_;
-  std::vector<double> fr_scratch_;  ///< build_friction's per-pair results
-  int dropped_ = 0;
   double bp_seconds_ = 0;
-  long queries_ = 0, reuses_ = 0, halvings_ = 0;
+  long queries_ = 0, reuses_ = 0, halvings_ = 0, pair_queries_ = 0;
   std::size_t budget_;
 };
 

@@ -12,8 +12,8 @@
 ///
 /// This file holds the class, its constructor, the step driver (the table of contents) and the
 /// SolverBase interface; the per-element terms are in element_terms.h and each stage's member
-/// functions in a file of its own (predictor.h, contact_stage.h, stopping_rule.h, assembly.h,
-/// linear_solve.h, step_bounds.h, vector_ops.h, diagnostics.h), included at the end.
+/// functions in a file of its own (predictor.h, contact_stage.h, active_set.h, stopping_rule.h,
+/// assembly.h, linear_solve.h, step_bounds.h, vector_ops.h, diagnostics.h), included at the end.
 
 #include <Eigen/SparseCholesky>
 #include <algorithm>
@@ -168,15 +168,14 @@ class Solver final : public SolverBase {
       }
     }
     end_step();                                                     // v = (x - x_t)/h
-    if (self_) Exec::download(host_x_, x_);                         // host copy for the two checks below
-    if (self_) st.min_self_distance = self_->min_active_distance(host_x_);
+    if (self_) st.min_self_distance = min_active_distance(x_, x_gen_);  // closest active pair
     st.max_grip_force = max_grip_force();
     adapt_barrier_stiffness(st.min_self_distance);                  // stiffer barriers if gaps got tiny
     st.barrier_scale = kappa_scale_;
     check_intersections(&st);                                       // exact count; untangle if any (fail-safe)
     if (self_) {
-      st.contacts = self_->active().size();
-      st.candidates = self_->candidates().size();
+      st.contacts = act_.n;
+      st.candidates = cand_.n;
       st.broad_phase_seconds = self_->broad_phase_seconds() - bp_seconds_at_start;
       st.broad_phase_queries = static_cast<int>(self_->broad_phase_queries() - bp_queries_at_start);
       st.flood_halvings = static_cast<int>(self_->flood_halvings() - halvings_at_start);
@@ -191,6 +190,7 @@ class Solver final : public SolverBase {
   void set_state(const std::vector<double>& x, const std::vector<double>& v) override {
     Exec::upload(x_, x);
     Exec::upload(v_, v);
+    moved_x();
   }
 
   void set_external_forces(const std::vector<double>& f) override { Exec::upload(f_ext_, f); }
@@ -242,13 +242,32 @@ class Solver final : public SolverBase {
   // Self-contact pair lists, barrier stiffness, intersection check (contact_stage.h)
   void select_contacts();
   bool find_contacts_along_step();
-  void upload_candidates();
-  void upload_friction();
   void adapt_barrier_stiffness(double min_distance);
-  void stiffen_pressed_pairs();
+  void stiffen_pressed_pairs(double closest);
   void scale_barrier_stiffness(double factor);
   void check_intersections(StepStats* st);
   double max_grip_force();
+
+  // The active pairs, their distances and friction frames on the backend (active_set.h)
+  void take_candidates();
+  double select_active(const Vec<double>& xs, int gen);
+  double min_active_distance(const Vec<double>& xs, int gen);
+  void build_friction(const Vec<double>& xs, int gen);
+  void store_candidate_distances(int gen);
+  void scale_pair_stiffness(double factor);
+  /// The backend's lists on the host (tests and diagnostics).
+  struct FrictionPairs {
+    std::vector<int> v;                 ///< 4 per pair
+    std::vector<double> w, T, lambda;  ///< 4 weights, the 3x2 tangent basis (column-major), the normal force
+  };
+  ContactPairs active_pairs() const { return act_.to_host(); }
+  ContactPairs candidate_pairs() const { return cand_.to_host(); }
+  FrictionPairs friction_pairs() const;
+  /// The closest active pair at x_, m (infinity when none).
+  double closest_active_pair() { return min_active_distance(x_, x_gen_); }
+  /// Generation of x_'s contents: bumped whenever x_ changes (pair distances are kept per
+  /// generation, active_set.h).
+  int x_generation() const { return x_gen_; }
 
   // Newton stopping rule (stopping_rule.h)
   bool converged(StepStats* st, int k, bool gradient_known, double scale, double last_taken);
@@ -480,23 +499,63 @@ class Solver final : public SolverBase {
   Vec<Eigen::Vector3i> col_tris_;
   Vec<double> col_pose_, col_mu_, col_kappa_;
   std::vector<double> host_x_, host_xt_, host_dx_;
-  /// A pair list on the backend (candidates for the line search and CCD, active pairs for the Hessian).
+  /// A pair list on the backend (candidates for the line search and CCD, active pairs for the
+  /// Hessian), with each pair's index in the broad phase's answer (raw).
   struct DevicePairs {
     int n = 0;
-    Vec<int> v, type;
+    Vec<int> v, type, raw;
     Vec<double> kappa, eps;
-    void upload(const ContactPairs& p) {
+    void upload(const ContactPairs& p, const std::vector<int>& raw_index) {
       n = p.size();
       Exec::upload(v, p.v);
       Exec::upload(type, p.type);
       Exec::upload(kappa, p.kappa);
       Exec::upload(eps, p.eps_x);
+      Exec::upload(raw, raw_index);
+    }
+    /// Room for `count` pairs whose values the caller writes.
+    void resize_for_overwrite(int count) {
+      n = count;
+      Exec::resize_for_overwrite(v, 4 * static_cast<size_t>(count));
+      Exec::resize_for_overwrite(type, static_cast<size_t>(count));
+      Exec::resize_for_overwrite(raw, static_cast<size_t>(count));
+      Exec::resize_for_overwrite(kappa, static_cast<size_t>(count));
+      Exec::resize_for_overwrite(eps, static_cast<size_t>(count));
+    }
+    void swap(DevicePairs& o) {
+      std::swap(n, o.n);
+      v.swap(o.v), type.swap(o.type), raw.swap(o.raw), kappa.swap(o.kappa), eps.swap(o.eps);
     }
     detail::PairView view() const {
-      return {n, Exec::ptr(v), Exec::ptr(type), Exec::ptr(kappa), Exec::ptr(eps)};
+      return {n, Exec::ptr(v), Exec::ptr(type), Exec::ptr(kappa), Exec::ptr(eps), Exec::ptr(raw)};
+    }
+    /// Writable pointers (select_active's compaction).
+    detail::PairSlots slots() {
+      return {Exec::ptr(v), Exec::ptr(type), Exec::ptr(kappa), Exec::ptr(eps), Exec::ptr(raw)};
+    }
+    ContactPairs to_host() const {
+      ContactPairs p;
+      if (n == 0) return p;
+      Exec::download(p.v, v), Exec::download(p.type, type), Exec::download(p.kappa, kappa), Exec::download(p.eps_x, eps);
+      return p;
     }
   };
   DevicePairs cand_, act_;
+  DevicePairs cand_next_;  ///< select_active's compacted candidates, swapped into cand_
+  /// select_active's per-candidate distance and positions in the compacted lists (flags, then
+  /// their exclusive scans); build_friction's per-active-pair results (11 values) and positions.
+  Vec<double> pair_d_, fr_scratch_;
+  Vec<int> keep_pos_, act_pos_, fr_pos_;
+  /// Per pair of the broad phase's answer: its distance at positions of generation raw_stamp_
+  /// (-1: none). Reset when the answer changes (a new query, SelfContact::pair_queries()).
+  Vec<double> raw_dist_;
+  Vec<int> raw_stamp_;
+  long raw_query_ = -1;         ///< the query raw_dist_ belongs to
+  bool act_raw_known_ = false;  ///< act_'s raw indices are the current answer's
+  /// Generations of x_'s and x_t_'s contents (x_generation()); gen_counter_ the last one given.
+  int x_gen_ = 0, xt_gen_ = 0, gen_counter_ = 0;
+  void moved_x() { x_gen_ = ++gen_counter_; }
+  std::vector<int> host_act_v_, host_fr_v_;  ///< merge_pair_blocks on the host for a GPU policy
   int n_fr_ = 0;
   Vec<int> fr_v_;
   Vec<double> act_H_, fr_w_, fr_T_, fr_lambda_, fr_H_;
@@ -529,7 +588,8 @@ class Solver final : public SolverBase {
   std::vector<double> host_red_;
   static constexpr int kRedVertex = 0, kRedTriangles = 1, kRedHinges = 2, kRedPairs = 3, kRedFriction = 4,
                        kRedTable = 5, kRedSelf = 6, kRedCollider = 7, kRedSlope = 8, kRedDxMass = 9, kRedDxMax = 10,
-                       kReductions = 11;
+                       kRedCandidates = 11, kRedActive = 12, kRedClosest = 13, kRedFrictionPairs = 14,
+                       kReductions = 15;
   /// The slots of red_, on the host (one copy from the backend).
   const double* read_reductions() {
     Exec::download_to(host_red_.data(), red_);
@@ -543,7 +603,6 @@ class Solver final : public SolverBase {
   double table_bound_ = 1;  ///< the table's CCD bound on the current dx (max_step), for table_cut_step
   Vec<double> g_trial_, cand_gd_;  ///< gradient at the trial point; candidate pairs' gradients
   Vec<double> cand_d2_;            ///< per candidate: squared distance at the last evaluation without Hessian
-  std::vector<double> host_d2_;    ///< its host copy (backends with their own memory)
   Vec<int> live_;                  ///< per pair of the last evaluate_pairs: whether it added anything
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   bool ldlt_analyzed_ = false;
@@ -554,6 +613,7 @@ class Solver final : public SolverBase {
 // The stages, one file each (definitions of the member functions declared above).
 #include "sim/solver/predictor.h"
 #include "sim/solver/contact_stage.h"
+#include "sim/solver/active_set.h"
 #include "sim/solver/stopping_rule.h"
 #include "sim/solver/assembly.h"
 #include "sim/solver/linear_solve.h"

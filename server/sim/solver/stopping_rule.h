@@ -60,8 +60,7 @@ bool Solver<Exec>::converged(StepStats* st, int k, bool gradient_known, double s
 template <class Exec>
 bool Solver<Exec>::pressed() {
   if (!self_ || kappa_scale_ >= kKappaScaleMax) return false;
-  Exec::download(host_x_, x_);
-  return self_->min_active_distance(host_x_) < kPressedGapFloors * P_.ccd_floor;
+  return min_active_distance(x_, x_gen_) < kPressedGapFloors * P_.ccd_floor;
 }
 
 /// After the first assembly: whether the predictor is already within newton_atol.

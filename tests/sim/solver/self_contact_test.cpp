@@ -1,7 +1,7 @@
 // SelfContact's broad-phase reuse: motions that, after one common translation, stay within
 // slack/2 of the last query's boxes reuse its candidates, which still contain every pair a fresh
-// query would report; a larger motion runs a new query. Pair distances measured once at a position
-// (select_active, or handed over by the line search) are reused there.
+// query would report; a larger motion runs a new query. (The active pairs selected from the
+// candidates, and the distances kept for them, are the solver's: active_set_test.cpp.)
 #include "sim/solver/self_contact.h"
 
 #include <gtest/gtest.h>
@@ -13,7 +13,6 @@
 #include <set>
 #include <vector>
 
-#include "sim/contact/barrier.h"
 #include "sim/contact/broad_phase.h"
 #include "sim/demand.h"
 #include "sim/material.h"
@@ -128,94 +127,6 @@ TEST(SelfContactBroadPhase, TranslatedMotionsReuseTheQueryAndMissNothing) {
   x1[3 * 7 + 2] += 1.2 * kBroadPhaseSlack * kDhat;
   sc.find(translated(f.x, Vec3(0.05, 0, 0)), x1);
   EXPECT_EQ(sc.broad_phase_queries(), 2);
-}
-
-/// The active and candidate lists of a SelfContact that has seen `history` (find, then
-/// select_active at the first positions, for each motion) equal a fresh instance's at the last.
-TEST(SelfContactBroadPhase, DistancesReusedAtTheSamePositionsGiveTheFreshLists) {
-  const Folded f = folded_sheet();
-  const std::vector<int> fixed(f.data.n, 0);
-  SelfContact sc(f.data, kDhat, 1.0);
-  const double within = 0.2 * kBroadPhaseSlack * kDhat;
-  std::vector<double> base = f.x;
-  for (size_t k = 2; k < base.size(); k += 3) base[k] *= 0.4;  // the flap 0.6 mm above the base: in contact
-  std::vector<double> x = base;
-  for (unsigned seed = 1; seed <= 4; ++seed) {
-    const std::vector<double> x_next = jiggled(base, within, seed);  // iterates near base: one query
-    sc.find(x, x_next);       // a Newton direction from x ...
-    sc.select_active(x, fixed);
-    sc.find(x, jiggled(x, within, 50 + seed));  // ... then another from the same x: distances reused
-    sc.select_active(x, fixed);
-    SelfContact ref(f.data, kDhat, 1.0);
-    ref.find(x, jiggled(x, within, 50 + seed));
-    ref.select_active(x, fixed);
-    EXPECT_EQ(as_set(sc.active()), as_set(ref.active())) << "seed " << seed;
-    EXPECT_EQ(as_set(sc.candidates()), as_set(ref.candidates())) << "seed " << seed;
-    ASSERT_GT(sc.active().size(), 50);
-    x = x_next;  // the next iterate: new positions, distances measured anew
-  }
-  EXPECT_EQ(sc.broad_phase_queries(), 1);
-}
-
-/// Squared distances of the candidates at x, measured the way the solver's line search does
-/// (the pair energies' dist2 output).
-std::vector<double> measured_dist2(const ContactPairs& c, const std::vector<double>& x) {
-  std::vector<double> d2(c.size());
-  auto at = [&](int i) { return Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]); };
-  for (int k = 0; k < c.size(); ++k) {
-    const int* v = &c.v[4 * k];
-    if (c.type[k] == 0)
-      vf_contact_energy(at(v[0]), at(v[1]), at(v[2]), at(v[3]), 0.0, kDhat, 1.0, nullptr, nullptr, HessianKind::kNone, &d2[k]);
-    else
-      ee_contact_energy(at(v[0]), at(v[1]), at(v[2]), at(v[3]), 0.0, kDhat, 1.0, c.eps_x[k], nullptr, nullptr,
-                        HessianKind::kNone, &d2[k]);
-  }
-  return d2;
-}
-
-// The line search hands its accepted point's pair distances over (set_candidate_distances): the
-// lists and the closest active pair at that point are the ones measuring gives, and the handed
-// distances are what select_active reads there (a deliberately wrong one shows it), not elsewhere.
-TEST(SelfContactBroadPhase, DistancesHandedOverGiveTheMeasuredListsAtTheirPositionsOnly) {
-  const Folded f = folded_sheet();
-  const std::vector<int> fixed(f.data.n, 0);
-  std::vector<double> x = f.x;
-  for (size_t k = 2; k < x.size(); k += 3) x[k] *= 0.4;  // the flap 0.6 mm above the base
-  const double within = 0.2 * kBroadPhaseSlack * kDhat;
-  for (unsigned seed = 1; seed <= 3; ++seed) {
-    const std::vector<double> y = jiggled(x, within, seed);
-    SelfContact handed(f.data, kDhat, 1.0), ref(f.data, kDhat, 1.0);
-    for (SelfContact* sc : {&handed, &ref}) {
-      sc->find(x, y);
-      sc->select_active(x, fixed);
-    }
-    handed.set_candidate_distances(y, measured_dist2(handed.candidates(), y).data());
-    EXPECT_EQ(handed.min_active_distance(y), ref.min_active_distance(y)) << "seed " << seed;
-    handed.select_active(y, fixed);
-    ref.select_active(y, fixed);
-    EXPECT_EQ(as_set(handed.active()), as_set(ref.active())) << "seed " << seed;
-    EXPECT_EQ(as_set(handed.candidates()), as_set(ref.candidates())) << "seed " << seed;
-    EXPECT_EQ(handed.min_active_distance(y), ref.min_active_distance(y)) << "seed " << seed;
-    ASSERT_GT(ref.active().size(), 50);
-  }
-  // Handed distances that say every candidate touches at 0.3 dhat: select_active at those
-  // positions takes them all; at other positions it measures.
-  SelfContact sc(f.data, kDhat, 1.0);
-  sc.find(x, x);
-  sc.select_active(x, fixed);
-  const int candidates = sc.candidates().size();
-  ASSERT_GT(candidates, sc.active().size());
-  const std::vector<double> close(candidates, 0.09 * kDhat * kDhat);
-  const std::vector<double> y = jiggled(x, within, 7);
-  sc.set_candidate_distances(y, close.data());
-  sc.select_active(y, fixed);
-  EXPECT_EQ(sc.active().size(), candidates);
-  EXPECT_DOUBLE_EQ(sc.min_active_distance(y), 0.3 * kDhat);
-  sc.select_active(x, fixed);
-  SelfContact ref(f.data, kDhat, 1.0);
-  ref.find(x, x);
-  ref.select_active(x, fixed);
-  EXPECT_EQ(as_set(sc.active()), as_set(ref.active()));
 }
 
 TEST(SelfContactBroadPhase, AMotionBeyondTheSlackRunsANewQuery) {

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
+#include <limits>
 #include <numeric>
 #include <vector>
 
@@ -184,6 +185,15 @@ struct CpuExec {
   template <class F>
   static void max_to(int n, const F& f, double* out, int parallel_min = kParallelMin) {
     *out = CpuExec::max(n, f, parallel_min);
+  }
+  /// Minimum of f(i) over [0, n) into *out (+infinity for n == 0); a NaN term is skipped
+  /// (std::min keeps the running minimum).
+  template <class F>
+  static void min_to(int n, const F& f, double* out, int parallel_min = kParallelMin) {
+    double m = std::numeric_limits<double>::infinity();
+#pragma omp parallel for schedule(static) reduction(min : m) if (n >= parallel_min)
+    for (int i = 0; i < n; ++i) m = std::min(m, f(i));
+    *out = m;
   }
 
   /// Add into memory owned by the current element's colour (exclusive by construction).

@@ -230,6 +230,20 @@ struct CudaExec {
     check(cub::DeviceReduce::Reduce(scratch(0, bytes), bytes, in, out, n, thrust::maximum<double>(), 0.0), "reduction");
   }
 
+  /// Minimum of f(i) over [0, n) into *out (+infinity for n == 0), device memory, queued.
+  template <class F>
+  static void min_to(int n, const F& f, double* out, int /*parallel_min*/ = 0) {
+    if (n <= 0) {
+      for_each(1, [=] __host__ __device__(int) { *out = INFINITY; });
+      return;
+    }
+    auto in = thrust::make_transform_iterator(thrust::counting_iterator<int>(0), f);
+    size_t bytes = 0;
+    check(cub::DeviceReduce::Reduce(nullptr, bytes, in, out, n, thrust::minimum<double>(), INFINITY), "reduction (size)");
+    check(cub::DeviceReduce::Reduce(scratch(0, bytes), bytes, in, out, n, thrust::minimum<double>(), INFINITY),
+          "reduction");
+  }
+
   /// max_to, read back.
   template <class F>
   static double max(int n, const F& f, int /*parallel_min*/ = 0) {
