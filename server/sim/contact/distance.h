@@ -556,7 +556,7 @@ GD_HD Real edge_edge_distance2(const Vec3& a0, const Vec3& a1, const Vec3& b0, c
 /// (fold/5000: 40% of the line search's candidates). Zero (no bound) where the plane or the
 /// lines are ill-conditioned, a sliver triangle or edges within ~0.06 degrees of parallel, so
 /// that rounding cannot lift the bound above the distance by more than ~1e-12 of it.
-GD_HD Real pair_distance2_lower_bound(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, int type) {
+GD_HD_ALWAYS_INLINE Real pair_distance2_lower_bound(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, int type) {
   const Vec3 e1 = type == 0 ? Vec3(c - b) : Vec3(b - a);
   const Vec3 e2 = type == 0 ? Vec3(d - b) : Vec3(d - c);
   const Vec3 r = type == 0 ? Vec3(a - b) : Vec3(a - c);
@@ -570,7 +570,7 @@ GD_HD Real pair_distance2_lower_bound(const Vec3& a, const Vec3& b, const Vec3& 
 /// Whether the pair is certainly farther than `reach` (m) apart by pair_distance2_lower_bound,
 /// with a relative margin of 1e-6 that rounding of the bound or of the exact distance cannot
 /// cross: where it says so, the exact distance also exceeds `reach`.
-GD_HD bool pair_certainly_beyond(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, int type, Real reach) {
+GD_HD_ALWAYS_INLINE bool pair_certainly_beyond(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, int type, Real reach) {
   return pair_distance2_lower_bound(a, b, c, d, type) > reach * reach * Real(1.000001);
 }
 

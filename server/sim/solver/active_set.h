@@ -16,20 +16,6 @@
 
 namespace gd::sim {
 
-/// The candidates of SelfContact's last find() on the backend; a new broad-phase answer forgets
-/// the distances kept for the old one.
-template <class Exec>
-void Solver<Exec>::take_candidates() {
-  cand_.upload(self_->candidates(), self_->candidate_raw());
-  if (self_->pair_queries() != raw_query_) {
-    raw_query_ = self_->pair_queries();
-    Exec::resize(raw_stamp_, static_cast<size_t>(self_->raw_pairs()));
-    Exec::fill(raw_stamp_, -1);
-    Exec::resize_for_overwrite(raw_dist_, static_cast<size_t>(self_->raw_pairs()));
-    act_raw_known_ = false;  // act_'s raw indices were the old answer's
-  }
-}
-
 /// Active pairs at xs (positions of generation `gen`): the candidates closer than dhat with at
 /// least one free vertex. Candidates with no free vertex, and pairs already at zero distance
 /// (driven there by kinematic vertices: the untangling fail-safe's), leave the candidate list
@@ -42,9 +28,9 @@ double Solver<Exec>::select_active(const Vec<double>& xs, int gen) {
     act_raw_known_ = true;
     return std::numeric_limits<double>::infinity();
   }
-  Exec::resize_for_overwrite(pair_d_, static_cast<size_t>(n));
-  Exec::resize_for_overwrite(keep_pos_, static_cast<size_t>(n));
-  Exec::resize_for_overwrite(act_pos_, static_cast<size_t>(n));
+  grow_for_overwrite(pair_d_, static_cast<size_t>(n));
+  grow_for_overwrite(keep_pos_, static_cast<size_t>(n));
+  grow_for_overwrite(act_pos_, static_cast<size_t>(n));
   const detail::PairView C = cand_.view();
   const double* x = Exec::ptr(xs);
   const int* fixed = Exec::ptr(fixed_);
@@ -87,16 +73,18 @@ double Solver<Exec>::select_active(const Vec<double>& xs, int gen) {
   }, 2);
   const double* r = read_reductions();
   const double closest = r[kRedClosest];
-  cand_next_.resize_for_overwrite(static_cast<int>(r[kRedCandidates]));
+  const int kept = static_cast<int>(r[kRedCandidates]);
+  const bool compact = kept < n;  // else the candidates stay where they are (nearly always)
+  if (compact) cand_next_.resize_for_overwrite(kept);
   act_.resize_for_overwrite(static_cast<int>(r[kRedActive]));
-  const detail::PairSlots K = cand_next_.slots(), A = act_.slots();
+  const detail::PairSlots K = compact ? cand_next_.slots() : detail::PairSlots{}, A = act_.slots();
   Exec::for_each(n, [=] GD_HD_LAMBDA(int c) {
     const double dist = d[c];
     if (!(dist > 0)) return;
-    detail::copy_pair(C, c, K, keep[c]);
+    if (compact) detail::copy_pair(C, c, K, keep[c]);
     if (dist < dhat) detail::copy_pair(C, c, A, act[c]);
   }, Exec::kParallelMinHeavy);
-  cand_.swap(cand_next_);
+  if (compact) cand_.swap(cand_next_);
   act_raw_known_ = true;
   return closest;
 }
@@ -126,8 +114,8 @@ void Solver<Exec>::build_friction(const Vec<double>& xs, int gen) {
   const int n = act_.n;
   n_fr_ = 0;
   if (n > 0) {
-    Exec::resize_for_overwrite(fr_scratch_, 11 * static_cast<size_t>(n));  // lambda, 4 weights, 6 of T
-    Exec::resize_for_overwrite(fr_pos_, static_cast<size_t>(n));
+    grow_for_overwrite(fr_scratch_, 11 * static_cast<size_t>(n));  // lambda, 4 weights, 6 of T
+    grow_for_overwrite(fr_pos_, static_cast<size_t>(n));
     const detail::PairView A = act_.view();
     const double* x = Exec::ptr(xs);
     const double* rd = Exec::ptr(raw_dist_);
@@ -161,12 +149,12 @@ void Solver<Exec>::build_friction(const Vec<double>& xs, int gen) {
     n_fr_ = static_cast<int>(read_reductions()[kRedFrictionPairs]);
   }
   const size_t m = static_cast<size_t>(n_fr_);
-  Exec::resize_for_overwrite(fr_v_, 4 * m);
-  Exec::resize_for_overwrite(fr_w_, 4 * m);
-  Exec::resize_for_overwrite(fr_T_, 6 * m);
-  Exec::resize_for_overwrite(fr_lambda_, m);
-  Exec::resize_for_overwrite(fr_H_, kPairBlockValues * m);
-  Exec::resize_for_overwrite(fr_gd_, 48 * m);
+  grow_for_overwrite(fr_v_, 4 * m);
+  grow_for_overwrite(fr_w_, 4 * m);
+  grow_for_overwrite(fr_T_, 6 * m);
+  grow_for_overwrite(fr_lambda_, m);
+  grow_for_overwrite(fr_H_, kPairBlockValues * m);
+  grow_for_overwrite(fr_gd_, 48 * m);
   if (n_fr_ == 0) return;
   const detail::PairView A = act_.view();
   const double* in = Exec::ptr(fr_scratch_);
@@ -215,6 +203,8 @@ typename Solver<Exec>::FrictionPairs Solver<Exec>::friction_pairs() const {
   FrictionPairs f;
   if (n_fr_ == 0) return f;
   Exec::download(f.v, fr_v_), Exec::download(f.w, fr_w_), Exec::download(f.T, fr_T_), Exec::download(f.lambda, fr_lambda_);
+  const size_t m = static_cast<size_t>(n_fr_);
+  f.v.resize(4 * m), f.w.resize(4 * m), f.T.resize(6 * m), f.lambda.resize(m);
   return f;
 }
 

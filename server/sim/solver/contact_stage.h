@@ -1,8 +1,8 @@
 #pragma once
 /// \file
-/// The self-contact stage: the broad phase's candidates along each motion (SelfContact, on the
-/// host) handed to the backend, where the active pairs are selected (active_set.h); adaptive
-/// barrier stiffness, the intersection count and the untangling fail-safe.
+/// The self-contact stage: the candidates along each motion (candidates.h) and the active pairs
+/// among them (active_set.h), adaptive barrier stiffness, the intersection count and the
+/// untangling fail-safe.
 /// Member functions of Solver<Exec> (solver_impl.h), written once for every backend.
 
 #include "sim/solver/solver_impl.h"
@@ -18,22 +18,21 @@ void Solver<Exec>::select_contacts() {
   Exec::resize_for_overwrite(act_gd_, 48 * static_cast<size_t>(act_.n));
 }
 
-/// Candidates along the Newton step x -> x + dx (for CCD and the line search). A step whose
-/// query would flood the pair budget is halved first (SelfContact::find_within_budget), dx too.
-/// False (nothing done) when dx is not finite: a linear solve that broke down (a robot's pinch
-/// pressed to 1e-16 m once gave one), which the broad phase would refuse as bad input.
+/// Candidates along the Newton step x -> x + dx (for CCD and the line search; candidates.h) and
+/// the active pairs at x among them. A step whose query would flood the pair budget is halved
+/// first, dx too. False (nothing done) when dx is not finite: a linear solve that broke down (a
+/// robot's pinch pressed to 1e-16 m once gave one), which the broad phase would refuse as bad input.
 template <class Exec>
 bool Solver<Exec>::find_contacts_along_step() {
   if (!self_) return true;
-  Exec::download(host_x_, x_);
-  Exec::download(host_dx_, dx_);
-  if (!std::all_of(host_dx_.begin(), host_dx_.end(), [](double v) { return std::isfinite(v); })) return false;
-  for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] += host_x_[k];  // the step's end
-  if (self_->find_within_budget(host_x_, &host_dx_) > 0) {
-    for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] -= host_x_[k];
-    Exec::upload(dx_, host_dx_);
-  }
-  take_candidates();
+  Exec::resize_for_overwrite(x1_, 3 * static_cast<size_t>(n_));
+  const double* x = Exec::ptr(x_);
+  double* dx = Exec::ptr(dx_);
+  double* x1 = Exec::ptr(x1_);
+  Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { x1[k] = dx[k] + x[k]; }, Exec::kParallelMinVector);  // the step's end
+  const int halvings = find_candidates(x_, x1_, true);
+  if (halvings < 0) return false;
+  if (halvings > 0) Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { dx[k] = x1[k] - x[k]; }, Exec::kParallelMinVector);
   select_active(x_, x_gen_);  // drops the candidates with no free vertex or at zero distance
   return true;
 }
@@ -75,9 +74,8 @@ template <class Exec>
 void Solver<Exec>::scale_barrier_stiffness(double factor) {
   const double scale = std::clamp(kappa_scale_ * factor, 1.0, kKappaScaleMax);
   if (scale == kappa_scale_) return;
-  scale_pair_stiffness(scale / kappa_scale_);  // SelfContact::set_kappa_scale's factor
+  scale_pair_stiffness(scale / kappa_scale_);  // candidates found later take kappa_scale_ itself
   kappa_scale_ = scale;
-  self_->set_kappa_scale(kappa_scale_);
 }
 
 /// Exact count of intersecting triangle pairs after the step (on the host); the untangling

@@ -139,7 +139,7 @@ struct SceneOptions {
   /// The most pairs one self-contact broad-phase query may hold (0: SelfContact's default, 200
   /// per vertex and at least 100,000). A motion whose query would hold more (a wild Newton
   /// direction sweeping boxes across the garment) is halved until it fits
-  /// (SelfContact::find_within_budget); ordinary steps stay far below it.
+  /// (Solver::find_candidates); ordinary steps stay far below it.
   std::size_t self_contact_pair_budget = 0;
   /// With self-contact, grasped (kinematic) vertices stay in the solve, pulled to their targets by
   /// a spring of stiffness grip_stiffness * (m / dt^2 + k_membrane) per vertex (m its mass,

@@ -98,14 +98,14 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     // dhat at x_t too (a swept box contains the box at x_t), so the contacts at the start of
     // the step, which lag the friction, are selected from them; then the whole motion is
     // scaled back by CCD where needed.
-    Exec::download(host_xt_, x_t_);
-    Exec::download(host_x_, x_);
-    self_->find_within_budget(host_xt_, &host_x_);  // a motion that would flood it is halved: dx below
-    take_candidates();
-    select_active(x_t_, xt_gen_);   // the contacts at x_t (active_set.h) ...
-    build_friction(x_t_, xt_gen_);  // ... lag the friction
-    for (size_t k = 0; k < host_x_.size(); ++k) host_dx_[k] = host_x_[k] - host_xt_[k];
-    Exec::upload(dx_, host_dx_);
+    copy(x_, x1_);
+    find_candidates(x_t_, x1_, false);  // candidates.h; a motion that would flood it is halved: dx below
+    select_active(x_t_, xt_gen_);       // the contacts at x_t (active_set.h) ...
+    build_friction(x_t_, xt_gen_);      // ... lag the friction
+    const double* xt = Exec::ptr(x_t_);
+    const double* x1 = Exec::ptr(x1_);
+    double* dx = Exec::ptr(dx_);
+    Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { dx[k] = x1[k] - xt[k]; }, Exec::kParallelMinVector);
     copy(x_t_, x_);
     const CcdBounds b = ccd_bounds(true, true, false);
     const double alpha = std::min(b.self, b.table);

@@ -21,18 +21,10 @@ Vec3 at(const std::vector<double>& x, int i) { return Vec3(x[3 * i], x[3 * i + 1
 
 }  // namespace
 
-void ContactPairs::push(const int* vs, int t, double k, double e) {
-  v.insert(v.end(), vs, vs + 4);
-  type.push_back(t);
-  kappa.push_back(k);
-  eps_x.push_back(e);
-}
-
-SelfContact::SelfContact(const SceneData& data, Real dhat, Real kappa_per_mass, BroadPhaseKind broad_phase,
-                         bool on_device, std::size_t pair_budget)
+SelfContact::SelfContact(const SceneData& data, Real dhat, BroadPhaseKind broad_phase, bool on_device,
+                         std::size_t pair_budget)
     : d_(data),
       dhat_(dhat),
-      kappa_per_mass_(kappa_per_mass),
       slack_(kBroadPhaseSlack * dhat),
       budget_(pair_budget > 0 ? pair_budget
                               : std::max(kMinPairBudget, kPairsPerVertex * static_cast<std::size_t>(data.n))) {
@@ -79,133 +71,14 @@ bool within_translated_boxes(const std::vector<double>& lo0, const std::vector<d
 
 }  // namespace
 
-bool SelfContact::covered_by_last_query(const std::vector<double>& x0, const std::vector<double>& x1) {
-  if (x1.size() != x0.size()) return false;
-  motion_lo_.resize(x0.size());
-  motion_hi_.resize(x0.size());
-  bool finite = true;  // std::min/max would drop a NaN from the boxes
-  for (size_t k = 0; k < x0.size(); ++k) {
-    finite = finite && std::isfinite(x0[k]) && std::isfinite(x1[k]);
-    motion_lo_[k] = std::min(x0[k], x1[k]);
-    motion_hi_[k] = std::max(x0[k], x1[k]);
-  }
-  return finite && within_translated_boxes(query_lo_, query_hi_, motion_lo_.data(), motion_hi_.data(), x0.size(), 0.5 * slack_);
-}
-
-bool SelfContact::find(const std::vector<double>& x0, const std::vector<double>& x1, std::size_t max_pairs) {
-  const bool reuse = covered_by_last_query(x0, x1);  // the last query held at most its own bound
-  if (reuse) {
-    ++reuses_;
-  } else {  // the broad phase also checks the sizes and finiteness of x0 and x1
-    const auto t0 = std::chrono::steady_clock::now();
-    const bool fits = bp_->find(x0, x1, dhat_ + slack_, &raw_, max_pairs);
-    bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    ++queries_;
-    ++pair_queries_;  // new raw indices
-    if (!fits) {  // no candidates, and nothing for a later motion to reuse
-      query_lo_.clear(), query_hi_.clear();
-      cand_.clear(), cand_raw_.clear();
-      return false;
-    }
-  }
-  if (!reuse) query_lo_ = motion_lo_, query_hi_ = motion_hi_;  // what later motions are checked against
-  // Keep the pairs whose boxes of this motion, inflated by dhat, overlap: what a query with
-  // margin dhat would report (the slack only made the query's answer last longer).
-  const double margin = dhat_ * (1 + 1e-9);
-  const double* lo = motion_lo_.data();
-  const double* hi = motion_hi_.data();
-  auto near = [=](const int* a, int na, const int* b, int nb) {
-    for (int d = 0; d < 3; ++d) {
-      double alo = lo[3 * a[0] + d], ahi = hi[3 * a[0] + d], blo = lo[3 * b[0] + d], bhi = hi[3 * b[0] + d];
-      for (int k = 1; k < na; ++k) alo = std::min(alo, lo[3 * a[k] + d]), ahi = std::max(ahi, hi[3 * a[k] + d]);
-      for (int k = 1; k < nb; ++k) blo = std::min(blo, lo[3 * b[k] + d]), bhi = std::max(bhi, hi[3 * b[k] + d]);
-      if (alo - margin > bhi || blo - margin > ahi) return false;
-    }
-    return true;
-  };
-  const int nvf = static_cast<int>(raw_.vf.size()), nee = static_cast<int>(raw_.ee.size());
-  keep_.resize(nvf + nee);
-#pragma omp parallel for schedule(static) if (nvf + nee >= kParallelPairs)
-  for (int c = 0; c < nvf + nee; ++c) {
-    if (c < nvf) {
-      const auto& p = raw_.vf[c];
-      keep_[c] = near(&p[0], 1, &d_.tris[3 * p[1]], 3);
-    } else {
-      const auto& p = raw_.ee[c - nvf];
-      keep_[c] = near(edges_[p[0]].data(), 2, edges_[p[1]].data(), 2);
-    }
-  }
-  // The kept pairs in raw order (vf pairs, then ee pairs): chunks of the raw list counted, then
-  // filled, in parallel (at fold/40000 a query holds up to ~6.6 million raw pairs for ~85,000
-  // candidates, and each call re-filters all of them).
-  const int raw_total = nvf + nee;
-  const int chunks = raw_total >= kParallelPairs ? 4 * std::max(1, omp_threads()) : 1;
-  auto chunk_lo = [&](int j) { return static_cast<int>(static_cast<long>(raw_total) * j / chunks); };
-  std::vector<int> start(chunks + 1, 0);
-#pragma omp parallel for schedule(static) if (chunks > 1)
-  for (int j = 0; j < chunks; ++j)
-    start[j + 1] = static_cast<int>(std::count(keep_.begin() + chunk_lo(j), keep_.begin() + chunk_lo(j + 1), 1));
-  for (int j = 0; j < chunks; ++j) start[j + 1] += start[j];
-  const int total = start[chunks];
-  cand_.v.resize(4 * static_cast<size_t>(total));
-  cand_.type.resize(total), cand_.kappa.resize(total), cand_.eps_x.resize(total);
-  cand_raw_.resize(total);
-  const Real kappa = kappa_scale_ * kappa_per_mass_;
-#pragma omp parallel for schedule(static) if (chunks > 1)
-  for (int j = 0; j < chunks; ++j) {
-    int k = start[j];
-    for (int c = chunk_lo(j); c < chunk_lo(j + 1); ++c) {
-      if (!keep_[c]) continue;
-      int* v = &cand_.v[4 * static_cast<size_t>(k)];
-      if (c < nvf) {
-        const auto& p = raw_.vf[c];
-        v[0] = p[0], v[1] = d_.tris[3 * p[1]], v[2] = d_.tris[3 * p[1] + 1], v[3] = d_.tris[3 * p[1] + 2];
-        cand_.type[k] = 0, cand_.kappa[k] = kappa * d_.mass[v[0]], cand_.eps_x[k] = 0.0;
-      } else {
-        const auto& p = raw_.ee[c - nvf];
-        const auto& a = edges_[p[0]];
-        const auto& b = edges_[p[1]];
-        v[0] = a[0], v[1] = a[1], v[2] = b[0], v[3] = b[1];
-        const double m = 0.25 * (d_.mass[v[0]] + d_.mass[v[1]] + d_.mass[v[2]] + d_.mass[v[3]]);
-        cand_.type[k] = 1, cand_.kappa[k] = kappa * m, cand_.eps_x[k] = 1e-3 * edge_len2_[p[0]] * edge_len2_[p[1]];
-      }
-      cand_raw_[k] = c;
-      ++k;
-    }
-  }
-  return true;
-}
-
-int SelfContact::find_within_budget(const std::vector<double>& x0, std::vector<double>* x1) {
-  GD_DEMAND(x1 != nullptr, "null motion end");
-  int halvings = 0;
-  auto longest_move = [&] {
-    double m = 0;
-    for (size_t i = 0; i + 2 < x0.size(); i += 3) {
-      const double dx = (*x1)[i] - x0[i], dy = (*x1)[i + 1] - x0[i + 1], dz = (*x1)[i + 2] - x0[i + 2];
-      m = std::max(m, dx * dx + dy * dy + dz * dz);
-    }
-    return std::sqrt(m);
-  };
-  for (;;) {
-    // The unbounded query only once the motion is short: within dhat of the start everywhere.
-    const bool last = halvings >= kMaxFloodHalvingsDiverged ||
-                      (halvings >= kMaxFloodHalvings && !(longest_move() > static_cast<double>(dhat_)));
-    if (find(x0, *x1, last ? kNoPairLimit : budget_)) break;
-    for (size_t k = 0; k < x0.size(); ++k) (*x1)[k] = x0[k] + 0.5 * ((*x1)[k] - x0[k]);
-    ++halvings;
-  }
-  if (halvings > 0)
-    gd::log().debug("self-contact broad phase: the motion would have held over {} pairs; halved {} times", budget_,
-                    halvings);
-  halvings_ += halvings;
-  return halvings;
-}
-
-void SelfContact::set_kappa_scale(Real s) {
-  const Real f = s / kappa_scale_;
-  for (double& k : cand_.kappa) k *= f;
-  kappa_scale_ = s;
+bool SelfContact::query(const std::vector<double>& x0, const std::vector<double>& x1, std::size_t max_pairs) {
+  // the broad phase checks the sizes and finiteness of x0 and x1
+  const auto t0 = std::chrono::steady_clock::now();
+  const bool fits = bp_->find(x0, x1, dhat_ + slack_, &raw_, max_pairs);
+  bp_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ++queries_;
+  ++pair_queries_;  // new raw indices
+  return fits;
 }
 
 int SelfContact::count_intersections(const std::vector<double>& x) {

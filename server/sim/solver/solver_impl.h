@@ -12,8 +12,9 @@
 ///
 /// This file holds the class, its constructor, the step driver (the table of contents) and the
 /// SolverBase interface; the per-element terms are in element_terms.h and each stage's member
-/// functions in a file of its own (predictor.h, contact_stage.h, active_set.h, stopping_rule.h,
-/// assembly.h, linear_solve.h, step_bounds.h, vector_ops.h, diagnostics.h), included at the end.
+/// functions in a file of its own (predictor.h, contact_stage.h, candidates.h, active_set.h,
+/// stopping_rule.h, assembly.h, linear_solve.h, step_bounds.h, vector_ops.h, diagnostics.h),
+/// included at the end.
 
 #include <Eigen/SparseCholesky>
 #include <algorithm>
@@ -75,7 +76,6 @@ class Solver final : public SolverBase {
     Exec::resize(kin_target_, 3 * static_cast<size_t>(n_));
     Exec::resize(f_ext_, 3 * static_cast<size_t>(n_));
     kin_fixed_host_.assign(n_, 0);
-    host_dx_.assign(3 * static_cast<size_t>(n_), 0.0);
 
     P_.gravity = opt.gravity;
     P_.table = opt.table;
@@ -102,8 +102,11 @@ class Solver final : public SolverBase {
       P_.dhat_self = P_.dhat;
       P_.ccd_floor = kCcdFloorFraction * P_.dhat_self;
       P_.mu_self = opt.self_friction >= 0 ? opt.self_friction : d.friction;
-      self_ = std::make_unique<SelfContact>(d, P_.dhat_self, P_.kappa_per_mass, opt.broad_phase, !Exec::kHostMemory,
+      self_ = std::make_unique<SelfContact>(d, P_.dhat_self, opt.broad_phase, !Exec::kHostMemory,
                                             opt.self_contact_pair_budget);
+      Exec::upload(edges_, self_->edges());
+      Exec::upload(edge_len2_, self_->edge_rest_length2());
+      for (auto* vec : {&x1_, &qlo_, &qhi_, &mlo_, &mhi_}) Exec::resize(*vec, 3 * n_);
     }
   }
 
@@ -248,8 +251,15 @@ class Solver final : public SolverBase {
   void check_intersections(StepStats* st);
   double max_grip_force();
 
+  // The candidates of a motion from the broad phase's last answer, on the backend (candidates.h)
+  int find_candidates(const Vec<double>& x0, Vec<double>& x1, bool refuse_non_finite);
+  bool motion_covered(const Vec<double>& x0, const Vec<double>& x1, bool* finite);
+  double longest_move(const Vec<double>& x0, const Vec<double>& x1);
+  void keep_candidates();
+  /// The host's SelfContact (its broad phase and counters), for tests and reports.
+  const SelfContact* self_contact() const { return self_.get(); }
+
   // The active pairs, their distances and friction frames on the backend (active_set.h)
-  void take_candidates();
   double select_active(const Vec<double>& xs, int gen);
   double min_active_distance(const Vec<double>& xs, int gen);
   void build_friction(const Vec<double>& xs, int gen);
@@ -498,7 +508,14 @@ class Solver final : public SolverBase {
   Vec<Vec3> col_vertices_;
   Vec<Eigen::Vector3i> col_tris_;
   Vec<double> col_pose_, col_mu_, col_kappa_;
-  std::vector<double> host_x_, host_xt_, host_dx_;
+  std::vector<double> host_x_, host_xt_;
+  /// At least n values in v for the caller to overwrite, grown only: the pair lists and their
+  /// scratch change length every Newton iteration, and a shrink then a grow would reallocate or
+  /// zero megabytes each time.
+  template <class T>
+  static void grow_for_overwrite(Vec<T>& v, size_t n) {
+    if (v.size() < n) Exec::resize_for_overwrite(v, n);
+  }
   /// A pair list on the backend (candidates for the line search and CCD, active pairs for the
   /// Hessian), with each pair's index in the broad phase's answer (raw).
   struct DevicePairs {
@@ -513,14 +530,14 @@ class Solver final : public SolverBase {
       Exec::upload(eps, p.eps_x);
       Exec::upload(raw, raw_index);
     }
-    /// Room for `count` pairs whose values the caller writes.
+    /// Room for `count` pairs whose values the caller writes (grown only: see grow_for_overwrite).
     void resize_for_overwrite(int count) {
       n = count;
-      Exec::resize_for_overwrite(v, 4 * static_cast<size_t>(count));
-      Exec::resize_for_overwrite(type, static_cast<size_t>(count));
-      Exec::resize_for_overwrite(raw, static_cast<size_t>(count));
-      Exec::resize_for_overwrite(kappa, static_cast<size_t>(count));
-      Exec::resize_for_overwrite(eps, static_cast<size_t>(count));
+      grow_for_overwrite(v, 4 * static_cast<size_t>(count));
+      grow_for_overwrite(type, static_cast<size_t>(count));
+      grow_for_overwrite(raw, static_cast<size_t>(count));
+      grow_for_overwrite(kappa, static_cast<size_t>(count));
+      grow_for_overwrite(eps, static_cast<size_t>(count));
     }
     void swap(DevicePairs& o) {
       std::swap(n, o.n);
@@ -537,6 +554,7 @@ class Solver final : public SolverBase {
       ContactPairs p;
       if (n == 0) return p;
       Exec::download(p.v, v), Exec::download(p.type, type), Exec::download(p.kappa, kappa), Exec::download(p.eps_x, eps);
+      p.v.resize(4 * static_cast<size_t>(n)), p.type.resize(n), p.kappa.resize(n), p.eps_x.resize(n);
       return p;
     }
   };
@@ -550,8 +568,24 @@ class Solver final : public SolverBase {
   /// (-1: none). Reset when the answer changes (a new query, SelfContact::pair_queries()).
   Vec<double> raw_dist_;
   Vec<int> raw_stamp_;
-  long raw_query_ = -1;         ///< the query raw_dist_ belongs to
   bool act_raw_known_ = false;  ///< act_'s raw indices are the current answer's
+  /// The broad phase's last answer on the backend (the host reads SelfContact's in place), the
+  /// mesh's edges and their rest squared lengths, the boxes of the last query's motion and of the
+  /// current one (3 per vertex each), the end of the current motion, and keep_candidates' flags
+  /// and places per answer pair.
+  Vec<Eigen::Vector2i> raw_vf_, raw_ee_, edges_;
+  Vec<double> edge_len2_, qlo_, qhi_, mlo_, mhi_, x1_;
+  Vec<int> raw_flag_, raw_pos_;
+  bool have_query_ = false;  ///< qlo_/qhi_ hold a query's boxes (its answer was kept)
+  std::vector<double> host_q0_, host_q1_;  ///< a query's motion on the host
+  const Eigen::Vector2i* raw_vf_ptr() const {
+    if constexpr (Exec::kHostMemory) return self_->raw().vf.data();
+    else return Exec::ptr(raw_vf_);
+  }
+  const Eigen::Vector2i* raw_ee_ptr() const {
+    if constexpr (Exec::kHostMemory) return self_->raw().ee.data();
+    else return Exec::ptr(raw_ee_);
+  }
   /// Generations of x_'s and x_t_'s contents (x_generation()); gen_counter_ the last one given.
   int x_gen_ = 0, xt_gen_ = 0, gen_counter_ = 0;
   void moved_x() { x_gen_ = ++gen_counter_; }
@@ -589,7 +623,7 @@ class Solver final : public SolverBase {
   static constexpr int kRedVertex = 0, kRedTriangles = 1, kRedHinges = 2, kRedPairs = 3, kRedFriction = 4,
                        kRedTable = 5, kRedSelf = 6, kRedCollider = 7, kRedSlope = 8, kRedDxMass = 9, kRedDxMax = 10,
                        kRedCandidates = 11, kRedActive = 12, kRedClosest = 13, kRedFrictionPairs = 14,
-                       kReductions = 15;
+                       kRedMotionNonFinite = 15, kRedMotionUp = 16, kRedMotionDown = 19, kReductions = 22;
   /// The slots of red_, on the host (one copy from the backend).
   const double* read_reductions() {
     Exec::download_to(host_red_.data(), red_);
@@ -613,6 +647,7 @@ class Solver final : public SolverBase {
 // The stages, one file each (definitions of the member functions declared above).
 #include "sim/solver/predictor.h"
 #include "sim/solver/contact_stage.h"
+#include "sim/solver/candidates.h"
 #include "sim/solver/active_set.h"
 #include "sim/solver/stopping_rule.h"
 #include "sim/solver/assembly.h"

@@ -26,9 +26,9 @@
 namespace gd::sim {
 namespace {
 
-using Quad = std::array<int, 5>;  // type, 4 vertices (EE: each edge's ends sorted, the edges sorted)
+using Key = std::array<int, 5>;  // type, 4 vertices (EE: each edge's ends sorted, the edges sorted)
 
-Quad key(int type, const int* v) {
+Key key(int type, const int* v) {
   if (type == 0) return {0, v[0], v[1], v[2], v[3]};
   std::array<int, 2> a{std::min(v[0], v[1]), std::max(v[0], v[1])}, b{std::min(v[2], v[3]), std::max(v[2], v[3])};
   if (b < a) std::swap(a, b);
@@ -38,7 +38,7 @@ Quad key(int type, const int* v) {
 /// Every pair of the mesh at x, by its distance (VF: a vertex and a triangle without it; EE: two
 /// edges sharing no vertex).
 struct BruteForce {
-  std::set<Quad> active;
+  std::set<Key> active;
   double closest = std::numeric_limits<double>::infinity();
 };
 
@@ -75,8 +75,8 @@ BruteForce brute_force(const SceneData& d, const std::vector<double>& x, double 
   return out;
 }
 
-std::set<Quad> as_set(const ContactPairs& c, bool* duplicates) {
-  std::set<Quad> s;
+std::set<Key> pair_set(const ContactPairs& c, bool* duplicates) {
+  std::set<Key> s;
   for (int k = 0; k < c.size(); ++k) s.insert(key(c.type[k], &c.v[4 * k]));
   *duplicates = static_cast<int>(s.size()) != c.size();
   return s;
@@ -90,7 +90,7 @@ void expect_lists_at_current_positions(Solver<Exec>& s, const SceneData& d, doub
   s.get_positions(x);
   const BruteForce ref = brute_force(d, x, dhat);
   bool dup_a = false, dup_c = false;
-  const std::set<Quad> active = as_set(s.active_pairs(), &dup_a), cand = as_set(s.candidate_pairs(), &dup_c);
+  const std::set<Key> active = pair_set(s.active_pairs(), &dup_a), cand = pair_set(s.candidate_pairs(), &dup_c);
   EXPECT_FALSE(dup_a) << where;
   EXPECT_FALSE(dup_c) << where;
   EXPECT_EQ(active, ref.active) << where;

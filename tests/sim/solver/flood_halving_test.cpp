@@ -1,4 +1,4 @@
-// The self-contact pair budget (SelfContact::find_within_budget): a motion whose broad phase would
+// The self-contact pair budget (Solver::find_candidates, solver/candidates.h): a motion whose broad phase would
 // hold more pairs than the budget is halved until it fits. A wild Newton direction once swept
 // boxes across a 4000-vertex T-shirt and one query held 17 million pairs (19 GB, out of memory);
 // ordinary steps stay far below the default budget and are untouched.
