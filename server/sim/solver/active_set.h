@@ -22,8 +22,18 @@ namespace gd::sim {
 /// too. Returns the closest active pair's distance (infinity when none).
 template <class Exec>
 double Solver<Exec>::select_active(const Vec<double>& xs, int gen) {
-  const int n = cand_.n;
+  return select_from(detail::ListSource{cand_.view()}, cand_.n, xs, gen);
+}
+
+/// select_active over the pairs of a source (detail::ListSource: the candidate list;
+/// detail::AnswerSource: the broad phase's answer filtered to a motion, candidates.h): the
+/// pairs the source keeps with a positive distance become the candidates, those closer than dhat
+/// the active pairs, both in the source's order.
+template <class Exec>
+template <class Source>
+double Solver<Exec>::select_from(const Source& S, int n, const Vec<double>& xs, int gen) {
   if (n == 0) {
+    cand_.resize_for_overwrite(0);
     act_.resize_for_overwrite(0);
     act_raw_known_ = true;
     return std::numeric_limits<double>::infinity();
@@ -31,7 +41,6 @@ double Solver<Exec>::select_active(const Vec<double>& xs, int gen) {
   grow_for_overwrite(pair_d_, static_cast<size_t>(n));
   grow_for_overwrite(keep_pos_, static_cast<size_t>(n));
   grow_for_overwrite(act_pos_, static_cast<size_t>(n));
-  const detail::PairView C = cand_.view();
   const double* x = Exec::ptr(xs);
   const int* fixed = Exec::ptr(fixed_);
   double* rd = Exec::ptr(raw_dist_);
@@ -41,20 +50,22 @@ double Solver<Exec>::select_active(const Vec<double>& xs, int gen) {
   int* act = Exec::ptr(act_pos_);
   double* red = Exec::ptr(red_);
   const double dhat = P_.dhat_self;
-  // Each pair's distance (kept, certainly beyond dhat, or measured) and its two flags.
+  // Each pair's distance (kept, certainly beyond dhat, or measured; -1: not the source's, or no
+  // free vertex) and its two flags.
   Exec::for_each(n, [=] GD_HD_LAMBDA(int c) {
-    const int* v = C.v + 4 * c;
-    const int r = C.raw[c];  // each raw pair is at most one candidate: no two threads share r
-    double dist;
-    if (fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]]) {
-      dist = -1.0;  // nothing to solve
-    } else if (rs[r] == gen) {
+    int v[4], type, r;
+    double dist = -1.0;
+    if (!S.pair(c, v, &type, &r)) {
+      // not a candidate of this motion
+    } else if (fixed[v[0]] && fixed[v[1]] && fixed[v[2]] && fixed[v[3]]) {
+      // nothing to solve
+    } else if (rs[r] == gen) {  // each raw pair is at most one pair of the source: no two threads share r
       dist = rd[r];
     } else if (pair_certainly_beyond(detail::load3(x, v[0]), detail::load3(x, v[1]), detail::load3(x, v[2]),
-                                     detail::load3(x, v[3]), C.type[c], dhat)) {
+                                     detail::load3(x, v[3]), type, dhat)) {
       dist = INFINITY;  // a candidate, not active (not measured)
     } else {
-      dist = detail::pair_distance(C, c, x);
+      dist = detail::pair_distance(v, type, x);
       rd[r] = dist;
       rs[r] = gen;
     }
@@ -74,15 +85,17 @@ double Solver<Exec>::select_active(const Vec<double>& xs, int gen) {
   const double* r = read_reductions();
   const double closest = r[kRedClosest];
   const int kept = static_cast<int>(r[kRedCandidates]);
-  const bool compact = kept < n;  // else the candidates stay where they are (nearly always)
+  // A list that keeps every pair stays where it is (nearly always: candidates are dropped only
+  // at zero distance or with no free vertex).
+  const bool compact = !Source::kList || kept < n;
   if (compact) cand_next_.resize_for_overwrite(kept);
   act_.resize_for_overwrite(static_cast<int>(r[kRedActive]));
   const detail::PairSlots K = compact ? cand_next_.slots() : detail::PairSlots{}, A = act_.slots();
   Exec::for_each(n, [=] GD_HD_LAMBDA(int c) {
     const double dist = d[c];
     if (!(dist > 0)) return;
-    if (compact) detail::copy_pair(C, c, K, keep[c]);
-    if (dist < dhat) detail::copy_pair(C, c, A, act[c]);
+    if (compact) S.write(c, K, keep[c]);
+    if (dist < dhat) S.write(c, A, act[c]);
   }, Exec::kParallelMinHeavy);
   if (compact) cand_.swap(cand_next_);
   act_raw_known_ = true;
@@ -101,7 +114,7 @@ double Solver<Exec>::min_active_distance(const Vec<double>& xs, int gen) {
   const bool known = act_raw_known_;
   Exec::min_to(n, [=] GD_HD_LAMBDA(int c) {
     const int r = A.raw[c];
-    return known && rs[r] == gen ? rd[r] : detail::pair_distance(A, c, x);
+    return known && rs[r] == gen ? rd[r] : detail::pair_distance(A.v + 4 * c, A.type[c], x);
   }, Exec::ptr(red_) + kRedClosest, Exec::kParallelMinHeavy);
   return read_reductions()[kRedClosest];
 }
@@ -131,7 +144,7 @@ void Solver<Exec>::build_friction(const Vec<double>& xs, int gen) {
       const Vec3 p0 = detail::load3(x, v[0]), p1 = detail::load3(x, v[1]), p2 = detail::load3(x, v[2]),
                  p3 = detail::load3(x, v[3]);
       const int r = A.raw[c];
-      const double dist = known && rs[r] == gen ? rd[r] : detail::pair_distance(A, c, x);
+      const double dist = known && rs[r] == gen ? rd[r] : detail::pair_distance(v, A.type[c], x);
       double lambda = contact_normal_force(dist, 0.0, dhat, A.kappa[c]);
       if (A.type[c] == 1) lambda *= ee_mollifier(p0, p1, p2, p3, A.eps[c], nullptr, nullptr);
       o[0] = lambda;

@@ -10,15 +10,16 @@
 /// whole. Whether a motion is covered is decided on the backend (its boxes against the query's,
 /// six reductions read back together), and so is the filter that keeps the answer's pairs whose
 /// boxes of this motion, inflated by dhat, overlap (what a query with margin dhat would report),
-/// compacted in the answer's order by an exclusive scan. The host sees positions only when a new
-/// query runs.
+/// compacted in the answer's order by an exclusive scan in the same pass that selects the active
+/// pairs at the motion's start (select_along: one read-back). The host sees positions only when
+/// a new query runs.
 
 #include "sim/solver/solver_impl.h"
 
 namespace gd::sim {
 
-/// Candidates for the motion x0 -> x1 into cand_ (all pairs, before select_active), from the last
-/// query where it covers the motion, else from a new one. A motion whose query would hold more
+/// The broad phase's answer for the motion x0 -> x1: the last query's where it covers the motion,
+/// else a new one; select_along then takes the motion's candidates from it. A motion whose query would hold more
 /// than the pair budget is halved (x1 moves halfway back towards x0: SelfContact::query's
 /// comment), at least SelfContact::kMaxFloodHalvings times and then on until no vertex moves
 /// farther than dhat (at most kMaxFloodHalvingsDiverged times), then asked without a bound.
@@ -68,7 +69,6 @@ int Solver<Exec>::find_candidates(const Vec<double>& x0, Vec<double>& x1, bool r
     Exec::resize_for_overwrite(raw_dist_, static_cast<size_t>(self_->raw_pairs()));
     act_raw_known_ = false;  // act_'s raw indices were the old answer's
   }
-  keep_candidates();
   return halvings;
 }
 
@@ -129,78 +129,92 @@ double Solver<Exec>::longest_move(const Vec<double>& x0, const Vec<double>& x1) 
   return std::sqrt(read_reductions()[kRedMotionUp]);
 }
 
-/// The last answer's pairs whose boxes of this motion (mlo_/mhi_), inflated by dhat, overlap,
-/// into cand_ in the answer's order, each with its barrier stiffness (per unit mass times the
-/// vertex's mass, VF, or the four vertices' mean, EE) and EE mollifier threshold.
-template <class Exec>
-void Solver<Exec>::keep_candidates() {
-  const ContactCandidates& raw = self_->raw();
-  const int nvf = static_cast<int>(raw.vf.size()), total = nvf + static_cast<int>(raw.ee.size());
-  if (!have_query_ || total == 0) {
-    cand_.resize_for_overwrite(0);
-    return;
-  }
-  grow_for_overwrite(raw_flag_, static_cast<size_t>(total));
-  grow_for_overwrite(raw_pos_, static_cast<size_t>(total));
-  const Eigen::Vector2i* vf = raw_vf_ptr();
-  const Eigen::Vector2i* ee = raw_ee_ptr();
-  const Eigen::Vector2i* edges = Exec::ptr(edges_);
-  const int* tris = Exec::ptr(tris_);
-  const double* lo = Exec::ptr(mlo_);
-  const double* hi = Exec::ptr(mhi_);
-  int* flag = Exec::ptr(raw_flag_);
-  int* pos = Exec::ptr(raw_pos_);
-  const double margin = P_.dhat_self * (1 + 1e-9);
-  Exec::for_each(total, [=] GD_HD_LAMBDA(int c) {
-    int a[2], b[3], na, nb;
-    if (c < nvf) {
-      a[0] = vf[c][0], na = 1;
-      for (int k = 0; k < 3; ++k) b[k] = tris[3 * vf[c][1] + k];
-      nb = 3;
-    } else {
-      const Eigen::Vector2i& e = ee[c - nvf];
-      a[0] = edges[e[0]][0], a[1] = edges[e[0]][1], b[0] = edges[e[1]][0], b[1] = edges[e[1]][1];
-      na = nb = 2;
-    }
-    bool near = true;
-    for (int d = 0; d < 3 && near; ++d) {
-      double alo = lo[3 * a[0] + d], ahi = hi[3 * a[0] + d], blo = lo[3 * b[0] + d], bhi = hi[3 * b[0] + d];
-      for (int k = 1; k < na; ++k) {
-        const double l = lo[3 * a[k] + d], h = hi[3 * a[k] + d];
-        alo = l < alo ? l : alo, ahi = ahi < h ? h : ahi;
-      }
-      for (int k = 1; k < nb; ++k) {
-        const double l = lo[3 * b[k] + d], h = hi[3 * b[k] + d];
-        blo = l < blo ? l : blo, bhi = bhi < h ? h : bhi;
-      }
-      if (alo - margin > bhi || blo - margin > ahi) near = false;
-    }
-    flag[c] = pos[c] = near ? 1 : 0;
-  }, Exec::kParallelMin);
-  Exec::exclusive_scan(raw_pos_, total);
-  double* red = Exec::ptr(red_);
-  Exec::for_each(1, [=] GD_HD_LAMBDA(int) { red[kRedCandidates] = pos[total - 1] + flag[total - 1]; }, 2);
-  cand_.resize_for_overwrite(static_cast<int>(read_reductions()[kRedCandidates]));
-  const detail::PairSlots K = cand_.slots();
-  const double* mass = Exec::ptr(mass_);
-  const double* len2 = Exec::ptr(edge_len2_);
-  const double kappa = kappa_scale_ * P_.kappa_per_mass;
-  Exec::for_each(total, [=] GD_HD_LAMBDA(int c) {
-    if (!flag[c]) return;
-    const int k = pos[c];
-    int* v = K.v + 4 * k;
+namespace detail {
+
+/// The broad phase's answer as the source of a selection (Solver::select_from): a pair is one
+/// when its primitives' boxes of the motion (lo/hi, 3 per vertex), inflated by `margin`, overlap:
+/// what a query with that margin would report. Its barrier stiffness: `kappa` (per unit mass)
+/// times the vertex's mass (VF) or the four vertices' mean (EE); its EE mollifier threshold from
+/// the edges' rest squared lengths.
+struct AnswerSource {
+  static constexpr bool kList = false;
+  int nvf;
+  const Eigen::Vector2i* vf;
+  const Eigen::Vector2i* ee;
+  const Eigen::Vector2i* edges;
+  const int* tris;
+  const double* lo;
+  const double* hi;
+  const double* mass;
+  const double* len2;
+  double margin, kappa;
+
+  GD_HD void vertices(int c, int* v, int* type) const {
     if (c < nvf) {
       v[0] = vf[c][0];
       for (int j = 0; j < 3; ++j) v[1 + j] = tris[3 * vf[c][1] + j];
-      K.type[k] = 0, K.kappa[k] = kappa * mass[v[0]], K.eps[k] = 0.0;
+      *type = 0;
     } else {
       const Eigen::Vector2i& e = ee[c - nvf];
       v[0] = edges[e[0]][0], v[1] = edges[e[0]][1], v[2] = edges[e[1]][0], v[3] = edges[e[1]][1];
-      const double m = 0.25 * (mass[v[0]] + mass[v[1]] + mass[v[2]] + mass[v[3]]);
-      K.type[k] = 1, K.kappa[k] = kappa * m, K.eps[k] = 1e-3 * len2[e[0]] * len2[e[1]];
+      *type = 1;
     }
-    K.raw[k] = c;
-  }, Exec::kParallelMin);
+  }
+  GD_HD bool pair(int c, int* v, int* type, int* raw) const {
+    vertices(c, v, type);
+    *raw = c;
+    const int na = *type == 0 ? 1 : 2;  // VF: the point against the triangle; EE: edge against edge
+    for (int d = 0; d < 3; ++d) {
+      double alo = lo[3 * v[0] + d], ahi = hi[3 * v[0] + d], blo = lo[3 * v[na] + d], bhi = hi[3 * v[na] + d];
+      for (int k = 1; k < na; ++k) {
+        const double l = lo[3 * v[k] + d], h = hi[3 * v[k] + d];
+        alo = l < alo ? l : alo, ahi = ahi < h ? h : ahi;  // std::min, std::max
+      }
+      for (int k = na + 1; k < 4; ++k) {
+        const double l = lo[3 * v[k] + d], h = hi[3 * v[k] + d];
+        blo = l < blo ? l : blo, bhi = bhi < h ? h : bhi;
+      }
+      if (alo - margin > bhi || blo - margin > ahi) return false;
+    }
+    return true;
+  }
+  GD_HD void write(int c, const PairSlots& to, int k) const {
+    int* v = to.v + 4 * k;
+    vertices(c, v, to.type + k);
+    if (c < nvf) {
+      to.kappa[k] = kappa * mass[v[0]], to.eps[k] = 0.0;
+    } else {
+      const Eigen::Vector2i& e = ee[c - nvf];
+      const double m = 0.25 * (mass[v[0]] + mass[v[1]] + mass[v[2]] + mass[v[3]]);
+      to.kappa[k] = kappa * m, to.eps[k] = 1e-3 * len2[e[0]] * len2[e[1]];
+    }
+    to.raw[k] = c;
+  }
+};
+
+}  // namespace detail
+
+/// The candidates of the motion find_candidates last saw (the answer's pairs whose boxes of the
+/// motion, mlo_/mhi_, inflated by dhat, overlap) and the active pairs among them at xs, the
+/// motion's start (generation gen), in one selection: one pass over the answer, one read-back.
+/// Returns the closest active pair's distance.
+template <class Exec>
+double Solver<Exec>::select_along(const Vec<double>& xs, int gen) {
+  const ContactCandidates& raw = self_->raw();
+  const int nvf = static_cast<int>(raw.vf.size());
+  const int total = have_query_ ? nvf + static_cast<int>(raw.ee.size()) : 0;
+  const detail::AnswerSource S{nvf,
+                               raw_vf_ptr(),
+                               raw_ee_ptr(),
+                               Exec::ptr(edges_),
+                               Exec::ptr(tris_),
+                               Exec::ptr(mlo_),
+                               Exec::ptr(mhi_),
+                               Exec::ptr(mass_),
+                               Exec::ptr(edge_len2_),
+                               P_.dhat_self * (1 + 1e-9),
+                               kappa_scale_ * P_.kappa_per_mass};
+  return select_from(S, total, xs, gen);
 }
 
 }  // namespace gd::sim

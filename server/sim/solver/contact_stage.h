@@ -33,7 +33,7 @@ bool Solver<Exec>::find_contacts_along_step() {
   const int halvings = find_candidates(x_, x1_, true);
   if (halvings < 0) return false;
   if (halvings > 0) Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { dx[k] = x1[k] - x[k]; }, Exec::kParallelMinVector);
-  select_active(x_, x_gen_);  // drops the candidates with no free vertex or at zero distance
+  select_along(x_, x_gen_);  // candidates along the step, active pairs at x
   return true;
 }
 

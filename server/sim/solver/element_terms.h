@@ -126,15 +126,26 @@ GD_HD Real pair_barrier(const Params& P, const PairView& L, int c, const double*
              : ee_contact_energy(a, b, q, d, 0.0, P.dhat_self, L.kappa[c], L.eps[c], g, H, P.contact_hessian, dist2);
 }
 
-/// Distance of pair c of a list at x, m: sqrt of the closest-feature squared distance (as
-/// pair_barrier's dist2), clamped at 0; NaN stays NaN.
-GD_HD double pair_distance(const PairView& L, int c, const double* x) {
-  const int* v = L.v + 4 * c;
+/// Distance of a pair (4 vertex ids, type 0 VF or 1 EE) at x, m: sqrt of the closest-feature
+/// squared distance (as pair_barrier's dist2), clamped at 0; NaN stays NaN.
+GD_HD double pair_distance(const int* v, int type, const double* x) {
   const Vec3 a = load3(x, v[0]), b = load3(x, v[1]), q = load3(x, v[2]), d = load3(x, v[3]);
-  const double d2 = L.type[c] == 0 ? point_triangle_distance2(a, b, q, d, nullptr, nullptr)
-                                   : edge_edge_distance2(a, b, q, d, nullptr, nullptr);
+  const double d2 = type == 0 ? point_triangle_distance2(a, b, q, d, nullptr, nullptr)
+                              : edge_edge_distance2(a, b, q, d, nullptr, nullptr);
   return sqrt(d2 < 0.0 ? 0.0 : d2);  // std::max(d2, 0.0)'s NaN: kept
 }
+
+/// A pair list as the source of a selection (Solver::select_from): every pair is one.
+struct ListSource {
+  static constexpr bool kList = true;
+  PairView L;
+  GD_HD bool pair(int c, int* v, int* type, int* raw) const {
+    for (int a = 0; a < 4; ++a) v[a] = L.v[4 * c + a];
+    *type = L.type[c], *raw = L.raw[c];
+    return true;
+  }
+  GD_HD void write(int c, const PairSlots& to, int k) const { copy_pair(L, c, to, k); }
+};
 
 /// Lagged cloth-cloth friction of friction pair k.
 GD_HD Real pair_friction(const View& V, const Params& P, int k, const double* x, Vec12* g, Mat12* H) {

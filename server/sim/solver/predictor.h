@@ -100,8 +100,8 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     // scaled back by CCD where needed.
     copy(x_, x1_);
     find_candidates(x_t_, x1_, false);  // candidates.h; a motion that would flood it is halved: dx below
-    select_active(x_t_, xt_gen_);       // the contacts at x_t (active_set.h) ...
-    build_friction(x_t_, xt_gen_);      // ... lag the friction
+    select_along(x_t_, xt_gen_);        // its candidates, and the contacts at x_t ...
+    build_friction(x_t_, xt_gen_);      // ... lag the friction (active_set.h)
     const double* xt = Exec::ptr(x_t_);
     const double* x1 = Exec::ptr(x1_);
     double* dx = Exec::ptr(dx_);

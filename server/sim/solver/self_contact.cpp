@@ -5,17 +5,12 @@
 #include <cmath>
 #include <limits>
 
-#include "sim/backend/cpu/omp_threads.h"
 #include "sim/contact/tri_tri_intersect.h"
 #include "sim/contact/untangle.h"
-#include "sim/demand.h"
 #include "sim/log.h"
 
 namespace gd::sim {
 namespace {
-
-/// Pair loops shorter than this stay on the calling thread.
-constexpr int kParallelPairs = 1024;
 
 Vec3 at(const std::vector<double>& x, int i) { return Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]); }
 

@@ -255,12 +255,14 @@ class Solver final : public SolverBase {
   int find_candidates(const Vec<double>& x0, Vec<double>& x1, bool refuse_non_finite);
   bool motion_covered(const Vec<double>& x0, const Vec<double>& x1, bool* finite);
   double longest_move(const Vec<double>& x0, const Vec<double>& x1);
-  void keep_candidates();
+  double select_along(const Vec<double>& xs, int gen);
   /// The host's SelfContact (its broad phase and counters), for tests and reports.
   const SelfContact* self_contact() const { return self_.get(); }
 
   // The active pairs, their distances and friction frames on the backend (active_set.h)
   double select_active(const Vec<double>& xs, int gen);
+  template <class Source>
+  double select_from(const Source& S, int n, const Vec<double>& xs, int gen);
   double min_active_distance(const Vec<double>& xs, int gen);
   void build_friction(const Vec<double>& xs, int gen);
   void store_candidate_distances(int gen);
@@ -571,11 +573,9 @@ class Solver final : public SolverBase {
   bool act_raw_known_ = false;  ///< act_'s raw indices are the current answer's
   /// The broad phase's last answer on the backend (the host reads SelfContact's in place), the
   /// mesh's edges and their rest squared lengths, the boxes of the last query's motion and of the
-  /// current one (3 per vertex each), the end of the current motion, and keep_candidates' flags
-  /// and places per answer pair.
+  /// current one (3 per vertex each), and the end of the current motion.
   Vec<Eigen::Vector2i> raw_vf_, raw_ee_, edges_;
   Vec<double> edge_len2_, qlo_, qhi_, mlo_, mhi_, x1_;
-  Vec<int> raw_flag_, raw_pos_;
   bool have_query_ = false;  ///< qlo_/qhi_ hold a query's boxes (its answer was kept)
   std::vector<double> host_q0_, host_q1_;  ///< a query's motion on the host
   const Eigen::Vector2i* raw_vf_ptr() const {

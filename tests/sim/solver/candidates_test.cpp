@@ -1,8 +1,9 @@
 // The solver's self-contact candidates (solver/candidates.h), on the CPU backend and on the GPU's
 // code paths: motions that, after one common translation, stay within slack/2 of the last
-// query's boxes are answered from it, on the backend, and their candidates are exactly the pairs
-// a fresh query with margin dhat reports along the motion; a motion past the slack queries again;
-// a non-finite motion is refused or reaches the broad phase's InputError.
+// query's boxes are answered from it, on the backend, and their candidates (select_along) are
+// exactly the pairs a fresh query with margin dhat reports along the motion (none of the folded
+// sheet's is at zero distance); a motion past the slack queries again; a non-finite motion is
+// refused or reaches the broad phase's InputError.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -39,9 +40,11 @@ struct FoldedSolver {
     s = std::make_unique<Solver<Exec>>(std::make_shared<const SceneData>(f.data), o);
   }
   long queries() const { return s->self_contact()->broad_phase_queries(); }
+  int gen = 1 << 20;  ///< positions' generations for select_along, one per call (no distance kept between calls)
   /// The candidates of x0 -> x1, as a set.
   std::set<Quad> candidates(const std::vector<double>& x0, std::vector<double> x1) {
     EXPECT_EQ(s->find_candidates(x0, x1, false), 0);
+    s->select_along(x0, ++gen);
     return as_set(s->candidate_pairs());
   }
 };
