@@ -24,7 +24,6 @@ struct ContactPairs {
   std::vector<double> kappa;  ///< barrier stiffness per pair, N/m
   std::vector<double> eps_x;  ///< edge-edge mollifier threshold (0 for VF)
   int size() const { return static_cast<int>(type.size()); }
-  void clear() { v.clear(), type.clear(), kappa.clear(), eps_x.clear(); }
 };
 
 class SelfContact {

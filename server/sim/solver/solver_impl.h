@@ -524,14 +524,6 @@ class Solver final : public SolverBase {
     int n = 0;
     Vec<int> v, type, raw;
     Vec<double> kappa, eps;
-    void upload(const ContactPairs& p, const std::vector<int>& raw_index) {
-      n = p.size();
-      Exec::upload(v, p.v);
-      Exec::upload(type, p.type);
-      Exec::upload(kappa, p.kappa);
-      Exec::upload(eps, p.eps_x);
-      Exec::upload(raw, raw_index);
-    }
     /// Room for `count` pairs whose values the caller writes (grown only: see grow_for_overwrite).
     void resize_for_overwrite(int count) {
       n = count;
