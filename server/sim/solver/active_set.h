@@ -8,7 +8,7 @@
 /// and the host reads back only their lengths (one round trip per selection).
 ///
 /// A pair's distance measured at some positions is kept per pair of the broad phase's answer
-/// (its raw index) with the positions' generation (x_generation(): bumped whenever x_ changes),
+/// (its raw index) with the positions' generation (x_gen_: bumped whenever x_ changes),
 /// so the line search's accepted point (store_candidate_distances) and a second selection at the
 /// same iterate (the candidates along the Newton direction) measure nothing twice.
 

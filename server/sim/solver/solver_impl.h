@@ -277,9 +277,6 @@ class Solver final : public SolverBase {
   FrictionPairs friction_pairs() const;
   /// The closest active pair at x_, m (infinity when none).
   double closest_active_pair() { return min_active_distance(x_, x_gen_); }
-  /// Generation of x_'s contents: bumped whenever x_ changes (pair distances are kept per
-  /// generation, active_set.h).
-  int x_generation() const { return x_gen_; }
 
   // Newton stopping rule (stopping_rule.h)
   bool converged(StepStats* st, int k, bool gradient_known, double scale, double last_taken);
@@ -578,7 +575,8 @@ class Solver final : public SolverBase {
     if constexpr (Exec::kHostMemory) return self_->raw().ee.data();
     else return Exec::ptr(raw_ee_);
   }
-  /// Generations of x_'s and x_t_'s contents (x_generation()); gen_counter_ the last one given.
+  /// Generations of x_'s and x_t_'s contents (bumped whenever x_ changes: pair distances are kept
+  /// per generation, active_set.h); gen_counter_ the last one given.
   int x_gen_ = 0, xt_gen_ = 0, gen_counter_ = 0;
   void moved_x() { x_gen_ = ++gen_counter_; }
   std::vector<int> host_act_v_, host_fr_v_;  ///< merge_pair_blocks on the host for a GPU policy
