@@ -163,31 +163,37 @@ class Lbvh {
     n_ = count;
     if (n_ == 0) return;
     const float* b = Exec::ptr(boxes);
-    // 1. The centres' bounding box (relative to the first centre: the policy's max starts at 0).
-    float c0[3];
-    for (int d = 0; d < 3; ++d) c0[d] = 0.5f * (Exec::read(boxes, d) + Exec::read(boxes, 3 + d));
-    float lo[3], ext[3];
+    // 1. The centres' bounding box, relative to the first centre (the policy's max starts at 0),
+    //    into bounds_ (per axis: the farthest centre below it, the farthest above); nothing is
+    //    read back: the Morton codes' loop derives the box from them.
+    Exec::resize_for_overwrite(bounds_, 6);
+    double* bounds = Exec::ptr(bounds_);
     for (int d = 0; d < 3; ++d) {
-      const float cd = c0[d];
-      const double below = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
+      Exec::max_to(n_, [=] GD_HD_LAMBDA(int i) {
+        const float cd = 0.5f * (b[d] + b[3 + d]);
         return static_cast<double>(cd) - 0.5 * (static_cast<double>(b[6 * i + d]) + b[6 * i + 3 + d]);
-      }, Exec::kParallelMinVector);
-      const double above = Exec::max(n_, [=] GD_HD_LAMBDA(int i) {
+      }, bounds + 2 * d, Exec::kParallelMinVector);
+      Exec::max_to(n_, [=] GD_HD_LAMBDA(int i) {
+        const float cd = 0.5f * (b[d] + b[3 + d]);
         return 0.5 * (static_cast<double>(b[6 * i + d]) + b[6 * i + 3 + d]) - static_cast<double>(cd);
-      }, Exec::kParallelMinVector);
-      lo[d] = static_cast<float>(cd - below);
-      ext[d] = static_cast<float>(below + above);
+      }, bounds + 2 * d + 1, Exec::kParallelMinVector);
     }
-    float extent = ext[0] > ext[1] ? ext[0] : ext[1];
-    extent = extent > ext[2] ? extent : ext[2];
-    const float inv = extent > 0 ? 1.0f / extent : 0.0f;
-    const float l0 = lo[0], l1 = lo[1], l2 = lo[2];
+    //    Morton codes of the centres in the box's cube, made unique by the box index, sorted.
     Exec::resize_for_overwrite(keys_, n_);
     uint64_t* keys = Exec::ptr(keys_);
     Exec::for_each(n_, [=] GD_HD_LAMBDA(int i) {
+      float lo[3], ext[3];
+      for (int d = 0; d < 3; ++d) {
+        const float cd = 0.5f * (b[d] + b[3 + d]);
+        lo[d] = static_cast<float>(cd - bounds[2 * d]);
+        ext[d] = static_cast<float>(bounds[2 * d] + bounds[2 * d + 1]);
+      }
+      float extent = ext[0] > ext[1] ? ext[0] : ext[1];
+      extent = extent > ext[2] ? extent : ext[2];
+      const float inv = extent > 0 ? 1.0f / extent : 0.0f;
       const float* bi = b + 6 * i;
-      const uint32_t code = lbvh::morton3((0.5f * (bi[0] + bi[3]) - l0) * inv, (0.5f * (bi[1] + bi[4]) - l1) * inv,
-                                          (0.5f * (bi[2] + bi[5]) - l2) * inv);
+      const uint32_t code = lbvh::morton3((0.5f * (bi[0] + bi[3]) - lo[0]) * inv, (0.5f * (bi[1] + bi[4]) - lo[1]) * inv,
+                                          (0.5f * (bi[2] + bi[5]) - lo[2]) * inv);
       keys[i] = (static_cast<uint64_t>(code) << 32) | static_cast<uint32_t>(i);
     }, Exec::kParallelMinVector);
     Exec::sort(keys_);
@@ -377,6 +383,7 @@ class Lbvh {
   Vec<int> node_max_;  ///< per internal node: the largest box index below it (self queries)
   Vec<int64_t> offsets_;
   Vec<float> leaf_box_, node_box_;
+  Vec<double> bounds_;  ///< build's bounding box of the centres (6 values)
 };
 
 }  // namespace gd::sim

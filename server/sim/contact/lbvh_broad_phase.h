@@ -3,8 +3,9 @@
 /// The self-contact broad phase on the LBVH (lbvh.h), written once over an execution policy:
 /// primitive boxes computed per primitive (the same boxes as broad_phase.cpp's Embree and brute
 /// force implementations: swept over x0 -> x1, inflated by margin / 2, rounded outwards to
-/// float), one hierarchy per primitive kind, one query per primitive, then the pairs read back
-/// and sorted on the host. make_lbvh_broad_phase (broad_phase.h) instantiates it on the CPU
+/// float), one hierarchy per primitive kind, one query per primitive, the pairs sorted (on the
+/// backend, or on the host for the CPU policy's kHostPairs) and left on the backend for the
+/// solver (find_on_backend) or read back (find, triangle_pairs). make_lbvh_broad_phase (broad_phase.h) instantiates it on the CPU
 /// policy; the CUDA backend's object on CudaExec (backend/cuda/cuda_broad_phase.cu).
 
 #include <algorithm>
@@ -71,95 +72,122 @@ class LbvhBroadPhase final : public BroadPhase {
   bool find(const std::vector<double>& x0, const std::vector<double>& x1, double margin, ContactCandidates* out,
             std::size_t max_pairs) override {
     GD_DEMAND(out != nullptr, "null output");
-    out->vf.clear();
-    out->ee.clear();
+    check_broad_phase_query(n_, x0, x1, margin);
+    if constexpr (Exec::kHostMemory) {  // the host's vectors are the policy's
+      return find_on_backend(x0.data(), x1.data(), margin, &out->vf, &out->ee, max_pairs);
+    } else {
+      Exec::upload(x0_, x0);
+      Exec::upload(x1_, x1);
+      const bool fits = find_on_backend(Exec::ptr(x0_), Exec::ptr(x1_), margin, &vf_, &ee_, max_pairs);
+      if (fits) {
+        out->vf.resize(vf_.size()), out->ee.resize(ee_.size());
+        if (!vf_.empty()) Exec::download_to(out->vf.data(), vf_);
+        if (!ee_.empty()) Exec::download_to(out->ee.data(), ee_);
+      } else {
+        out->vf.clear(), out->ee.clear();
+      }
+      return fits;
+    }
+  }
+
+  /// find() on positions the backend holds (x0, x1: 3 per vertex, finite: unchecked), its pairs
+  /// left there: vf and ee sized to their counts (empty when it returns false, the query refused
+  /// for holding more than max_pairs). The solver's queries (solver/candidates.h): nothing crosses
+  /// to the host but the counts.
+  bool find_on_backend(const double* x0, const double* x1, double margin, Vec<Eigen::Vector2i>* vf,
+                       Vec<Eigen::Vector2i>* ee, std::size_t max_pairs) {
+    GD_DEMAND(vf != nullptr && ee != nullptr, "null output");
     const int64_t limit = max_pairs >= static_cast<std::size_t>(std::numeric_limits<int64_t>::max())
                               ? std::numeric_limits<int64_t>::max()
                               : static_cast<int64_t>(max_pairs);
-    load(x0, x1, margin);
     const double pad = 0.5 * margin;
-    boxes<1>(nullptr, n_, pad, &vertex_boxes_);
-    boxes<2>(Exec::ptr(edges_), ne_, pad, &edge_boxes_);
-    boxes<3>(Exec::ptr(tris_), nt_, pad, &tri_boxes_);
+    boxes<1>(nullptr, n_, x0, x1, pad, &vertex_boxes_);
+    boxes<2>(Exec::ptr(edges_), ne_, x0, x1, pad, &edge_boxes_);
+    boxes<3>(Exec::ptr(tris_), nt_, x0, x1, pad, &tri_boxes_);
     const int* tris = Exec::ptr(tris_);
     const int* edges = Exec::ptr(edges_);
+    Exec::resize_for_overwrite(*vf, 0);
+    Exec::resize_for_overwrite(*ee, 0);
     tree_.build(nt_, tri_boxes_);
     // Each query counts its pairs before writing any, so a flooded one allocates nothing.
-    const int64_t vf = tree_.query(n_, vertex_boxes_, [=] GD_HD_LAMBDA(int v, int t) {
+    const int64_t nvf = tree_.query(n_, vertex_boxes_, [=] GD_HD_LAMBDA(int v, int t) {
       return tris[3 * t] != v && tris[3 * t + 1] != v && tris[3 * t + 2] != v;
     }, &keys_, limit);
-    if (vf > limit) return false;
-    finish(&out->vf);
+    if (nvf > limit) return false;
+    finish(vf);
     tree_.build(ne_, edge_boxes_);
-    const int64_t ee = tree_.query(ne_, edge_boxes_, [=] GD_HD_LAMBDA(int a, int b) {
+    const int64_t nee = tree_.query(ne_, edge_boxes_, [=] GD_HD_LAMBDA(int a, int b) {
       const int a0 = edges[2 * a], a1 = edges[2 * a + 1], b0 = edges[2 * b], b1 = edges[2 * b + 1];
       return b > a && a0 != b0 && a0 != b1 && a1 != b0 && a1 != b1;
-    }, &keys_, limit - vf, /*self_above=*/true);
-    if (ee > limit - vf) {
-      out->vf.clear();
+    }, &keys_, limit - nvf, /*self_above=*/true);
+    if (nee > limit - nvf) {
+      Exec::resize_for_overwrite(*vf, 0);
       return false;
     }
-    finish(&out->ee);
+    finish(ee);
     return true;
   }
 
   void triangle_pairs(const std::vector<double>& x0, const std::vector<double>& x1, double margin,
                       std::vector<Eigen::Vector2i>* out) override {
     GD_DEMAND(out != nullptr, "null output");
-    load(x0, x1, margin);
-    boxes<3>(Exec::ptr(tris_), nt_, 0.5 * margin, &tri_boxes_);
+    check_broad_phase_query(n_, x0, x1, margin);
+    const double* a = x0.data();
+    const double* b = x1.data();
+    if constexpr (!Exec::kHostMemory) {
+      Exec::upload(x0_, x0);
+      Exec::upload(x1_, x1);
+      a = Exec::ptr(x0_), b = Exec::ptr(x1_);
+    }
+    boxes<3>(Exec::ptr(tris_), nt_, a, b, 0.5 * margin, &tri_boxes_);
     const int* tris = Exec::ptr(tris_);
     tree_.build(nt_, tri_boxes_);
-    tree_.query(nt_, tri_boxes_, [=] GD_HD_LAMBDA(int a, int b) {
-      if (b <= a) return false;
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-          if (tris[3 * a + i] == tris[3 * b + j]) return false;
+    tree_.query(nt_, tri_boxes_, [=] GD_HD_LAMBDA(int i, int j) {
+      if (j <= i) return false;
+      for (int p = 0; p < 3; ++p)
+        for (int q = 0; q < 3; ++q)
+          if (tris[3 * i + p] == tris[3 * j + q]) return false;
       return true;
     }, &keys_, std::numeric_limits<int64_t>::max(), /*self_above=*/true);
-    finish(out);
+    if constexpr (Exec::kHostMemory) {
+      finish(out);
+    } else {
+      finish(&vf_);
+      out->resize(vf_.size());
+      if (!vf_.empty()) Exec::download_to(out->data(), vf_);
+    }
   }
 
   // Stages, public only because nvcc requires the functions that enclose extended __host__
   // __device__ lambdas to be public.
 
-  /// Checks the inputs as the other implementations do and hands the positions to the backend.
-  void load(const std::vector<double>& x0, const std::vector<double>& x1, double margin) {
-    check_broad_phase_query(n_, x0, x1, margin);
-    Exec::upload(x0_, x0);
-    Exec::upload(x1_, x1);
-  }
-
+  /// Boxes of the `count` primitives (K corners each, ids in idx) swept over x0 -> x1 and
+  /// inflated by pad, 6 floats each.
   template <int K>
-  void boxes(const int* idx, int count, double pad, Vec<float>* out) {
+  void boxes(const int* idx, int count, const double* a, const double* b, double pad, Vec<float>* out) {
     Exec::resize_for_overwrite(*out, 6 * static_cast<size_t>(count));
-    const double* a = Exec::ptr(x0_);
-    const double* b = Exec::ptr(x1_);
     float* o = Exec::ptr(*out);
     Exec::for_each(count, [=] GD_HD_LAMBDA(int p) { lbvh::swept_box<K>(idx, p, a, b, pad, o + 6 * p); },
                    Exec::kParallelMinVector);
   }
 
-  /// The query's keys (first << 32 | second) as pairs sorted lexicographically (each query's pairs
-  /// come grouped in query order; within a query they are sorted here). Policies without
-  /// kHostPairs sort all keys on the backend (a query's keys share their high word, so the order
-  /// is the same) and unpack them there into the pairs' memory layout, copied back in one piece:
-  /// at fold/40000 the query holds ~6.6 million pairs, and the host's serial sort and unpacking of
-  /// them was most of the CUDA step's predictor stage.
-  void finish(std::vector<Eigen::Vector2i>* out) {
+  /// The query's keys (first << 32 | second) into `out` as pairs sorted lexicographically (each
+  /// query's pairs come grouped in query order; within a query they are sorted here). Policies
+  /// without kHostPairs sort all keys on the backend (a query's keys share their high word, so the
+  /// order is the same) and unpack them there: at fold/40000 the query holds ~6.6 million pairs,
+  /// and the host's serial sort and unpacking of them was most of the CUDA step's predictor stage.
+  void finish(Vec<Eigen::Vector2i>* out) {
     if constexpr (!Exec::kHostPairs) {
       static_assert(sizeof(Eigen::Vector2i) == 2 * sizeof(int), "pairs are two packed ints");
       Exec::sort(keys_);
       const int n = static_cast<int>(keys_.size());
-      Exec::resize_for_overwrite(pairs_, 2 * static_cast<size_t>(n));
+      Exec::resize_for_overwrite(*out, static_cast<size_t>(n));
       const uint64_t* k = Exec::ptr(keys_);
-      int* p = Exec::ptr(pairs_);
+      int* p = reinterpret_cast<int*>(Exec::ptr(*out));
       Exec::for_each(n, [=] GD_HD_LAMBDA(int i) {
         p[2 * i] = static_cast<int>(k[i] >> 32);
         p[2 * i + 1] = static_cast<int>(k[i] & 0xffffffffu);
       });
-      out->resize(n);
-      if (n > 0) Exec::download_to(out->front().data(), pairs_);
     } else {
       finish_on_host(out);
     }
@@ -167,7 +195,7 @@ class LbvhBroadPhase final : public BroadPhase {
 
   /// finish() where the pairs are sorted and unpacked on the host (kHostPairs, which needs the
   /// keys in host memory).
-  void finish_on_host(std::vector<Eigen::Vector2i>* out) {
+  void finish_on_host(Vec<Eigen::Vector2i>* out) {
     static_assert(Exec::kHostMemory, "kHostPairs sorts the keys where they lie: host memory");
     // The keys are cut into chunks at query boundaries, each chunk's queries sorted and unpacked
     // by one thread (the same pairs in the same order at any thread count: this was a serial pass,
@@ -202,10 +230,10 @@ class LbvhBroadPhase final : public BroadPhase {
  private:
   int n_, nt_, ne_;
   Vec<int> tris_, edges_;
-  Vec<double> x0_, x1_;
+  Vec<double> x0_, x1_;  ///< a host query's positions (policies without kHostMemory)
   Vec<float> vertex_boxes_, edge_boxes_, tri_boxes_;
   Vec<uint64_t> keys_;
-  Vec<int> pairs_;  ///< finish without kHostPairs: the sorted keys unpacked
+  Vec<Eigen::Vector2i> vf_, ee_;  ///< a host query's pairs (policies without kHostMemory)
   Lbvh<Exec> tree_;
 };
 

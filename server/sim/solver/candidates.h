@@ -1,8 +1,8 @@
 #pragma once
 /// \file
-/// Self-contact candidates on the backend: the pairs of the broad phase's last answer
-/// (SelfContact::query, on the host) that can come within dhat during a motion x0 -> x1. Member
-/// functions of Solver<Exec>, written once for every backend.
+/// Self-contact candidates on the backend: the pairs of the broad phase's last answer (the LBVH
+/// queried on the backend, or Embree's on the host) that can come within dhat during a motion
+/// x0 -> x1. Member functions of Solver<Exec>, written once for every backend.
 ///
 /// A query's margin is dhat + slack, so its answer serves every later motion that, after one
 /// common translation, keeps each vertex within slack/2 of the box it swept in the query: the
@@ -11,8 +11,8 @@
 /// six reductions read back together), and so is the filter that keeps the answer's pairs whose
 /// boxes of this motion, inflated by dhat, overlap (what a query with margin dhat would report),
 /// compacted in the answer's order by an exclusive scan in the same pass that selects the active
-/// pairs at the motion's start (select_along: one read-back). The host sees positions only when
-/// a new query runs.
+/// pairs at the motion's start (select_along: one read-back). With the LBVH the host sees no
+/// position and no pair: a query reads back its pair counts.
 
 #include "sim/solver/solver_impl.h"
 
@@ -40,16 +40,10 @@ int Solver<Exec>::find_candidates(const Vec<double>& x0, Vec<double>& x1, bool r
     // The unbounded query only once the motion is short: within dhat of the start everywhere.
     const bool last = halvings >= SelfContact::kMaxFloodHalvingsDiverged ||
                       (halvings >= SelfContact::kMaxFloodHalvings && !(longest_move(x0, x1) > P_.dhat_self));
-    Exec::download(host_q0_, x0);
-    Exec::download(host_q1_, x1);
-    if (self_->query(host_q0_, host_q1_, last ? kNoPairLimit : self_->pair_budget())) {
+    if (query_pairs(x0, x1, finite, last ? kNoPairLimit : self_->pair_budget())) {
       copy(mlo_, qlo_);  // what later motions are checked against
       copy(mhi_, qhi_);
       have_query_ = true;
-      if constexpr (!Exec::kHostMemory) {  // the host reads SelfContact's answer in place
-        Exec::upload(raw_vf_, self_->raw().vf);
-        Exec::upload(raw_ee_, self_->raw().ee);
-      }
       break;
     }
     have_query_ = false;  // a refused query leaves nothing to reuse
@@ -64,12 +58,40 @@ int Solver<Exec>::find_candidates(const Vec<double>& x0, Vec<double>& x1, bool r
     self_->count_halvings(halvings);
   }
   if (self_->pair_queries() != queries_before) {  // a new answer: the distances kept are the old one's
-    Exec::resize(raw_stamp_, static_cast<size_t>(self_->raw_pairs()));
+    const size_t raw_pairs = static_cast<size_t>(raw_vf_count() + raw_ee_count());
+    Exec::resize(raw_stamp_, raw_pairs);
     Exec::fill(raw_stamp_, -1);
-    Exec::resize_for_overwrite(raw_dist_, static_cast<size_t>(self_->raw_pairs()));
+    Exec::resize_for_overwrite(raw_dist_, raw_pairs);
     act_raw_known_ = false;  // act_'s raw indices were the old answer's
   }
   return halvings;
+}
+
+/// The broad-phase query of the motion x0 -> x1 (margin dhat + slack) with at most max_pairs
+/// pairs (false: refused, nothing kept): on the backend, its answer left there, with the LBVH;
+/// Embree's on the host (the motion downloaded, its answer uploaded to a device). finite: what
+/// motion_covered found; a non-finite motion throws the broad phase's InputError.
+template <class Exec>
+bool Solver<Exec>::query_pairs(const Vec<double>& x0, const Vec<double>& x1, bool finite, std::size_t max_pairs) {
+  const double margin = self_->dhat() + self_->slack();
+  if (pair_bp_ == nullptr || !finite) {
+    Exec::download(host_q0_, x0);
+    Exec::download(host_q1_, x1);
+    if (pair_bp_ != nullptr) {  // the broad phase's own error for a non-finite motion
+      check_broad_phase_query(n_, host_q0_, host_q1_, margin);
+      GD_DEMAND(false, "a motion found non-finite on the backend is finite on the host");
+    }
+    const bool fits = self_->query(host_q0_, host_q1_, max_pairs);
+    if (fits && !Exec::kHostMemory) {  // a host-memory policy reads SelfContact's answer in place
+      Exec::upload(raw_vf_, self_->raw().vf);
+      Exec::upload(raw_ee_, self_->raw().ee);
+    }
+    return fits;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const bool fits = pair_bp_->find_on_backend(Exec::ptr(x0), Exec::ptr(x1), margin, &raw_vf_, &raw_ee_, max_pairs);
+  self_->count_query(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  return fits;
 }
 
 /// The motion's boxes (per coordinate, the smaller and the larger of x0 and x1) into mlo_/mhi_, and
@@ -200,9 +222,8 @@ struct AnswerSource {
 /// Returns the closest active pair's distance.
 template <class Exec>
 double Solver<Exec>::select_along(const Vec<double>& xs, int gen) {
-  const ContactCandidates& raw = self_->raw();
-  const int nvf = static_cast<int>(raw.vf.size());
-  const int total = have_query_ ? nvf + static_cast<int>(raw.ee.size()) : 0;
+  const int nvf = raw_vf_count();
+  const int total = have_query_ ? nvf + raw_ee_count() : 0;
   const detail::AnswerSource S{nvf,
                                raw_vf_ptr(),
                                raw_ee_ptr(),

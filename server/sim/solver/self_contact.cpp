@@ -7,6 +7,7 @@
 
 #include "sim/contact/tri_tri_intersect.h"
 #include "sim/contact/untangle.h"
+#include "sim/demand.h"
 #include "sim/log.h"
 
 namespace gd::sim {
@@ -18,6 +19,14 @@ Vec3 at(const std::vector<double>& x, int i) { return Vec3(x[3 * i], x[3 * i + 1
 
 SelfContact::SelfContact(const SceneData& data, Real dhat, BroadPhaseKind broad_phase, bool on_device,
                          std::size_t pair_budget)
+    : SelfContact(data, dhat,
+                  [&](const std::vector<int>& tris, const std::vector<Eigen::Vector2i>& edges, int n) {
+                    if (broad_phase == BroadPhaseKind::kEmbree) return make_embree_broad_phase(tris, edges, n);
+                    return on_device ? make_cuda_lbvh_broad_phase(tris, edges, n) : make_lbvh_broad_phase(tris, edges, n);
+                  },
+                  pair_budget) {}
+
+SelfContact::SelfContact(const SceneData& data, Real dhat, const BroadPhaseFactory& make, std::size_t pair_budget)
     : d_(data),
       dhat_(dhat),
       slack_(kBroadPhaseSlack * dhat),
@@ -34,11 +43,8 @@ SelfContact::SelfContact(const SceneData& data, Real dhat, BroadPhaseKind broad_
   });
   edges_.erase(std::unique(edges_.begin(), edges_.end()), edges_.end());
   for (const auto& e : edges_) edge_len2_.push_back((at(d_.x, e[0]) - at(d_.x, e[1])).squaredNorm());
-  if (broad_phase != BroadPhaseKind::kEmbree) {
-    bp_ = on_device ? make_cuda_lbvh_broad_phase(d_.tris, edges_, d_.n) : make_lbvh_broad_phase(d_.tris, edges_, d_.n);
-  } else {
-    bp_ = make_embree_broad_phase(d_.tris, edges_, d_.n);
-  }
+  bp_ = make(d_.tris, edges_, d_.n);
+  GD_DEMAND(bp_ != nullptr, "the broad-phase factory made nothing");
 }
 
 namespace {

@@ -9,6 +9,7 @@
 /// diagnostics): 4 vertex ids per pair (VF: point, triangle corners; EE: edge a, edge b), a type
 /// (0 VF, 1 EE), the barrier stiffness and the edge-edge mollifier threshold.
 
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -28,11 +29,18 @@ struct ContactPairs {
 
 class SelfContact {
  public:
+  /// Makes the broad phase from the mesh's triangles (3 ids each), its unique edges and its
+  /// vertex count.
+  using BroadPhaseFactory = std::function<std::unique_ptr<BroadPhase>(
+      const std::vector<int>& tris, const std::vector<Eigen::Vector2i>& edges, int vertex_count)>;
+
   /// broad_phase kLbvh or kAuto: the LBVH, on the CUDA device with on_device
   /// (make_cuda_lbvh_broad_phase), else on the CPU policy; kEmbree: Embree.
   /// pair_budget: a query's bound (0: the default, see pair_budget()).
   SelfContact(const SceneData& data, Real dhat, BroadPhaseKind broad_phase = BroadPhaseKind::kAuto, bool on_device = false,
               std::size_t pair_budget = 0);
+  /// The broad phase made by `make` (the solver's: the LBVH on its own execution policy).
+  SelfContact(const SceneData& data, Real dhat, const BroadPhaseFactory& make, std::size_t pair_budget = 0);
 
   /// The broad phase on the linear motion x0 -> x1 with a margin of dhat + slack (slack =
   /// kBroadPhaseSlack x dhat): every pair that can come within dhat + slack. The answer is kept
@@ -59,8 +67,16 @@ class SelfContact {
   /// The mesh's unique edges (a < b, sorted) and their rest squared lengths (the EE mollifier).
   const std::vector<Eigen::Vector2i>& edges() const { return edges_; }
   const std::vector<double>& edge_rest_length2() const { return edge_len2_; }
-  /// The solver's counts of motions answered from the last query and of halved motions.
+  /// The solver's counts of motions answered from the last query and of halved motions, and of
+  /// the pair queries it ran on the broad phase itself (on the backend, the answer kept there).
   void count_reuse() { ++reuses_; }
+  void count_query(double seconds) {
+    bp_seconds_ += seconds;
+    ++queries_;
+    ++pair_queries_;
+    raw_.vf.clear(), raw_.ee.clear();  // what the host kept is no longer the answer
+  }
+  BroadPhase& broad_phase() { return *bp_; }
   void count_halvings(int h) { halvings_ += h; }
   /// The pair bound of a query: the pair_budget given at construction, else kPairsPerVertex
   /// per vertex and at least kMinPairBudget, far above what a query of a settled or moving

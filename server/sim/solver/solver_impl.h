@@ -22,6 +22,7 @@
 #include <cmath>
 #include <type_traits>
 
+#include "sim/contact/lbvh_broad_phase.h"
 #include "sim/solver/element_terms.h"
 #include "sim/solver/pair_blocks.h"
 #include "sim/solver/preconditioner.h"
@@ -102,8 +103,15 @@ class Solver final : public SolverBase {
       P_.dhat_self = P_.dhat;
       P_.ccd_floor = kCcdFloorFraction * P_.dhat_self;
       P_.mu_self = opt.self_friction >= 0 ? opt.self_friction : d.friction;
-      self_ = std::make_unique<SelfContact>(d, P_.dhat_self, opt.broad_phase, !Exec::kHostMemory,
-                                            opt.self_contact_pair_budget);
+      // The LBVH on this policy (the solver queries it on the backend: candidates.h), or Embree.
+      const auto make_broad_phase = [&](const std::vector<int>& tris, const std::vector<Eigen::Vector2i>& edges,
+                                        int n) -> std::unique_ptr<BroadPhase> {
+        if (opt.broad_phase == BroadPhaseKind::kEmbree) return make_embree_broad_phase(tris, edges, n);
+        auto lbvh = std::make_unique<LbvhBroadPhase<Exec>>(tris, edges, n);
+        pair_bp_ = lbvh.get();
+        return lbvh;
+      };
+      self_ = std::make_unique<SelfContact>(d, P_.dhat_self, make_broad_phase, opt.self_contact_pair_budget);
       Exec::upload(edges_, self_->edges());
       Exec::upload(edge_len2_, self_->edge_rest_length2());
       for (auto* vec : {&x1_, &qlo_, &qhi_, &mlo_, &mhi_}) Exec::resize(*vec, 3 * n_);
@@ -254,6 +262,7 @@ class Solver final : public SolverBase {
   // The candidates of a motion from the broad phase's last answer, on the backend (candidates.h)
   int find_candidates(const Vec<double>& x0, Vec<double>& x1, bool refuse_non_finite);
   bool motion_covered(const Vec<double>& x0, const Vec<double>& x1, bool* finite);
+  bool query_pairs(const Vec<double>& x0, const Vec<double>& x1, bool finite, std::size_t max_pairs);
   double longest_move(const Vec<double>& x0, const Vec<double>& x1);
   double select_along(const Vec<double>& xs, int gen);
   /// The host's SelfContact (its broad phase and counters), for tests and reports.
@@ -560,21 +569,22 @@ class Solver final : public SolverBase {
   Vec<double> raw_dist_;
   Vec<int> raw_stamp_;
   bool act_raw_known_ = false;  ///< act_'s raw indices are the current answer's
-  /// The broad phase's last answer on the backend (the host reads SelfContact's in place), the
-  /// mesh's edges and their rest squared lengths, the boxes of the last query's motion and of the
-  /// current one (3 per vertex each), and the end of the current motion.
+  /// The LBVH broad phase on this policy (SelfContact's, null with Embree): the pair queries run
+  /// on it and leave their answer in raw_vf_/raw_ee_.
+  LbvhBroadPhase<Exec>* pair_bp_ = nullptr;
+  /// The broad phase's last answer on the backend (Embree's on a host-memory policy: read from
+  /// SelfContact's in place), the mesh's edges and their rest squared lengths, the boxes of the
+  /// last query's motion and of the current one (3 per vertex each), and the end of the current
+  /// motion.
   Vec<Eigen::Vector2i> raw_vf_, raw_ee_, edges_;
   Vec<double> edge_len2_, qlo_, qhi_, mlo_, mhi_, x1_;
   bool have_query_ = false;  ///< qlo_/qhi_ hold a query's boxes (its answer was kept)
-  std::vector<double> host_q0_, host_q1_;  ///< a query's motion on the host
-  const Eigen::Vector2i* raw_vf_ptr() const {
-    if constexpr (Exec::kHostMemory) return self_->raw().vf.data();
-    else return Exec::ptr(raw_vf_);
-  }
-  const Eigen::Vector2i* raw_ee_ptr() const {
-    if constexpr (Exec::kHostMemory) return self_->raw().ee.data();
-    else return Exec::ptr(raw_ee_);
-  }
+  std::vector<double> host_q0_, host_q1_;  ///< a host query's motion (Embree)
+  bool raw_in_self() const { return Exec::kHostMemory && pair_bp_ == nullptr; }
+  const Eigen::Vector2i* raw_vf_ptr() const { return raw_in_self() ? self_->raw().vf.data() : Exec::ptr(raw_vf_); }
+  const Eigen::Vector2i* raw_ee_ptr() const { return raw_in_self() ? self_->raw().ee.data() : Exec::ptr(raw_ee_); }
+  int raw_vf_count() const { return static_cast<int>(pair_bp_ ? raw_vf_.size() : self_->raw().vf.size()); }
+  int raw_ee_count() const { return static_cast<int>(pair_bp_ ? raw_ee_.size() : self_->raw().ee.size()); }
   /// Generations of x_'s and x_t_'s contents (bumped whenever x_ changes: pair distances are kept
   /// per generation, active_set.h); gen_counter_ the last one given.
   int x_gen_ = 0, xt_gen_ = 0, gen_counter_ = 0;

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "sim/backend/cpu/exec_cpu.h"
+#include "sim/backend/round_trips.h"
 #include "sim/backend/cpu/omp_threads.h"
 #include "sim/contact/distance.h"
 #include "sim/contact/lbvh.h"
@@ -764,6 +765,60 @@ TEST(BroadPhase, LbvhGpuPathsPolicyMatchesBruteForce) {
 TEST(BroadPhase, LbvhGpuPathsCudaDeviceMatchesBruteForce) {
   if (!cuda_available()) GTEST_SKIP() << "no CUDA device (scripts/gpu-check runs this where there is one)";
   expect_lbvh_matches_brute_force([](const Flat& f) { return make_cuda_lbvh_broad_phase(f.tris, f.edges, f.n); });
+}
+
+
+/// find_on_backend (the solver's queries) leaves find()'s answer in the policy's vectors, reads back
+/// only the two queries' counts, and refuses a query over its pair bound leaving nothing.
+template <class Exec>
+void expect_backend_queries_give_finds_answer() {
+  const Flat f = crumpled_sheet(0.2, 0.014, 3, 0.1, 0.03);
+  const std::vector<double> x1 = displaced(f, 103, 0.12, 0.021);
+  LbvhBroadPhase<Exec> bp(f.tris, f.edges, f.n);
+  const double margin = 0.006;
+  ContactCandidates host;
+  ASSERT_TRUE(bp.find(f.x, x1, margin, &host, kNoPairLimit));
+  ASSERT_GT(host.vf.size(), 50u);
+  ASSERT_GT(host.ee.size(), 50u);
+  typename Exec::template Vector<double> a, b;
+  Exec::upload(a, f.x);
+  Exec::upload(b, x1);
+  typename Exec::template Vector<Eigen::Vector2i> vf, ee;
+  const HostRoundTrips before = host_round_trips();
+  ASSERT_TRUE(bp.find_on_backend(Exec::ptr(a), Exec::ptr(b), margin, &vf, &ee, kNoPairLimit));
+  const HostRoundTrips after = host_round_trips();
+  if constexpr (!Exec::kSinglePassQueries) {  // counted: one read per query (VF, EE), no pairs
+    EXPECT_EQ(after.downloads - before.downloads, 2);
+    EXPECT_EQ(after.reductions - before.reductions, 0);
+  }
+  std::vector<Eigen::Vector2i> got_vf, got_ee;
+  Exec::download(got_vf, vf);
+  Exec::download(got_ee, ee);
+  EXPECT_EQ(got_vf, host.vf);
+  EXPECT_EQ(got_ee, host.ee);
+  const std::size_t total = host.vf.size() + host.ee.size();
+  for (std::size_t bound : {host.vf.size() - 1, total - 1}) {  // flooded in the VF, then in the EE query
+    SCOPED_TRACE("bound " + std::to_string(bound));
+    EXPECT_FALSE(bp.find_on_backend(Exec::ptr(a), Exec::ptr(b), margin, &vf, &ee, bound));
+    EXPECT_TRUE(vf.empty());
+    EXPECT_TRUE(ee.empty());
+  }
+  ASSERT_TRUE(bp.find_on_backend(Exec::ptr(a), Exec::ptr(b), margin, &vf, &ee, total));  // exactly at the bound
+  Exec::download(got_vf, vf);
+  Exec::download(got_ee, ee);
+  EXPECT_EQ(got_vf, host.vf);
+  EXPECT_EQ(got_ee, host.ee);
+}
+
+TEST(BroadPhase, LbvhQueriesOnTheBackendLeaveFindsAnswerThere) {
+  {
+    SCOPED_TRACE("cpu");
+    expect_backend_queries_give_finds_answer<CpuExec>();
+  }
+  {
+    SCOPED_TRACE("cpu-gpu-paths");
+    expect_backend_queries_give_finds_answer<CpuGpuPathsExec>();
+  }
 }
 
 }  // namespace

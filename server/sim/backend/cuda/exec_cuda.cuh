@@ -2,7 +2,8 @@
 /// \file
 /// The CUDA execution policy of the shared solver: device vectors, one kernel per loop, CUB
 /// reductions into per-thread device scratch (no cudaMalloc per reduction), and atomic adds for
-/// element scatter (no colouring needed on the GPU). Compiled with `--default-stream per-thread`
+/// element scatter (no colouring needed on the GPU); what the host reads back comes through a
+/// pinned buffer per thread, copied asynchronously on the thread's stream. Compiled with `--default-stream per-thread`
 /// (server/sim/CMakeLists.txt): a scene steps on one host thread, so the scenes a server steps on
 /// its worker threads run on separate streams and overlap. Every launch is checked; a failure
 /// throws BackendError, which fails the step of that scene (Scene::step), not the process.
@@ -20,6 +21,7 @@
 #include <thrust/transform_reduce.h>
 
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -66,15 +68,34 @@ struct CudaExec {
   static void upload(Vector<T>& dst, const std::vector<T>& src) { dst.assign(src.begin(), src.end()); }
   template <class T>
   static void download(std::vector<T>& dst, const Vector<T>& src) {
-    ++host_round_trips().downloads;
     dst.resize(src.size());
-    thrust::copy(src.begin(), src.end(), dst.begin());
+    download_to(dst.data(), src);
   }
-  /// src's src.size() values copied to dst (host memory the caller sized): one copy.
+  /// src's src.size() values copied to dst (host memory the caller sized): one copy, on this
+  /// thread's stream. Up to kPinnedBytes (the reductions' slots, counts, single values) through
+  /// this thread's pinned buffer: an asynchronous copy the host waits for, then a memcpy (a copy
+  /// from device memory to pageable memory stages through a driver buffer and waits for the whole
+  /// device's legacy work).
   template <class T>
   static void download_to(T* dst, const Vector<T>& src) {
     ++host_round_trips().downloads;
-    if (!src.empty()) check(cudaMemcpy(dst, ptr(src), sizeof(T) * src.size(), cudaMemcpyDeviceToHost), "download");
+    copy_to_host(dst, ptr(src), sizeof(T) * src.size());
+  }
+  /// Largest copy to the host that goes through the pinned buffer.
+  static constexpr size_t kPinnedBytes = 64 * 1024;
+  /// bytes from device memory at src to host memory at dst (waits for them).
+  static void copy_to_host(void* dst, const void* src, size_t bytes) {
+    if (bytes == 0) return;
+    if (bytes > kPinnedBytes) {
+      check(cudaMemcpyAsync(dst, src, bytes, cudaMemcpyDeviceToHost, cudaStreamPerThread), "download");
+      check(cudaStreamSynchronize(cudaStreamPerThread), "download");
+      return;
+    }
+    thread_local void* pinned = nullptr;
+    if (pinned == nullptr) check(cudaMallocHost(&pinned, kPinnedBytes), "cudaMallocHost of the read-back buffer");
+    check(cudaMemcpyAsync(pinned, src, bytes, cudaMemcpyDeviceToHost, cudaStreamPerThread), "download");
+    check(cudaStreamSynchronize(cudaStreamPerThread), "download");
+    std::memcpy(dst, pinned, bytes);
   }
   template <class T>
   static void resize(Vector<T>& v, size_t n) { v.assign(n, T{}); }
@@ -155,7 +176,7 @@ struct CudaExec {
   /// One double of device memory read back to the host (a round trip).
   static double read_back(const double* d) {
     double h = 0;
-    check(cudaMemcpy(&h, d, sizeof(double), cudaMemcpyDeviceToHost), "reading a reduction back");
+    copy_to_host(&h, d, sizeof(double));
     return h;
   }
 
@@ -301,7 +322,9 @@ struct CudaExec {
   template <class T>
   static T read(const Vector<T>& v, size_t i) {
     ++host_round_trips().downloads;
-    return v[i];
+    T h{};
+    copy_to_host(&h, ptr(v) + i, sizeof(T));
+    return h;
   }
 
   /// PCG reads its stop flag every this many iterations (Solver::solve_pcg): a stopped solve then
