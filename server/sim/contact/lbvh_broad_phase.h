@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sim/backend/cpu/omp_threads.h"
@@ -73,21 +74,12 @@ class LbvhBroadPhase final : public BroadPhase {
             std::size_t max_pairs) override {
     GD_DEMAND(out != nullptr, "null output");
     check_broad_phase_query(n_, x0, x1, margin);
-    if constexpr (Exec::kHostMemory) {  // the host's vectors are the policy's
-      return find_on_backend(x0.data(), x1.data(), margin, &out->vf, &out->ee, max_pairs);
-    } else {
-      Exec::upload(x0_, x0);
-      Exec::upload(x1_, x1);
-      const bool fits = find_on_backend(Exec::ptr(x0_), Exec::ptr(x1_), margin, &vf_, &ee_, max_pairs);
-      if (fits) {
-        out->vf.resize(vf_.size()), out->ee.resize(ee_.size());
-        if (!vf_.empty()) Exec::download_to(out->vf.data(), vf_);
-        if (!ee_.empty()) Exec::download_to(out->ee.data(), ee_);
-      } else {
-        out->vf.clear(), out->ee.clear();
-      }
-      return fits;
-    }
+    const auto [a, b] = positions(x0, x1);
+    if constexpr (Exec::kHostMemory) return find_on_backend(a, b, margin, &out->vf, &out->ee, max_pairs);
+    const bool fits = find_on_backend(a, b, margin, &vf_, &ee_, max_pairs);
+    read_back(vf_, &out->vf);  // empty when refused
+    read_back(ee_, &out->ee);
+    return fits;
   }
 
   /// find() on positions the backend holds (x0, x1: 3 per vertex, finite: unchecked), its pairs
@@ -132,13 +124,7 @@ class LbvhBroadPhase final : public BroadPhase {
                       std::vector<Eigen::Vector2i>* out) override {
     GD_DEMAND(out != nullptr, "null output");
     check_broad_phase_query(n_, x0, x1, margin);
-    const double* a = x0.data();
-    const double* b = x1.data();
-    if constexpr (!Exec::kHostMemory) {
-      Exec::upload(x0_, x0);
-      Exec::upload(x1_, x1);
-      a = Exec::ptr(x0_), b = Exec::ptr(x1_);
-    }
+    const auto [a, b] = positions(x0, x1);
     boxes<3>(Exec::ptr(tris_), nt_, a, b, 0.5 * margin, &tri_boxes_);
     const int* tris = Exec::ptr(tris_);
     tree_.build(nt_, tri_boxes_);
@@ -153,13 +139,26 @@ class LbvhBroadPhase final : public BroadPhase {
       finish(out);
     } else {
       finish(&vf_);
-      out->resize(vf_.size());
-      if (!vf_.empty()) Exec::download_to(out->data(), vf_);
+      read_back(vf_, out);
     }
   }
 
   // Stages, public only because nvcc requires the functions that enclose extended __host__
   // __device__ lambdas to be public.
+
+  /// x0 and x1 where the policy reads them: in place, or uploaded to the device.
+  std::pair<const double*, const double*> positions(const std::vector<double>& x0, const std::vector<double>& x1) {
+    if constexpr (Exec::kHostMemory) return {x0.data(), x1.data()};
+    Exec::upload(x0_, x0);
+    Exec::upload(x1_, x1);
+    return {Exec::ptr(x0_), Exec::ptr(x1_)};
+  }
+
+  /// The pairs of a device query copied into host memory.
+  static void read_back(const Vec<Eigen::Vector2i>& pairs, std::vector<Eigen::Vector2i>* out) {
+    out->resize(pairs.size());
+    if (!pairs.empty()) Exec::download_to(out->data(), pairs);
+  }
 
   /// Boxes of the `count` primitives (K corners each, ids in idx) swept over x0 -> x1 and
   /// inflated by pad, 6 floats each.
