@@ -76,7 +76,6 @@ class SelfContact {
     ++pair_queries_;
     raw_.vf.clear(), raw_.ee.clear();  // what the host kept is no longer the answer
   }
-  BroadPhase& broad_phase() { return *bp_; }
   void count_halvings(int h) { halvings_ += h; }
   /// The pair bound of a query: the pair_budget given at construction, else kPairsPerVertex
   /// per vertex and at least kMinPairBudget, far above what a query of a settled or moving

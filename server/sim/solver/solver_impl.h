@@ -579,7 +579,7 @@ class Solver final : public SolverBase {
   Vec<Eigen::Vector2i> raw_vf_, raw_ee_, edges_;
   Vec<double> edge_len2_, qlo_, qhi_, mlo_, mhi_, x1_;
   bool have_query_ = false;  ///< qlo_/qhi_ hold a query's boxes (its answer was kept)
-  std::vector<double> host_q0_, host_q1_;  ///< a host query's motion (Embree)
+  std::vector<double> host_q0_, host_q1_;  ///< a host query's motion (Embree; a non-finite motion's error)
   bool raw_in_self() const { return Exec::kHostMemory && pair_bp_ == nullptr; }
   const Eigen::Vector2i* raw_vf_ptr() const { return raw_in_self() ? self_->raw().vf.data() : Exec::ptr(raw_vf_); }
   const Eigen::Vector2i* raw_ee_ptr() const { return raw_in_self() ? self_->raw().ee.data() : Exec::ptr(raw_ee_); }
