@@ -9,34 +9,25 @@
 namespace gd::sim {
 
 /// y = A x over free vertices (Dirichlet rows and columns act as identity / zero), and x·y into
-/// *xy (the backend's memory) in the same pass. A Dirichlet column needs no test: assembly and
+/// *xy (the backend's memory) in the same pass. Each row is summed in lanes (sim/block_row.h;
+/// the CPU backend's with AVX2 where it can, the same bits). A Dirichlet column needs no test: assembly and
 /// the couplings' merge leave its blocks zero (scatter and merge_pair_blocks skip it).
 template <class Exec>
 void Solver<Exec>::spmv_dot_to(const Vec<double>& xs, Vec<double>& ys, double* xy) {
   const detail::View V = view();
   const double* x = Exec::ptr(xs);
-  const double* A = Exec::ptr(vals_);
   double* y = Exec::ptr(ys);
-  const bool couplings = self_ != nullptr;
-  const int* crp = Exec::ptr(cpl_row_ptr_);
-  const int* ccols = Exec::ptr(cpl_cols_);
-  const double* cvals = Exec::ptr(cpl_vals_);
+  const BlockRows A{V.row_ptr, V.cols, Exec::ptr(vals_)};
+  BlockRows C;  // the contact pairs' blocks
+  if (self_) C = BlockRows{Exec::ptr(cpl_row_ptr_), Exec::ptr(cpl_cols_), Exec::ptr(cpl_vals_)};
   Exec::sum_effects_to(n_, [=] GD_HD_LAMBDA(int i) {
     const double* xi = x + 3 * i;
     if (V.fixed[i]) {
       detail::store3(y, i, detail::load3(x, i));
       return xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2];
     }
-    double acc[3] = {0, 0, 0};
-    auto add_row = [&](const int* rp, const int* cols, const double* vals) {
-      for (int k = rp[i]; k < rp[i + 1]; ++k) {
-        const double* b = vals + 9 * k;
-        const double* xj = x + 3 * cols[k];
-        for (int r = 0; r < 3; ++r) acc[r] += b[3 * r] * xj[0] + b[3 * r + 1] * xj[1] + b[3 * r + 2] * xj[2];
-      }
-    };
-    add_row(V.row_ptr, V.cols, A);
-    if (couplings) add_row(crp, ccols, cvals);  // contact pairs' off-diagonal blocks
+    double acc[3];
+    Exec::block_row(i, A, C, x, acc);  // sim/block_row.h
     y[3 * i] = acc[0], y[3 * i + 1] = acc[1], y[3 * i + 2] = acc[2];
     return xi[0] * acc[0] + xi[1] * acc[1] + xi[2] * acc[2];
   }, xy, Exec::kParallelMinHeavy);

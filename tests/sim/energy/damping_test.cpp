@@ -162,7 +162,7 @@ TEST(DampingEnergy, MembraneHessianIsBetaOverHTimesStiffnessAtRest) {
   }
 }
 
-Vec12 random_hinge(std::mt19937& rng, Real L) {
+Vec12 random_damping_hinge(std::mt19937& rng, Real L) {
   std::uniform_real_distribution<Real> u(-1, 1);
   const Real fold = 2.0 * u(rng);
   Vec12 x;
@@ -180,7 +180,7 @@ TEST(DampingEnergy, BendingGradientAndHessianMatchFiniteDifferences) {
   for (const auto& fab : test::kFabrics) {
     for (int it = 0; it < 20; ++it) {
       const Real L = 0.01;
-      const Vec12 xt = random_hinge(rng, L);
+      const Vec12 xt = random_damping_hinge(rng, L);
       Vec12 x = xt;
       for (int i = 0; i < 12; ++i) x[i] += 0.05 * L * test::random_vec3(rng)[0];
       Vec12 gth;

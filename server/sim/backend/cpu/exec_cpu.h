@@ -13,6 +13,7 @@
 #include <numeric>
 #include <vector>
 
+#include "sim/backend/cpu/block_row_cpu.h"
 #include "sim/backend/cpu/huge_page_allocator.h"
 #include "sim/backend/cpu/omp_threads.h"
 #include "sim/backend/round_trips.h"
@@ -241,6 +242,11 @@ struct CpuExec {
   static void take(Vector<T>& dst, std::vector<T>& src) { dst.swap(src); }
   /// Waits for queued work (stage timers); nothing is queued on the CPU.
   static void sync() {}
+
+  /// A row of the block product (sim/block_row.h): AVX2 where the processor has it, the same bits.
+  static void block_row(int i, const BlockRows& A, const BlockRows& C, const double* x, double* y) {
+    block_row_product_cpu(i, A, C, x, y);
+  }
 };
 
 /// The CUDA backend's code paths on the CPU (BackendKind::kCpuGpuPaths): element loops without
@@ -256,6 +262,10 @@ struct CpuGpuPathsExec : CpuExec {
   static constexpr int kPcgCheckEvery = 8;  ///< as CudaExec
   /// Add into memory other threads may add into at the same time.
   static inline void add(double* p, double v) { std::atomic_ref<double>(*p).fetch_add(v, std::memory_order_relaxed); }
+  /// The block product's row as the GPU computes it: the portable loop (CPU tests compare the two).
+  static void block_row(int i, const BlockRows& A, const BlockRows& C, const double* x, double* y) {
+    block_row_product(i, A, C, x, y);
+  }
 
   /// Test seam: loops still allowed to "launch" on this thread before one fails with BackendError,
   /// as a GPU kernel launch can (< 0: never). CPU tests use it to check that a failed launch fails

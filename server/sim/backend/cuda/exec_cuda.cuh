@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "sim/backend/round_trips.h"
+#include "sim/block_row.h"
 #include "sim/demand.h"
 #include "sim/hd.h"
 #include "sim/team.h"
@@ -281,6 +282,12 @@ struct CudaExec {
 #else
     *p += v;
 #endif
+  }
+
+  /// A row of the block product (sim/block_row.h), one thread per row.
+  __host__ __device__ static inline void block_row(int i, const BlockRows& A, const BlockRows& C, const double* x,
+                                                   double* y) {
+    block_row_product(i, A, C, x, y);
   }
 
   /// Adds 1 to *p (other threads may too) and returns the value before; fenced on both sides, so
