@@ -169,9 +169,10 @@ TEST_P(GarmentFold, LiesFoldedOnTheTable) {
   EXPECT_LT(fin["mean_z"].get<double>(), 0.04) << "the folded garment should lie on the table";
   // On the finer mesh the T-shirt's fold is a draw between lying flat and landing with part of it
   // raised (4000 vertices, four draws after the block product's new summation order: p95 3.1-5.5
-  // cm flat, 12.2 cm raised; max 4.5-18.3 cm; docs/validation.md, "Folds on a finer mesh"), so the
+  // cm flat, 12.2 cm raised; max 4.5-18.3 cm; docs/validation.md, "Folds on a finer mesh"), so its
   // finer draws are held to bounds above the raised landing's, the mean height to the same 4 cm.
-  const double p95_bound = finer ? 0.15 : 0.12, max_bound = finer ? 0.22 : 0.18;
+  const bool raised_draw = finer && garment == "tshirt";
+  const double p95_bound = raised_draw ? 0.15 : 0.12, max_bound = raised_draw ? 0.22 : 0.18;
   EXPECT_LT(fin["p95_z"].get<double>(), p95_bound) << "the folded stack should lie low";
   EXPECT_LT(fin["max_z"].get<double>(), max_bound) << "no part of the garment should stand up";
   const double ratio = fin["extent_x"].get<double>() / s["garment_length"].get<double>();
