@@ -26,6 +26,14 @@ std::string fmt(const Vec3& v) { return "(" + fmt(v.x()) + ", " + fmt(v.y()) + "
 
 bool finite(Real v) { return std::isfinite(v); }
 
+constexpr int kLeafSize = 4;
+
+}  // namespace
+
+namespace collider_detail {
+
+/// A node of a mesh collider's BVH (named, not anonymous: MeshData, declared in the header, holds
+/// them, and a unity batch would otherwise warn about the field's linkage).
 struct BvhNode {
   Eigen::AlignedBox<Real, 3> box;
   int left = -1;  ///< child indices (-1 for a leaf)
@@ -34,9 +42,9 @@ struct BvhNode {
   int count = 0;
 };
 
-constexpr int kLeafSize = 4;
+}  // namespace collider_detail
 
-}  // namespace
+using collider_detail::BvhNode;
 
 /// Immutable mesh data shared by copies of a mesh collider.
 struct Collider::MeshData {

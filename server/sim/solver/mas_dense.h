@@ -66,13 +66,15 @@ GD_HD int cholesky_in_place(const Team& team, double* A, int m) {
 /// Packs the lower triangle of a row-major m x m factor into single precision, row by row (row i
 /// at i (i + 1) / 2), with the reciprocals of the diagonal in place of the diagonal (the solves
 /// then multiply instead of dividing). L Lᵀ of the rounded factor is still symmetric positive
-/// definite, and the apply reads a quarter of the bytes of the double factor.
+/// definite, and the apply reads a quarter of the bytes of the double factor. Entry q of the
+/// packed triangle goes to P[stride * q]: a stride W interleaves W domains' factors (the CPU's
+/// layout, read by cholesky_solve_packed_lanes; P then points at the domain's lane).
 template <class Team>
-GD_HD void pack_lower(const Team& team, const double* L, int m, float* P) {
+GD_HD void pack_lower(const Team& team, const double* L, int m, float* P, int stride = 1) {
   team.range(0, m, [&](int i) {
-    float* row = P + i * (i + 1) / 2;
-    for (int k = 0; k < i; ++k) row[k] = static_cast<float>(L[static_cast<size_t>(i) * m + k]);
-    row[i] = static_cast<float>(1.0 / L[static_cast<size_t>(i) * m + i]);
+    float* row = P + static_cast<size_t>(stride) * (i * (i + 1) / 2);
+    for (int k = 0; k < i; ++k) row[stride * k] = static_cast<float>(L[static_cast<size_t>(i) * m + k]);
+    row[stride * i] = static_cast<float>(1.0 / L[static_cast<size_t>(i) * m + i]);
   });
 }
 
@@ -95,6 +97,37 @@ GD_HD void cholesky_solve_packed(const Team& team, const float* __restrict__ P, 
   }
 }
 
+/// cholesky_solve_packed for W domains at once, their factors interleaved by pack_lower with
+/// stride W and their right-hand sides too (b[W i + w]: entry i of domain w), in place. Each
+/// domain gets a team of one's arithmetic, dot4's order of additions included, so the results
+/// are those of W separate solves bit for bit; the W domains' independent sums are what a SIMD
+/// unit takes side by side (the CPU backend: backend/cpu/mas_solve_cpu.h). A domain past the
+/// level's last takes an identity factor and a zero right-hand side.
+template <int W>
+GD_HD void cholesky_solve_packed_lanes(const float* __restrict__ P, int m, double* __restrict__ b) {
+  for (int i = 0; i < m; ++i) {  // L u = b
+    const float* __restrict__ ri = P + static_cast<size_t>(W) * (i * (i + 1) / 2);
+    double t[4][W];
+    for (int j = 0; j < 4; ++j)
+      for (int w = 0; w < W; ++w) t[j][w] = 0;
+    int k = 0;
+    for (; k + 4 <= i; k += 4)
+      for (int j = 0; j < 4; ++j)
+        for (int w = 0; w < W; ++w) t[j][w] += ri[W * (k + j) + w] * b[W * (k + j) + w];
+    for (; k < i; ++k)
+      for (int w = 0; w < W; ++w) t[0][w] += ri[W * k + w] * b[W * k + w];
+    for (int w = 0; w < W; ++w) b[W * i + w] = (b[W * i + w] - ((t[0][w] + t[1][w]) + (t[2][w] + t[3][w]))) * ri[W * i + w];
+  }
+  for (int i = m - 1; i >= 0; --i) {  // Lᵀ y = u
+    const float* __restrict__ ri = P + static_cast<size_t>(W) * (i * (i + 1) / 2);
+    double y[W];
+    for (int w = 0; w < W; ++w) y[w] = b[W * i + w] * ri[W * i + w];
+    for (int k = 0; k < i; ++k)
+      for (int w = 0; w < W; ++w) b[W * k + w] -= ri[W * k + w] * y[w];
+    for (int w = 0; w < W; ++w) b[W * i + w] = y[w];
+  }
+}
+
 /// One level of the hierarchy, as raw pointers for kernels.
 struct LevelView {
   int nodes = 0, domains = 0;
@@ -102,6 +135,17 @@ struct LevelView {
   const int* offsets;  ///< nodes + 1: node k's vertices are members[offsets[k] .. offsets[k+1])
   const int* members;  ///< the free vertices, node by node
 };
+
+/// Node a's three entries of domain d's right-hand side at b[stride * (3a + c)]: level 0's
+/// residual r at the node's vertex, a coarse level's restricted residual, zero past the level's
+/// last node.
+GD_HD void gather_rhs(const LevelView& L, int B, const double* restricted, const double* r, int d, int a, double* b,
+                      int stride) {
+  const int first = d * B;
+  const int count = L.nodes - first < B ? L.nodes - first : B;
+  const double* y = a >= count ? nullptr : restricted ? restricted + 3 * (first + a) : r + 3 * L.members[first + a];
+  for (int c = 0; c < 3; ++c) b[stride * (3 * a + c)] = y ? y[c] : 0.0;
+}
 
 /// The range [*lo, *hi) of members gathered by part j of the `parts` parts of domain d.
 GD_HD void part_range(const LevelView& L, int B, int d, int j, int parts, int* lo, int* hi) {
@@ -139,6 +183,7 @@ GD_HD void for_entries(const BlockMatrixView& M, const int* xref, const int* xco
 }
 
 inline constexpr int kMaxLevels = 8;
+inline constexpr int kMaxDomainNodes = 64;  ///< most nodes a domain may hold (B)
 
 /// Most fine vertices gathered by one part of a domain (see the file comment): a level-0 or
 /// level-1 domain (B nodes of one vertex, or of about B) is one part, a coarse domain many.

@@ -228,7 +228,9 @@ void MultilevelAdditiveSchwarz<Exec>::factor_level(const BlockMatrixView& A, int
   const int B = B_, m = 3 * B_;
   const size_t tri = static_cast<size_t>(m) * (m + 1) / 2;
   ensure(s.dense, static_cast<size_t>(s.parts) * m * m);
-  ensure(s.packed, static_cast<size_t>(L.domains) * tri);
+  constexpr int W = Exec::kMasLanes;  // domains interleaved in `packed` (mas_dense.h, pack_lower)
+  const int groups = (L.domains + W - 1) / W;
+  ensure(s.packed, static_cast<size_t>(groups) * W * tri);
   ensure(s.rhs, static_cast<size_t>(L.domains) * m);
   if (l > 0) ensure(s.restricted, 3 * static_cast<size_t>(L.nodes));
   if (next) ensure(store_[l + 1].node_diag, 9 * static_cast<size_t>(std::max(store_[l + 1].nodes, 1)));
@@ -328,9 +330,22 @@ void MultilevelAdditiveSchwarz<Exec>::factor_level(const BlockMatrixView& A, int
         for (int k = 0; k < 9; ++k) next_diag[9 * static_cast<size_t>(comp[d] + c) + k] = acc[k];
       });
     team.range(3 * count, m, [&](int q) { D[static_cast<size_t>(q) * m + q] = 1.0; });  // padding: identity
-    mas_detail::cholesky_in_place(team, D, m);
-    mas_detail::pack_lower(team, D, m, packed + d * tri);
+    if (W == 1) {  // (not constexpr: nvcc's extended lambdas may not first-capture inside one)
+      mas_detail::cholesky_in_place(team, D, m);
+      mas_detail::pack_lower(team, D, m, packed + d * tri);
+    }
   }, 1);
+  if constexpr (W > 1) {  // the CPU: W domains factored side by side, packed interleaved
+    const int domains = L.domains;
+    Exec::for_each(groups, [=](int g) {
+      double* blocks[W];
+      for (int w = 0; w < W; ++w) {
+        const int d = g * W + w;
+        blocks[w] = d < domains ? dense + static_cast<size_t>(part_start[d]) * m * m : nullptr;
+      }
+      Exec::mas_factor_lanes(blocks, m, packed + static_cast<size_t>(g) * W * tri);
+    }, 1);
+  }
 }
 
 /// The cross entries of level l (see the file comment): per free vertex, the entries of its row

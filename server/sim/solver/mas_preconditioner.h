@@ -58,7 +58,7 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
   static constexpr int kMaxLevels = mas_detail::kMaxLevels;
 
   MultilevelAdditiveSchwarz(int n, int domain_size) : n_(n), B_(domain_size) {
-    GD_DEMAND(domain_size >= 2 && domain_size <= 64, "MAS domain size must be in [2, 64]");
+    GD_DEMAND(domain_size >= 2 && domain_size <= mas_detail::kMaxDomainNodes, "MAS domain size must be in [2, 64]");
     Exec::resize(keys_, n_);
     Exec::resize(box_, 5);
   }
@@ -180,16 +180,27 @@ class MultilevelAdditiveSchwarz final : public Preconditioner<Exec> {
     const float* packed = Exec::ptr(s.packed);
     const double* restricted = l == 0 ? nullptr : Exec::ptr(s.restricted);
     double* rhs = Exec::ptr(s.rhs);
-    Exec::for_each_team(L.domains, [=] GD_HD_LAMBDA(const Team& team, int d) {
-      double* b = rhs + static_cast<size_t>(d) * m;
-      const int first = d * B;
-      const int count = L.nodes - first < B ? L.nodes - first : B;
-      team.range(0, B, [&](int a) {
-        const double* y = a >= count ? nullptr : restricted ? restricted + 3 * (first + a) : r + 3 * L.members[first + a];
-        b[3 * a] = y ? y[0] : 0.0, b[3 * a + 1] = y ? y[1] : 0.0, b[3 * a + 2] = y ? y[2] : 0.0;
-      });
-      mas_detail::cholesky_solve_packed(team, packed + d * tri, m, b);
-    }, 1);
+    if constexpr (Exec::kMasLanes > 1) {  // the CPU: kMasLanes domains at once, factors interleaved
+      constexpr int W = Exec::kMasLanes;
+      const int domains = L.domains;
+      Exec::for_each((domains + W - 1) / W, [=](int g) {
+        double b[W * 3 * mas_detail::kMaxDomainNodes];
+        for (int w = 0; w < W; ++w)
+          for (int a = 0; a < B; ++a) {
+            if (g * W + w < domains) mas_detail::gather_rhs(L, B, restricted, r, g * W + w, a, b + w, W);
+            else for (int c = 0; c < 3; ++c) b[W * (3 * a + c) + w] = 0.0;
+          }
+        Exec::mas_solve_lanes(packed + static_cast<size_t>(g) * W * tri, m, b);
+        for (int w = 0; w < W && g * W + w < domains; ++w)
+          for (int i = 0; i < m; ++i) rhs[static_cast<size_t>(g * W + w) * m + i] = b[W * i + w];
+      }, 1);
+    } else {
+      Exec::for_each_team(L.domains, [=] GD_HD_LAMBDA(const Team& team, int d) {
+        double* b = rhs + static_cast<size_t>(d) * m;
+        team.range(0, B, [&](int a) { mas_detail::gather_rhs(L, B, restricted, r, d, a, b, 1); });
+        mas_detail::cholesky_solve_packed(team, packed + d * tri, m, b);
+      }, 1);
+    }
   }
 
   /// z = Σ_l (level l's solution at the vertex's node); Dirichlet rows pass r through.

@@ -12,11 +12,11 @@
 namespace gd::sim {
 namespace {
 
-using Tri = std::array<Vec3, 3>;
+using Corners = std::array<Vec3, 3>;
 
 // Slow reference for a segment against a triangle in general position: solve
 // s0 + t (s1 - s0) = t0 + u (t1 - t0) + v (t2 - t0) by LU.
-bool ref_segment_triangle(const Vec3& s0, const Vec3& s1, const Tri& T, Real* t_out = nullptr) {
+bool ref_segment_triangle(const Vec3& s0, const Vec3& s1, const Corners& T, Real* t_out = nullptr) {
   Mat3 M;
   M.col(0) = s1 - s0;
   M.col(1) = -(T[1] - T[0]);
@@ -29,7 +29,7 @@ bool ref_segment_triangle(const Vec3& s0, const Vec3& s1, const Tri& T, Real* t_
 
 // Reference for triangles in general position (not coplanar): they intersect iff one of the six
 // edges crosses the other triangle.
-bool ref_triangles(const Tri& A, const Tri& B) {
+bool ref_triangles(const Corners& A, const Corners& B) {
   for (int k = 0; k < 3; ++k) {
     if (ref_segment_triangle(A[k], A[(k + 1) % 3], B)) return true;
     if (ref_segment_triangle(B[k], B[(k + 1) % 3], A)) return true;
@@ -37,21 +37,21 @@ bool ref_triangles(const Tri& A, const Tri& B) {
   return false;
 }
 
-bool tt(const Tri& A, const Tri& B) { return triangles_intersect(A[0], A[1], A[2], B[0], B[1], B[2]); }
+bool tt(const Corners& A, const Corners& B) { return triangles_intersect(A[0], A[1], A[2], B[0], B[1], B[2]); }
 
 // Both argument orders and all cyclic/flipped vertex orders must agree.
-void expect_tt(const Tri& A, const Tri& B, bool expected, const char* what) {
+void expect_tt(const Corners& A, const Corners& B, bool expected, const char* what) {
   const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
   for (const auto& pa : perms)
     for (const auto& pb : {perms[0], perms[3], perms[4]}) {
-      const Tri Ap = {A[pa[0]], A[pa[1]], A[pa[2]]};
-      const Tri Bp = {B[pb[0]], B[pb[1]], B[pb[2]]};
+      const Corners Ap = {A[pa[0]], A[pa[1]], A[pa[2]]};
+      const Corners Bp = {B[pb[0]], B[pb[1]], B[pb[2]]};
       EXPECT_EQ(tt(Ap, Bp), expected) << what;
       EXPECT_EQ(tt(Bp, Ap), expected) << what << " (swapped)";
     }
 }
 
-const Tri kA = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)};
+const Corners kA = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)};
 
 TEST(ContactIntersect, KnownTriangleCases) {
   expect_tt(kA, {Vec3(0.2, 0.2, -0.5), Vec3(0.3, 0.2, 0.5), Vec3(0.2, 0.3, 0.5)}, true, "piercing");
@@ -86,7 +86,7 @@ TEST(ContactIntersect, KnownCasesSurviveRigidMotionAtClothScale) {
     const Mat3 R = test::random_rotation(rng);
     const Vec3 o = test::random_vec3(rng);
     auto X = [&](const Vec3& v) { return Vec3(o + R * (0.01 * v)); };
-    const Tri A = {X(kA[0]), X(kA[1]), X(kA[2])};
+    const Corners A = {X(kA[0]), X(kA[1]), X(kA[2])};
     const Real m = 1e-5;  // 1e-7 m after scaling
     EXPECT_TRUE(tt(A, {X(Vec3(0.2, 0.2, -m)), X(Vec3(0.3, 0.2, 1)), X(Vec3(0.2, 0.3, 1))}));
     EXPECT_FALSE(tt(A, {X(Vec3(0.2, 0.2, m)), X(Vec3(0.3, 0.2, 1)), X(Vec3(0.2, 0.3, 1))}));
@@ -100,7 +100,7 @@ TEST(ContactIntersect, RandomTrianglesMatchEdgeCrossingReference) {
   std::mt19937 rng(403);
   int hits = 0, total = 0;
   for (int it = 0; it < 20000; ++it) {
-    Tri A, B;
+    Corners A, B;
     for (auto& v : A) v = test::random_vec3(rng);
     const Vec3 shift = 0.8 * test::random_vec3(rng);
     for (auto& v : B) v = 0.7 * test::random_vec3(rng) + shift;
@@ -145,8 +145,8 @@ TEST(ContactIntersect, RandomCoplanarTrianglesMatch2DReference) {
     const Mat3 R = test::random_rotation(rng);
     const Vec3 o = test::random_vec3(rng);
     auto X = [&](const Vec2& v) { return Vec3(o + R * Vec3(v.x(), v.y(), 0)); };
-    const Tri A = {X(A2[0]), X(A2[1]), X(A2[2])};
-    const Tri B = {X(B2[0]), X(B2[1]), X(B2[2])};
+    const Corners A = {X(A2[0]), X(A2[1]), X(A2[2])};
+    const Corners B = {X(B2[0]), X(B2[1]), X(B2[2])};
     EXPECT_EQ(tt(A, B), ref) << "it " << it;
     hits += ref;
   }
@@ -176,7 +176,7 @@ TEST(ContactIntersect, SegmentTriangle) {
   std::mt19937 rng(407);
   int hits = 0;
   for (int it = 0; it < 20000; ++it) {
-    const Tri T = {test::random_vec3(rng), test::random_vec3(rng), test::random_vec3(rng)};
+    const Corners T = {test::random_vec3(rng), test::random_vec3(rng), test::random_vec3(rng)};
     const Vec3 s0 = 1.2 * test::random_vec3(rng), s1 = 1.2 * test::random_vec3(rng);
     Real tr;
     const bool ref = ref_segment_triangle(s0, s1, T, &tr);

@@ -15,6 +15,7 @@
 
 #include "sim/backend/cpu/block_row_cpu.h"
 #include "sim/backend/cpu/huge_page_allocator.h"
+#include "sim/backend/cpu/mas_solve_cpu.h"
 #include "sim/backend/cpu/omp_threads.h"
 #include "sim/backend/round_trips.h"
 #include "sim/demand.h"
@@ -247,6 +248,12 @@ struct CpuExec {
   static void block_row(int i, const BlockRows& A, const BlockRows& C, const double* x, double* y) {
     block_row_product_cpu(i, A, C, x, y);
   }
+
+  /// MAS domains factored and solved together (backend/cpu/mas_solve_cpu.h): their factors are
+  /// packed interleaved by this many, with AVX2 where the processor has it, the same bits.
+  static constexpr int kMasLanes = kMasCpuLanes;
+  static void mas_factor_lanes(double* const* A, int m, float* P) { mas_factor_lanes_cpu(A, m, P); }
+  static void mas_solve_lanes(const float* P, int m, double* b) { mas_solve_lanes_cpu(P, m, b); }
 };
 
 /// The CUDA backend's code paths on the CPU (BackendKind::kCpuGpuPaths): element loops without
@@ -258,6 +265,7 @@ struct CpuGpuPathsExec : CpuExec {
   static constexpr bool kColoring = false;
   static constexpr bool kHostMerge = false;  ///< as CudaExec
   static constexpr bool kHostPairs = false;  ///< as CudaExec
+  static constexpr int kMasLanes = 1;        ///< as CudaExec: a warp per domain
   static constexpr bool kSinglePassQueries = false;  ///< as CudaExec
   static constexpr int kPcgCheckEvery = 8;  ///< as CudaExec
   /// Add into memory other threads may add into at the same time.

@@ -290,6 +290,9 @@ struct CudaExec {
     block_row_product(i, A, C, x, y);
   }
 
+  /// MAS domains solved together: one, by a warp (sim/solver/mas_dense.h, cholesky_solve_packed).
+  static constexpr int kMasLanes = 1;
+
   /// Adds 1 to *p (other threads may too) and returns the value before; fenced on both sides, so
   /// what the incrementing threads wrote before is visible after it (read through volatile).
   __host__ __device__ static inline int atomic_increment(int* p) {
