@@ -42,18 +42,22 @@ __attribute__((target("avx2"), always_inline)) inline __m256d load4(const float*
   return _mm256_cvtps_pd(_mm_loadu_ps(p));
 }
 
-/// dot4(a, b, n) of four interleaved pairs of rows (lane w: a[W k + w], b[W k + w]): its four
-/// partial sums in four vectors.
-__attribute__((target("avx2"), always_inline)) inline __m256d dot4_lanes(const double* a, const double* b, int n) {
+/// Four double entries (one per domain).
+__attribute__((target("avx2"), always_inline)) inline __m256d load4(const double* p) { return _mm256_loadu_pd(p); }
+
+/// dot4(a, b, n) of four interleaved pairs of rows (lane w: a[W k + w], b[W k + w]; a in single or
+/// double precision): its four partial sums in four vectors, added as dot4 adds them.
+template <class A>
+__attribute__((target("avx2"), always_inline)) inline __m256d dot4_lanes(const A* a, const double* b, int n) {
   __m256d t0 = _mm256_setzero_pd(), t1 = t0, t2 = t0, t3 = t0;
   int k = 0;
   for (; k + 4 <= n; k += 4) {
-    t0 = _mm256_add_pd(t0, _mm256_mul_pd(_mm256_loadu_pd(a + W * k), _mm256_loadu_pd(b + W * k)));
-    t1 = _mm256_add_pd(t1, _mm256_mul_pd(_mm256_loadu_pd(a + W * (k + 1)), _mm256_loadu_pd(b + W * (k + 1))));
-    t2 = _mm256_add_pd(t2, _mm256_mul_pd(_mm256_loadu_pd(a + W * (k + 2)), _mm256_loadu_pd(b + W * (k + 2))));
-    t3 = _mm256_add_pd(t3, _mm256_mul_pd(_mm256_loadu_pd(a + W * (k + 3)), _mm256_loadu_pd(b + W * (k + 3))));
+    t0 = _mm256_add_pd(t0, _mm256_mul_pd(load4(a + W * k), _mm256_loadu_pd(b + W * k)));
+    t1 = _mm256_add_pd(t1, _mm256_mul_pd(load4(a + W * (k + 1)), _mm256_loadu_pd(b + W * (k + 1))));
+    t2 = _mm256_add_pd(t2, _mm256_mul_pd(load4(a + W * (k + 2)), _mm256_loadu_pd(b + W * (k + 2))));
+    t3 = _mm256_add_pd(t3, _mm256_mul_pd(load4(a + W * (k + 3)), _mm256_loadu_pd(b + W * (k + 3))));
   }
-  for (; k < n; ++k) t0 = _mm256_add_pd(t0, _mm256_mul_pd(_mm256_loadu_pd(a + W * k), _mm256_loadu_pd(b + W * k)));
+  for (; k < n; ++k) t0 = _mm256_add_pd(t0, _mm256_mul_pd(load4(a + W * k), _mm256_loadu_pd(b + W * k)));
   return _mm256_add_pd(_mm256_add_pd(t0, t1), _mm256_add_pd(t2, t3));
 }
 
@@ -101,16 +105,7 @@ __attribute__((target("avx2"))) void avx2_factor(double* const* A, int m, float*
 __attribute__((target("avx2"))) void avx2_solve(const float* P, int m, double* b) {
   for (int i = 0; i < m; ++i) {  // L u = b
     const float* ri = P + static_cast<size_t>(W) * (i * (i + 1) / 2);
-    __m256d t0 = _mm256_setzero_pd(), t1 = t0, t2 = t0, t3 = t0;
-    int k = 0;
-    for (; k + 4 <= i; k += 4) {
-      t0 = _mm256_add_pd(t0, _mm256_mul_pd(load4(ri + W * k), _mm256_loadu_pd(b + W * k)));
-      t1 = _mm256_add_pd(t1, _mm256_mul_pd(load4(ri + W * (k + 1)), _mm256_loadu_pd(b + W * (k + 1))));
-      t2 = _mm256_add_pd(t2, _mm256_mul_pd(load4(ri + W * (k + 2)), _mm256_loadu_pd(b + W * (k + 2))));
-      t3 = _mm256_add_pd(t3, _mm256_mul_pd(load4(ri + W * (k + 3)), _mm256_loadu_pd(b + W * (k + 3))));
-    }
-    for (; k < i; ++k) t0 = _mm256_add_pd(t0, _mm256_mul_pd(load4(ri + W * k), _mm256_loadu_pd(b + W * k)));
-    const __m256d t = _mm256_add_pd(_mm256_add_pd(t0, t1), _mm256_add_pd(t2, t3));
+    const __m256d t = dot4_lanes(ri, b, i);
     _mm256_storeu_pd(b + W * i, _mm256_mul_pd(_mm256_sub_pd(_mm256_loadu_pd(b + W * i), t), load4(ri + W * i)));
   }
   // Lᵀ y = u, four rows at a time: each entry below them is read and written once for the four
