@@ -17,7 +17,7 @@ enum class LinearSolverKind {
   kDirect,  ///< sparse LDLT (CPU only): for small scenes and static validation solves
 };
 enum class PreconditionerKind {
-  kAuto,         ///< MAS without self-contact, block-Jacobi with it (docs/physics.md, "Solver")
+  kAuto,         ///< the default: MAS, with or without self-contact (docs/physics.md, "Solver")
   kBlockJacobi,  ///< inverse 3x3 diagonal blocks: cheapest per iteration, weakest
   kMas,          ///< multilevel additive Schwarz (Wu et al. 2022; mas_preconditioner.h)
 };
@@ -172,8 +172,7 @@ struct SceneOptions {
 
 /// The preconditioner a scene with these options uses (kAuto resolved).
 inline PreconditionerKind effective_preconditioner(const SceneOptions& o) {
-  if (o.preconditioner != PreconditionerKind::kAuto) return o.preconditioner;
-  return o.self_contact ? PreconditionerKind::kBlockJacobi : PreconditionerKind::kMas;
+  return o.preconditioner == PreconditionerKind::kAuto ? PreconditionerKind::kMas : o.preconditioner;
 }
 
 /// "mas" or "block-jacobi": the preconditioner these options give (summary.json, logs).
