@@ -59,7 +59,7 @@ struct SceneOptions {
   // --- time stepping and solver ---------------------------------------------------------
   Real dt = 1.0 / 200.0;          ///< time step, s, in [kMinDt, 1]
   Vec3 gravity = Vec3(0, 0, -kGravity);  ///< m/s^2
-  int newton_max_iters = 8;       ///< inexact Newton iterations per step (at most)
+  int newton_max_iters = 8;       ///< Newton iterations per step (at most; twice that while a pair is pressed)
   /// The cap instead, where it is higher, in a step with a yielding collider that has friction
   /// (a gripper's finger pad): cloth held in a pinch by friction slips out of it when the pinch's
   /// steps end unconverged (a T-shirt lifted by its shoulders lost both hands at 8 and held at 30,
