@@ -250,7 +250,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   std::string preconditioner = "auto";
   run->add_option("--preconditioner", preconditioner,
-                  "PCG preconditioner: auto (MAS) | mas | block-jacobi")
+                  "PCG preconditioner: auto (MAS without self-contact, block-Jacobi with it) | mas | block-jacobi")
       ->capture_default_str();
   std::string broad_phase = "auto";
   run->add_option("--broad-phase", broad_phase,

@@ -38,9 +38,9 @@ def test_cases_report_stages_and_preconditioner():
         assert 0.5 * c["ms_per_step"] < total <= 1.05 * c["ms_per_step"] + 0.5, (name, total, c["ms_per_step"])
         assert c["newton_iters"] >= 0 and c["pcg_iters"] >= 0 and 0 <= c["converged"] <= 1
         assert c["energy_evals"] >= c["newton_iters"]  # one line-search trial per Newton iteration at least
-    # Auto: MAS, with self-contact too; cloth-cloth work only in the fold.
+    # Auto: MAS without self-contact, block-Jacobi with it; cloth-cloth work only in the fold.
     assert cases["drape/400"]["preconditioner"] == "mas"
-    assert cases["fold/400"]["preconditioner"] == "mas"
+    assert cases["fold/400"]["preconditioner"] == "block-jacobi"
     assert cases["drape/400"]["stage_ms"]["intersections"] == 0
     assert cases["fold/400"]["contacts"] > 0
 

@@ -17,7 +17,7 @@ enum class LinearSolverKind {
   kDirect,  ///< sparse LDLT (CPU only): for small scenes and static validation solves
 };
 enum class PreconditionerKind {
-  kAuto,         ///< the default: MAS, with or without self-contact (docs/physics.md, "Solver")
+  kAuto,         ///< MAS without self-contact, block-Jacobi with it (docs/physics.md, "Solver")
   kBlockJacobi,  ///< inverse 3x3 diagonal blocks: cheapest per iteration, weakest
   kMas,          ///< multilevel additive Schwarz (Wu et al. 2022; mas_preconditioner.h)
 };
@@ -59,7 +59,7 @@ struct SceneOptions {
   // --- time stepping and solver ---------------------------------------------------------
   Real dt = 1.0 / 200.0;          ///< time step, s, in [kMinDt, 1]
   Vec3 gravity = Vec3(0, 0, -kGravity);  ///< m/s^2
-  int newton_max_iters = 8;       ///< Newton iterations per step (at most; twice that while a pair is pressed)
+  int newton_max_iters = 8;       ///< inexact Newton iterations per step (at most)
   /// The cap instead, where it is higher, in a step with a yielding collider that has friction
   /// (a gripper's finger pad): cloth held in a pinch by friction slips out of it when the pinch's
   /// steps end unconverged (a T-shirt lifted by its shoulders lost both hands at 8 and held at 30,
@@ -172,7 +172,8 @@ struct SceneOptions {
 
 /// The preconditioner a scene with these options uses (kAuto resolved).
 inline PreconditionerKind effective_preconditioner(const SceneOptions& o) {
-  return o.preconditioner == PreconditionerKind::kAuto ? PreconditionerKind::kMas : o.preconditioner;
+  if (o.preconditioner != PreconditionerKind::kAuto) return o.preconditioner;
+  return o.self_contact ? PreconditionerKind::kBlockJacobi : PreconditionerKind::kMas;
 }
 
 /// "mas" or "block-jacobi": the preconditioner these options give (summary.json, logs).

@@ -132,7 +132,7 @@ class Solver final : public SolverBase {
     double scale = 0;                                               // the first Newton step's size, m/s
     double taken = 0;                                               // the last correction made, m/s
     const int newton_cap = newton_max_iters();                      // higher while fingers pinch the cloth
-    for (int k = 0; k < newton_cap || (k < 2 * newton_cap && pressed()); ++k) {  // a pressed pair: up to twice
+    for (int k = 0; k < newton_cap; ++k) {
       if (k > 0 && residual_rule() && converged(&st, k, gradient_known, scale, taken)) break;  // residual small
       timed(T.contacts, [&] { select_contacts(); });                // active self-contact pairs at x
       double e0 = 0;
