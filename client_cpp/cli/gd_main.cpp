@@ -213,6 +213,11 @@ int main(int argc, char** argv) {
                   "X Y Z: where the garment frame's origin goes in the world, m (RGBench's init_pose; default 0.1 0 "
                   "0.01, the collar end 10 cm in front of the arms' bases)")
       ->expected(3);
+  run->add_flag("--place-within-reach", cfg.place_within_reach,
+                "robot mode, generated tasks: move the garment up to 30 cm farther from the arms' bases or 10 cm "
+                "nearer, to where "
+                "they lift it highest within --lift-max-tilt (the fold, or a given height: where the hands tilt "
+                "least); docs/robot.md, \"Placed within reach\"");
   std::vector<std::string> garment_params;
   run->add_option("--garment-param", garment_params,
                   "a size of a generated garment, NAME=VALUE (repeatable; e.g. hood_length=0.25; names in docs/garments.md)");
@@ -380,6 +385,7 @@ int main(int argc, char** argv) {
       if (run->count("--grip-force") > 0) r.job.robot.grip_force = cfg.robot.grip_force;
       if (run->count("--finger-friction") > 0) r.job.robot.finger_friction = cfg.robot.finger_friction;
       if (run->count("--lift-max-tilt") > 0) r.job.robot.lift_max_tilt_deg = lift_max_tilt_deg;
+      if (cfg.place_within_reach) r.job.robot.place_within_reach = true;
       r.job.vertices = cfg.vertices;
       r.job.garment_params = cfg.garment_params;
       r.job.task_params = task_param_values;

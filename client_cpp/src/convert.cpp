@@ -70,6 +70,7 @@ void to_proto(const RobotSettings& in, pb::RobotSettings* out) {
   if (in.grip_force) out->set_grip_force(*in.grip_force);
   if (in.finger_friction) out->set_finger_friction(*in.finger_friction);
   if (in.lift_max_tilt_deg) out->set_lift_max_tilt_deg(*in.lift_max_tilt_deg);
+  if (in.place_within_reach) out->set_place_within_reach(*in.place_within_reach);
   for (double q : in.left_initial_joints) out->add_left_initial_joints(q);
   for (double q : in.right_initial_joints) out->add_right_initial_joints(q);
 }
@@ -84,7 +85,7 @@ Pose pose_from_proto(const pb::Pose& p) {
 
 bool empty(const RobotSettings& r) {
   return r.urdf.empty() && !r.grip_force && !r.finger_friction && r.left_initial_joints.empty() &&
-         r.right_initial_joints.empty() && !r.lift_max_tilt_deg;
+         r.right_initial_joints.empty() && !r.lift_max_tilt_deg && !r.place_within_reach;
 }
 
 }  // namespace

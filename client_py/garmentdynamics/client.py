@@ -162,10 +162,12 @@ def read_urdf(urdf: Union[str, bytes, "os.PathLike[str]"]) -> bytes:
 
 
 def _robot_settings(mode: str, urdf, grip_force: Optional[float], finger_friction: Optional[float],
-                    lift_max_tilt_deg: Optional[float] = None) -> Optional["pb.RobotSettings"]:
+                    lift_max_tilt_deg: Optional[float] = None,
+                    place_within_reach: Optional[bool] = None) -> Optional["pb.RobotSettings"]:
     """RobotSettings of a robot-mode request (None in the other modes, which take none)."""
     given = [name for name, v in (("urdf", urdf), ("grip_force", grip_force), ("finger_friction", finger_friction),
-                                  ("lift_max_tilt_deg", lift_max_tilt_deg))
+                                  ("lift_max_tilt_deg", lift_max_tilt_deg),
+                                  ("place_within_reach", place_within_reach))
              if v is not None]
     if mode != "robot":
         if given:
@@ -181,6 +183,8 @@ def _robot_settings(mode: str, urdf, grip_force: Optional[float], finger_frictio
             if not np.isfinite(value):
                 raise ValueError(f"{name} must be finite, got {value}")
             setattr(out, name, value)
+    if place_within_reach is not None:
+        out.place_within_reach = bool(place_within_reach)
     return out
 
 
@@ -593,7 +597,8 @@ class Client:
                    task_params: Optional[Dict[str, float]] = None,
                    material_params: Optional[Dict[str, float]] = None,
                    urdf: Union[None, str, bytes, "os.PathLike[str]"] = None, grip_force: Optional[float] = None,
-                   finger_friction: Optional[float] = None, lift_max_tilt_deg: Optional[float] = None) -> str:
+                   finger_friction: Optional[float] = None, lift_max_tilt_deg: Optional[float] = None,
+                   place_within_reach: Optional[bool] = None) -> str:
         """Submits a whole rollout (garment + task) to run on the server; returns the job id.
 
         trajectory: a path to our trajectory CSV/JSON file (docs/tasks.md), or its text/bytes;
@@ -605,7 +610,9 @@ class Client:
         or bytes; None: the server's --robot-urdf) with grip_force and finger_friction, as in
         create_scenes; lift_max_tilt_deg: a generated grasp's lift (fling's height) left to its
         default is lowered until no hand tilts more than this from pointing down (default 30,
-        `gd run --lift-max-tilt`). The other arguments mirror `gd run`.
+        `gd run --lift-max-tilt`); place_within_reach: a generated task's garment first moved along
+        the table to where the arms lift it highest (`gd run --place-within-reach`). The other
+        arguments mirror `gd run`.
         """
         if (garment is None) == (mesh_id is None):
             raise ValueError("give exactly one of garment= and mesh_id=")
@@ -614,7 +621,7 @@ class Client:
                                   garment_params={str(k): float(v) for k, v in (garment_params or {}).items()},
                                   task_params={str(k): float(v) for k, v in (task_params or {}).items()},
                                   material_params={str(k): float(v) for k, v in (material_params or {}).items()})
-        robot = _robot_settings(mode, urdf, grip_force, finger_friction, lift_max_tilt_deg)
+        robot = _robot_settings(mode, urdf, grip_force, finger_friction, lift_max_tilt_deg, place_within_reach)
         if robot is not None:
             req.robot.SetInParent()  # present even when empty: the server's own URDF
             req.robot.MergeFrom(robot)

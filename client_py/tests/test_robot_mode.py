@@ -240,6 +240,28 @@ def test_a_robot_jobs_lift_tilt_bound_is_the_requests(client, piper_urdf):
         client.submit_job(garment="towel", lift_max_tilt_deg=20.0)
 
 
+def test_a_robot_job_places_the_garment_where_the_arms_lift_it_highest(client, piper_urdf):
+    # place_within_reach: the towel moved along the table (x only) to where the fitted lift is
+    # highest; the summary says where it lay, how far it moved, and the run took that lift
+    job = client.submit_job(garment="towel", task="grasp", vertices=TOWEL_VERTICES, mode="robot",
+                            urdf=piper_urdf.read_text(), grip_force=8.0, dt=0.02, time_scale=0.25, settle=0.1,
+                            self_contact=False, place_within_reach=True, label="robot job, placed")
+    report = client.wait_report(job, progress=False)
+    assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
+    summary = report["summary"]
+    placement = summary["robot"]["placement"]
+    assert placement["given_position_m"] == pytest.approx([0.1, 0.0, 0.01])
+    assert -0.1 - 1e-9 <= placement["shift_m"] <= 0.3 + 1e-9
+    assert summary["garment_position"] == pytest.approx([0.1 + placement["shift_m"], 0.0, 0.01])
+    assert 1 <= placement["placements_within_reach"] <= placement["placements_tried"]
+    fit = summary["robot"]["height_fitted"]
+    assert fit["height_m"] == pytest.approx(placement["height_m"])
+    assert summary["task_params"]["lift_height"] == pytest.approx(placement["height_m"])
+    assert fit["tilt_deg"] <= fit["tilt_bound_deg"]
+    with pytest.raises(ValueError, match="robot settings are for mode='robot'"):
+        client.submit_job(garment="towel", place_within_reach=True)
+
+
 def test_gym_env_with_joint_actions(client, piper_urdf):
     pytest.importorskip("gymnasium")
     from garmentdynamics.envs import GarmentEnv, GarmentVectorEnv

@@ -302,6 +302,13 @@ void ExperimentConfig::validate() const {
                                  "and within 10 m of the robots",
                                  garment_position.x(), garment_position.y(), garment_position.z()));
   if (garment.empty()) throw InputError("no garment given: a garment type or an .obj path");
+  if (place_within_reach && mode != "robot")
+    throw InputError(fmt::format("automatic placement (--place-within-reach) fits a task to the robot arms' reach; "
+                                 "it needs --mode robot (got '{}')",
+                                 mode));
+  if (place_within_reach && (!trajectory_file.empty() || !capture_dir.empty()))
+    throw InputError("automatic placement (--place-within-reach) moves the garment for a generated task; a given "
+                     "trajectory or capture fixes where the garment lies (use --garment-position)");
   if (!(frame_interval > 0) || !std::isfinite(frame_interval))
     throw InputError(fmt::format("frame_interval must be positive (got {})", frame_interval));
   if (!(settle_after >= 0) || !std::isfinite(settle_after))
@@ -390,6 +397,46 @@ std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, cons
                    "trials, {:.1f} s); give --task-param {}=H to choose",
                    config.task, fit.wanted, fit.height, fit.bound * kDeg, fit.tilt * kDeg, fit.trials, s,
                    grasp ? "lift_height" : "fling_height");
+  return fit;
+}
+
+/// Robot mode with ExperimentConfig::place_within_reach: the garment moved along x to where the
+/// arms follow the generated task best (tasks::place_within_reach), a default lift or fling
+/// height fitted there as fit_to_reach does. Moves *place, the world-frame mesh and the settled
+/// state by the shift found (the table is a plane: the settled shape is the same anywhere on it)
+/// and writes a fitted height into *planned.
+tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
+                                   const std::shared_ptr<const robot::ArmModel>& arms, Eigen::Isometry3d* place,
+                                   sim::Mesh* mesh, Settled* settled, tasks::TaskParams* planned) {
+  const bool grasp = config.task == "grasp", fling = config.task == "fling";
+  const bool fit_height = (grasp && planned->lift_height < 0) || (fling && planned->fling_height < 0);
+  auto height_of = [grasp](tasks::TaskParams& p) -> double& { return grasp ? p.lift_height : p.fling_height; };
+  const double wanted = !fit_height ? (grasp || fling ? height_of(*planned) : 0.0)
+                                    : garment.length + (grasp ? tasks::kLiftAboveLength : tasks::kFlingAboveLength);
+  const auto t0 = std::chrono::steady_clock::now();
+  const Eigen::Isometry3d given = *place;
+  const tasks::PlacementFit fit = tasks::place_within_reach(
+      [&](double shift, double h) {
+        tasks::TaskParams p = *planned;
+        if (grasp || fling) height_of(p) = h;
+        Eigen::Isometry3d moved = given;
+        moved.translation().x() += shift;
+        return tasks::make_task(config.task, garment, moved, p);
+      },
+      wanted, fit_height, tasks::default_placement_shifts(), config.robot, arms, config.robot.lift_max_tilt);
+  if (fit_height) height_of(*planned) = fit.reach.height;
+  const Vec3 dx(fit.shift, 0, 0);
+  place->translation() += dx;
+  for (Vec3& p : mesh->x) p += dx;
+  for (Vec3& p : settled->x) p += dx;
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  constexpr double kDeg = 180 / 3.14159265358979323846;
+  gd::log().info("robot mode: garment moved {:+.3f} m along x, away from the arms' bases (x {:.3f} -> {:.3f} m), "
+                 "where {}the hands tilt at most {:.1f} deg ({} of {} placements within reach, {} inverse-kinematics "
+                 "trials, {:.1f} s)",
+                 fit.shift, given.translation().x(), place->translation().x(),
+                 fit_height ? fmt::format("the {} height is {:.3f} m and ", config.task, fit.reach.height) : "",
+                 fit.reach.tilt * kDeg, fit.reachable, fit.candidates, fit.trials, s);
   return fit;
 }
 
@@ -486,6 +533,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     return loaded_arms;
   };
   std::optional<tasks::ReachFit> reach;  // robot mode: a generated lift or fling fitted to the arms' reach
+  std::optional<tasks::PlacementFit> placement;  // robot mode: the garment placed within the arms' reach
   if (!config.trajectory_file.empty()) {
     traj = tasks::read_trajectory(config.trajectory_file);
     traj_source = config.trajectory_file;
@@ -498,7 +546,12 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     traj_source = "capture joints";
   } else {
     settled = settle_before_planning(mesh, material, config.scene, config.task_params.start_delay, place, &garment);
-    if (config.mode == "robot") reach = fit_to_reach(config, garment, place, arm_model(), &planned);
+    if (config.mode == "robot" && config.place_within_reach) {
+      placement = place_to_reach(config, garment, arm_model(), &place, &mesh, &*settled, &planned);
+      if (placement->height_fitted) reach = placement->reach;  // summary.json's robot.height_fitted, as without placement
+    } else if (config.mode == "robot") {
+      reach = fit_to_reach(config, garment, place, arm_model(), &planned);
+    }
     traj = tasks::make_task(config.task, garment, place, planned);
     traj_source = "generated " + config.task;
   }
@@ -661,7 +714,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   if (!config.material_params.empty()) s["material_params"] = config.material_params;
   s["task"] = config.task;
   s["mode"] = config.mode;
-  s["garment_position"] = {config.garment_position.x(), config.garment_position.y(), config.garment_position.z()};
+  // Where the garment lay: the given position, moved by automatic placement where that ran.
+  const Vec3 position = config.garment_position + Vec3(placement ? placement->shift : 0.0, 0, 0);
+  s["garment_position"] = {position.x(), position.y(), position.z()};
   s["trajectory"] = traj_source;
   // The generated task's parameters (defaults included); none for a trajectory file or capture.
   s["task_params"] = nlohmann::json::object();
@@ -744,6 +799,15 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                   {"link_meshes_not_found", robot->arm_model().skipped_meshes()},
                   {"rigid_hands", config.robot.rigid_hands},
                   {"arms", arms}};
+    if (placement)  // the garment moved to where the arms follow the task best (absent: placed as given)
+      s["robot"]["placement"] = {{"given_position_m", {config.garment_position.x(), config.garment_position.y(),
+                                                       config.garment_position.z()}},
+                                 {"shift_m", placement->shift},
+                                 {"tilt_deg", placement->reach.tilt * 180 / 3.14159265358979323846},
+                                 {"height_m", placement->reach.height},
+                                 {"placements_tried", placement->candidates},
+                                 {"placements_within_reach", placement->reachable},
+                                 {"trials", placement->trials}};
     if (reach)  // a generated grasp's or fling's default height fitted to the arms' reach (absent: none fitted)
       s["robot"]["height_fitted"] = {{"wanted_m", reach->wanted},
                                      {"height_m", reach->height},

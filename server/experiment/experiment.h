@@ -56,6 +56,13 @@ struct ExperimentConfig {
   /// front of a base at the table (docs/robot.md), so a garment placed farther out keeps its grasp
   /// points within reach as the arms lift.
   sim::Vec3 garment_position = tasks::default_garment_position();
+  /// Robot mode, generated tasks: move the garment along x, from garment_position up to 30 cm
+  /// farther from the arms' bases or 10 cm nearer (tasks::default_placement_shifts), to where the arms lift it highest with their hands within
+  /// RobotOptions::lift_max_tilt of pointing down (or, for the fold and a given height, where they
+  /// tilt least): tasks::place_within_reach, docs/robot.md "Placed within reach". The garment
+  /// settles before the search; the table is a plane, so moving the settled garment along it
+  /// changes nothing of its shape.
+  bool place_within_reach = false;
   /// Sizes of a generated garment by GarmentParams field name (e.g. {"hood_length", 0.25});
   /// absent ones take the type's defaults (docs/garments.md).
   std::map<std::string, double> garment_params;

@@ -119,6 +119,7 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   std::string urdf_text;  // robot mode: a URDF sent with the request, written beside the job's output
   if (cfg->mode == "robot") {
     GD_RETURN_IF_ERROR(apply_robot_spec(spec.robot, !options_.robot_urdf.empty(), &cfg->robot));
+    cfg->place_within_reach = spec.robot.place_within_reach.value_or(false);
     if (spec.robot.urdf_xml.empty()) {
       cfg->robot.urdf = options_.robot_urdf;
       cfg->robot.arm.package_paths = options_.robot_package_paths;
@@ -240,7 +241,8 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
                                                                    : nlohmann::json{{"urdf", urdf_text.empty() ? cfg->robot.urdf : "sent"},
                                                                                     {"grip_force", cfg->robot.grip_force},
                                                                                     {"finger_friction", cfg->robot.finger_friction},
-                                                                                    {"lift_max_tilt_deg", cfg->robot.lift_max_tilt * 180 / 3.14159265358979323846}}},
+                                                                                    {"lift_max_tilt_deg", cfg->robot.lift_max_tilt * 180 / 3.14159265358979323846},
+                                                                                    {"place_within_reach", cfg->place_within_reach}}},
                                     {"trajectory", traj ? spec.trajectory_format : std::string()}}
                          .dump();
   {

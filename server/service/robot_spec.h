@@ -28,10 +28,12 @@ struct RobotSpec {
   std::array<std::vector<double>, 2> initial_joints;
   /// Jobs: RobotOptions::lift_max_tilt in degrees (default: its 30).
   std::optional<double> lift_max_tilt_deg;
+  /// Jobs: ExperimentConfig::place_within_reach (default: the garment where the job puts it).
+  std::optional<bool> place_within_reach;
 
   bool empty() const {
     return urdf_xml.empty() && !grip_force && !finger_friction && initial_joints[0].empty() && initial_joints[1].empty() &&
-           !lift_max_tilt_deg;
+           !lift_max_tilt_deg && !place_within_reach;
   }
 };
 

@@ -404,6 +404,10 @@ Status ScenePool::robot_arms(const RobotSpec& spec, std::shared_ptr<const robot:
     return Status::InvalidArgument(
         "robot lift_max_tilt_deg is for jobs (it bounds a generated task's lift); a scene's arms follow the joint or "
         "pose commands they are sent");
+  if (spec.place_within_reach)
+    return Status::InvalidArgument(
+        "robot place_within_reach is for jobs (it places the garment for a generated task); a scene's garment lies "
+        "where it is created");
   GD_RETURN_IF_ERROR(apply_robot_spec(spec, robot_model_ != nullptr, options));
   if (spec.urdf_xml.empty()) {
     *arms = robot_model_;

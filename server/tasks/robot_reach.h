@@ -8,6 +8,7 @@
 
 #include <functional>
 #include <memory>
+#include <vector>
 
 #include "robot/arm_model.h"
 #include "tasks/robot_arms.h"
@@ -35,6 +36,41 @@ struct ReachFit {
 ReachFit fit_height_to_reach(const std::function<DualArmTrajectory(double)>& make, double wanted,
                              const RobotOptions& options, const std::shared_ptr<const robot::ArmModel>& model,
                              double max_tilt, double resolution = 0.01, int stride = 8);
+
+/// What place_within_reach found.
+struct PlacementFit {
+  double shift = 0;    ///< m along world x: how far the garment was moved from where it was given
+  ReachFit reach;      ///< the task at that shift (its height fitted, or the given one)
+  int candidates = 0;  ///< shifts tried
+  int reachable = 0;   ///< of them, those at which the task was within reach at all
+  int trials = 0;      ///< trajectories solved by inverse kinematics over every shift
+  bool height_fitted = false;  ///< the height was fitted at each shift (fit_height), not given
+};
+
+/// Robot mode's automatic placement (docs/robot.md, "Placed within reach"): the shift along world
+/// x (away from the arms' bases for shift > 0) at which the arms follow the task best. make(s, h)
+/// builds the task with the garment moved by s and its lift (or fling height) at h.
+/// - `fit_height`: at each shift the height is fitted as fit_height_to_reach does (the highest in
+///   [0, wanted] within `max_tilt`, to `resolution`), and the highest wins. A shift is first tried
+///   at the best height so far plus `resolution` (one trial); only one that reaches it is fitted.
+///   Shifts are compared on every 4 x `stride`-th sample; the winner's height is then fitted again
+///   on every `stride`-th (what `reach` holds).
+/// - otherwise (a height the user gave, or the fold, which has none): every shift is tried at
+///   `wanted` and the one whose hands tilt least wins.
+/// Shifts are tried in order and a later one wins only by more than `resolution` in height or by
+/// more than a degree of tilt, so the given placement (shift 0, put first) is kept on a tie.
+/// Shifts at which the task is out of reach are skipped; throws InputError naming the range when
+/// it is out of reach at every one.
+PlacementFit place_within_reach(const std::function<DualArmTrajectory(double, double)>& make, double wanted,
+                                bool fit_height, const std::vector<double>& shifts, const RobotOptions& options,
+                                const std::shared_ptr<const robot::ArmModel>& model, double max_tilt,
+                                double resolution = 0.01, int stride = 8);
+
+/// The shifts automatic placement tries, nearest first: 0 (the given placement), then 2.5 cm
+/// steps up to 30 cm away from the bases (the Piper reaches top-down highest some 25-45 cm in
+/// front of its base) and up to 10 cm towards them (a fold's far end comes within reach; at the
+/// default placement, 10 cm in front of the bases, that puts the garment's near end on their line).
+std::vector<double> default_placement_shifts();
 
 /// Every `stride`-th sample of each arm's trajectory and its last one (stride >= 1).
 DualArmTrajectory thin_trajectory(const DualArmTrajectory& traj, int stride);

@@ -1,11 +1,16 @@
 // Generated tasks fitted to the arms' reach (tasks/robot_reach.h): a lift the Piper cannot follow
 // with its hand pointing down is lowered to the highest one it can, to within the resolution; a
-// reachable one is kept; a task out of reach from the start is refused.
+// reachable one is kept; a task out of reach from the start is refused. Automatic placement moves
+// the task to where the arms lift highest (or tilt least), keeps the given place on a tie and is
+// refused where no place is within reach.
 #include "tasks/robot_reach.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include "sim/demand.h"
 #include "tasks/frames.h"
@@ -91,6 +96,82 @@ TEST(RobotReach, ThinningKeepsEveryStridethSampleAndEachArmsLast) {
   EXPECT_EQ(thin_trajectory(all, 1).left.size(), 101u);
   EXPECT_EQ(thin_trajectory(all, 100).left.size(), 2u);  // the first and the last
   EXPECT_EQ(thin_trajectory(all, 200).left.size(), 2u);
+}
+
+TEST(RobotReach, PlacementMovesALiftToWhereTheArmsLiftHighest) {
+  if (testing::piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  RobotOptions ro;
+  ro.urdf = testing::piper_urdf();
+  const auto arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(ro.urdf, ro.arm));
+  const double resolution = 0.01, bound = 30 * kReachDeg;
+  auto make = [](double shift, double h) { return lift_by(h, 0.163 + shift); };
+  const std::vector<double> shifts{0.0, 0.05, -0.05, 0.1, 0.15, 0.2};
+  const PlacementFit fit = place_within_reach(make, 0.8, /*fit_height=*/true, shifts, ro, arms, bound, resolution);
+  EXPECT_EQ(fit.candidates, 6);
+  EXPECT_EQ(fit.reachable, 6);
+  // Each shift fitted on its own, on the fit's own samples: the placement's height is the highest
+  // of them (to the resolution: shifts are compared on coarser samples), and higher than where
+  // the lift was given.
+  double highest = 0, at_given = 0;
+  for (double s : shifts) {
+    const ReachFit own = fit_height_to_reach([&](double h) { return make(s, h); }, 0.8, ro, arms, bound, resolution);
+    highest = std::max(highest, own.height);
+    if (s == 0.0) at_given = own.height;
+    if (s == fit.shift) EXPECT_EQ(own.height, fit.reach.height);  // the winner refitted as fit_height_to_reach does
+  }
+  EXPECT_NE(fit.shift, 0.0);
+  EXPECT_GT(fit.reach.height, at_given + resolution);
+  EXPECT_GE(fit.reach.height, highest - 2 * resolution);
+  EXPECT_LE(fit.reach.tilt, fit.reach.bound);
+  // The run's controller at the place and height found keeps its hands within the bound.
+  const RobotController run(make(fit.shift, fit.reach.height), ro, arms);
+  EXPECT_LE(run.ik_max_tilt(), bound + 1 * kReachDeg);
+}
+
+TEST(RobotReach, PlacementKeepsTheGivenPlaceOnATieAndIsRefusedWhereNothingReaches) {
+  if (testing::piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  RobotOptions ro;
+  ro.urdf = testing::piper_urdf();
+  const auto arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(ro.urdf, ro.arm));
+  const double bound = 30 * kReachDeg;
+  auto make = [](double shift, double h) { return lift_by(h, 0.163 + shift); };
+  const std::vector<double> shifts{0.0, 0.05, 0.1};
+  // 5 cm is reached at every shift: the given place stays.
+  const PlacementFit low = place_within_reach(make, 0.05, true, shifts, ro, arms, bound);
+  EXPECT_EQ(low.shift, 0.0);
+  EXPECT_EQ(low.reach.height, 0.05);
+  // A height given (not fitted): the place where the hands tilt least, never more than at the given one.
+  const PlacementFit given = place_within_reach(make, 0.15, /*fit_height=*/false, shifts, ro, arms, bound);
+  EXPECT_EQ(given.reach.height, 0.15);
+  EXPECT_EQ(given.trials, 3);
+  const double tilt0 = RobotController(thin_trajectory(make(0.0, 0.15), 8), ro, arms).ik_max_tilt();
+  EXPECT_LE(given.reach.tilt, tilt0);
+  for (double s : shifts)
+    EXPECT_GE(RobotController(thin_trajectory(make(s, 0.15), 8), ro, arms).ik_max_tilt(),
+              given.reach.tilt - 1 * kReachDeg);
+  // 1.5 m out and farther: out of reach at every place, named in the refusal.
+  auto far = [](double shift, double h) { return lift_by(h, 1.5 + shift); };
+  try {
+    place_within_reach(far, 0.3, true, shifts, ro, arms, bound);
+    ADD_FAILURE() << "a task out of reach everywhere was placed";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("out of the arms' reach with the garment moved anywhere from +0.000 to "
+                                         "+0.100 m"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(place_within_reach(make, 0.3, true, {}, ro, arms, bound), sim::InputError);
+  EXPECT_THROW(place_within_reach(make, 0.3, true, {0.0, std::nan("")}, ro, arms, bound), sim::InputError);
+  EXPECT_THROW(place_within_reach(make, 0.3, true, shifts, ro, arms, -1.0), sim::InputError);
+}
+
+TEST(RobotReach, DefaultPlacementShiftsStartAtTheGivenPlaceNearestFirst) {
+  const std::vector<double> s = default_placement_shifts();
+  ASSERT_FALSE(s.empty());
+  EXPECT_EQ(s.front(), 0.0);
+  EXPECT_NEAR(*std::max_element(s.begin(), s.end()), 0.30, 1e-12);
+  EXPECT_NEAR(*std::min_element(s.begin(), s.end()), -0.10, 1e-12);
+  for (size_t i = 1; i < s.size(); ++i) EXPECT_GE(std::abs(s[i]) + 1e-12, std::abs(s[i - 1]));
 }
 
 }  // namespace

@@ -155,6 +155,9 @@ struct RobotSettings {
   /// Jobs: a generated grasp's lift (fling's height) left to its default is lowered until no hand
   /// tilts more than this from pointing down (degrees; default 30, `gd run --lift-max-tilt`).
   std::optional<double> lift_max_tilt_deg;
+  /// Jobs, generated tasks: the garment moved along the table to where the arms lift it highest
+  /// (`gd run --place-within-reach`; docs/robot.md, "Placed within reach").
+  std::optional<bool> place_within_reach;
 };
 
 /// What to create: a generated garment (`garment`) or an uploaded mesh (`mesh_id`), one of them.
