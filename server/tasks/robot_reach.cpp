@@ -111,6 +111,7 @@ PlacementFit place_within_reach(const std::function<DualArmTrajectory(double, do
   best.height_fitted = fit_height;
   bool found = false;
   for (double shift : shifts) {
+    if (found && fit_height && best.reach.height >= wanted) break;  // the height asked: nothing can beat it
     ++best.candidates;
     ReachFit here;
     if (fit_height) {

@@ -58,7 +58,8 @@ struct PlacementFit {
 /// - otherwise (a height the user gave, or the fold, which has none): every shift is tried at
 ///   `wanted` and the one whose hands tilt least wins.
 /// Shifts are tried in order and a later one wins only by more than `resolution` in height or by
-/// more than a degree of tilt, so the given placement (shift 0, put first) is kept on a tie.
+/// more than a degree of tilt, so the given placement (shift 0, put first) is kept on a tie; once
+/// a shift reaches `wanted` itself the search stops there.
 /// Shifts at which the task is out of reach are skipped; throws InputError naming the range when
 /// it is out of reach at every one.
 PlacementFit place_within_reach(const std::function<DualArmTrajectory(double, double)>& make, double wanted,

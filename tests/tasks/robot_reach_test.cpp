@@ -140,6 +140,7 @@ TEST(RobotReach, PlacementKeepsTheGivenPlaceOnATieAndIsRefusedWhereNothingReache
   const PlacementFit low = place_within_reach(make, 0.05, true, shifts, ro, arms, bound);
   EXPECT_EQ(low.shift, 0.0);
   EXPECT_EQ(low.reach.height, 0.05);
+  EXPECT_EQ(low.candidates, 1);  // the height asked is reached at once: no other place can beat it
   // A height given (not fitted): the place where the hands tilt least, never more than at the given one.
   const PlacementFit given = place_within_reach(make, 0.15, /*fit_height=*/false, shifts, ro, arms, bound);
   EXPECT_EQ(given.reach.height, 0.15);
