@@ -20,7 +20,13 @@ void Solver<Exec>::spmv_dot_to(const Vec<double>& xs, Vec<double>& ys, double* x
   const BlockRows A{V.row_ptr, V.cols, Exec::ptr(vals_)};
   BlockRows C;  // the contact pairs' blocks
   if (self_) C = BlockRows{Exec::ptr(cpl_row_ptr_), Exec::ptr(cpl_cols_), Exec::ptr(cpl_vals_)};
-  Exec::sum_effects_to(n_, [=] GD_HD_LAMBDA(int i) {
+  // A row's work: its blocks, the mesh's and the contact couplings' (rows where layers touch
+  // carry more), and one block's worth for the row itself. The CPU deals the rows to its
+  // threads by it (a GPU does not read it).
+  auto work_before = [A, C](int i) -> int64_t {
+    return static_cast<int64_t>(A.row_ptr[i]) + (C.row_ptr ? C.row_ptr[i] : 0) + i;
+  };
+  Exec::sum_effects_balanced_to(n_, [=] GD_HD_LAMBDA(int i) {
     const double* xi = x + 3 * i;
     if (V.fixed[i]) {
       detail::store3(y, i, detail::load3(x, i));
@@ -30,7 +36,7 @@ void Solver<Exec>::spmv_dot_to(const Vec<double>& xs, Vec<double>& ys, double* x
     Exec::block_row(i, A, C, x, acc);  // sim/block_row.h
     y[3 * i] = acc[0], y[3 * i + 1] = acc[1], y[3 * i + 2] = acc[2];
     return xi[0] * acc[0] + xi[1] * acc[1] + xi[2] * acc[2];
-  }, xy, Exec::kParallelMinHeavy);
+  }, work_before, xy, Exec::kParallelMinHeavy);
 }
 
 /// The pairs' off-diagonal blocks summed per coupled (row, column) vertex pair into a block CSR

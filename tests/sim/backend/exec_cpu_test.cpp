@@ -2,7 +2,8 @@
 // sum2_effects_to, the two sums of PCG's fused update pass: each term summed exactly as
 // CpuExec::sum sums it (the same blocks in the same order, so the same bits), every iteration's
 // effect applied once, and the same bits at any thread count.
-// The blocks are shared out as whole runs within half a block of an even split of the items.
+// The blocks are shared out as whole runs within half a block of an even split of the items, or
+// of their work where items differ in cost (sum_effects_balanced_to, the same bits).
 // sort: from kParallelMinVector keys on, runs sorted by the threads and merged pairwise; every
 // count of threads and keys gives std::sort's array, duplicates and sorted or reversed input
 // included.
@@ -89,6 +90,49 @@ TEST(ExecSums, EachThreadTakesWholeBlocksWithinHalfABlockOfAnEvenShare) {
   // The T-shirt's product at 2 threads: 2432 and 2435 rows (a static schedule of the blocks: 2560
   // and 2307).
   EXPECT_EQ(CpuExec::first_block_of(1, 2, 4867, 128, 39), 19);
+}
+
+// Rows of unequal work (the block product's: the rows where contact couplings add blocks cost
+// more): the threads split the work, not the rows, evenly, and the sum keeps its bits.
+TEST(ExecSums, BalancedSumSplitsTheWorkAndKeepsTheBits) {
+  const int n = 4867, block = 128, blocks = (n + block - 1) / block;
+  // Rows past 3000 carry four times the work of the others.
+  auto work_before = [](int i) -> int64_t { return i + 3 * static_cast<int64_t>(std::max(0, i - 3000)); };
+  const double total = static_cast<double>(work_before(n));
+  for (int threads = 2; threads <= 4; ++threads) {
+    EXPECT_EQ(CpuExec::first_block_of(0, threads, n, block, blocks, work_before), 0);
+    EXPECT_EQ(CpuExec::first_block_of(threads, threads, n, block, blocks, work_before), blocks);
+    for (int t = 0; t < threads; ++t) {
+      const int b0 = CpuExec::first_block_of(t, threads, n, block, blocks, work_before);
+      const int b1 = CpuExec::first_block_of(t + 1, threads, n, block, blocks, work_before);
+      ASSERT_LE(b0, b1);
+      const double work = static_cast<double>(work_before(std::min(n, b1 * block)) - work_before(std::min(n, b0 * block)));
+      // Within one heavy block's work of an even share (half a block at each end).
+      EXPECT_LE(std::abs(work - total / threads), 4.0 * block) << "thread " << t << " of " << threads;
+    }
+  }
+  // Two threads by row count: 2432 and 2435 rows, 2432 and 8036 units of work; by work 3584
+  // and 1283 rows, 5336 and 5132 units.
+  EXPECT_EQ(CpuExec::first_block_of(1, 2, n, block, blocks), 19);
+  EXPECT_EQ(CpuExec::first_block_of(1, 2, n, block, blocks, work_before), 28);
+
+  const int before = omp_threads();
+  set_omp_threads(1);
+  double one = 0;
+  CpuExec::sum_effects_to(n, term_a, &one, CpuExec::kParallelMinHeavy);
+  for (const int threads : {2, 3}) {
+    set_omp_threads(threads);
+    std::vector<int> visits(n, 0);
+    int* v = visits.data();
+    double balanced = 0;
+    CpuExec::sum_effects_balanced_to(n, [=](int i) {
+      ++v[i];
+      return term_a(i);
+    }, work_before, &balanced, CpuExec::kParallelMinHeavy);
+    EXPECT_EQ(balanced, one) << threads << " threads";
+    for (int i = 0; i < n; ++i) ASSERT_EQ(visits[i], 1) << "row " << i;
+  }
+  set_omp_threads(before);
 }
 
 TEST(ExecSums, GpuPathsPolicySumsAsTheCpuDoes) {

@@ -87,6 +87,17 @@ struct CpuExec {
     for (int i = 0; i < n; ++i) f(i);
   }
 
+  /// for_each with the iterations handed to the threads one at a time as they come free: for a
+  /// few dozen iterations of widely different cost (the LBVH's query chunks: one region of the
+  /// cloth in contact, another not) where each iteration writes only its own output, so who runs
+  /// which changes nothing. Not for loops that write rows another pass reads: a static schedule
+  /// keeps those in the cache of the core that wrote them.
+  template <class F>
+  static void for_each_dynamic(int n, const F& f, int parallel_min = kParallelMin) {
+#pragma omp parallel for schedule(dynamic, 1) if (n >= parallel_min)
+    for (int i = 0; i < n; ++i) f(i);
+  }
+
   /// The team of for_each_team's work items (sim/team.h): the calling thread.
   using Team = SerialTeam;
 
@@ -106,9 +117,17 @@ struct CpuExec {
     return block_sum<double>(n, f, parallel_min);
   }
 
-  /// sum() for any T with += (double, Sum2): T{} plus f(i) in sum()'s blocks and order.
-  template <class T, class F>
-  static T block_sum(int n, const F& f, int parallel_min) {
+  /// The work of items [0, i) counted as i: block_sum's default split, by item count.
+  struct CountWork {
+    int64_t operator()(int i) const { return i; }
+  };
+
+  /// sum() for any T with += (double, Sum2): T{} plus f(i) in sum()'s blocks and order. The
+  /// blocks are dealt to the threads by work_before(i), the work of items [0, i) (non-decreasing
+  /// in i): by item count unless the items differ in cost. Only who computes a block changes, not
+  /// its sum.
+  template <class T, class F, class W = CountWork>
+  static T block_sum(int n, const F& f, int parallel_min, const W& work_before = W{}) {
     T s{};
     if (n < parallel_min || n <= 0) {
       for (int i = 0; i < n; ++i) s += f(i);
@@ -123,8 +142,9 @@ struct CpuExec {
 #pragma omp parallel
     {
       const int threads = omp_team_size(), t = omp_thread();
-      for (int b = first_block_of(t, threads, n, block, blocks); b < first_block_of(t + 1, threads, n, block, blocks);
-           ++b) {
+      const int first = first_block_of(t, threads, n, block, blocks, work_before);
+      const int last = first_block_of(t + 1, threads, n, block, blocks, work_before);
+      for (int b = first; b < last; ++b) {
         T p{};
         const int end = std::min(n, (b + 1) * block);
         for (int i = b * block; i < end; ++i) p += f(i);
@@ -139,11 +159,29 @@ struct CpuExec {
   /// items come within half a block of an even split of the n items. (OpenMP's static schedule of
   /// the blocks gave the first thread one whole block more than the second: at 2 threads 20 of
   /// the 4867-vertex T-shirt's 39 product blocks, 2560 rows against 2307, and 15 of a PCG
-  /// vector's 29, 11% more items.) Only who computes a block changes, not its sum.
+  /// vector's 29, 11% more items.)
   static int first_block_of(int t, int threads, int n, int block, int blocks) {
+    return first_block_of(t, threads, n, block, blocks, CountWork{});
+  }
+
+  /// first_block_of by work: thread t starts at the block boundary whose work_before is nearest
+  /// t / threads of the whole (a tie: the later boundary).
+  template <class W>
+  static int first_block_of(int t, int threads, int n, int block, int blocks, const W& work_before) {
+    if (t <= 0) return 0;
     if (t >= threads) return blocks;
-    const int64_t share = static_cast<int64_t>(n) * t / threads;
-    return static_cast<int>(std::min<int64_t>(blocks, (share + block / 2) / block));
+    auto at = [&](int b) {
+      return static_cast<double>(work_before(static_cast<int>(std::min<int64_t>(n, static_cast<int64_t>(b) * block))));
+    };
+    const double share = at(blocks) * t / threads;
+    int lo = 0, hi = blocks;  // the first boundary at or past the share
+    while (lo < hi) {
+      const int mid = lo + (hi - lo) / 2;
+      if (at(mid) < share) lo = mid + 1;
+      else hi = mid;
+    }
+    if (lo > 0 && share - at(lo - 1) < at(lo) - share) --lo;
+    return lo;
   }
 
   /// Sum of f(i) over [0, n) where f also writes memory (each i evaluated exactly once).
@@ -161,6 +199,14 @@ struct CpuExec {
   template <class F>
   static void sum_effects_to(int n, const F& f, double* out, int parallel_min = kParallelMin) {
     *out = CpuExec::sum_effects(n, f, parallel_min);
+  }
+  /// sum_effects_to for items of unequal cost: work_before(i) is the work of items [0, i)
+  /// (non-decreasing), and the threads take block_sum's blocks by work instead of by count. The
+  /// same blocks added in the same order: the bits of sum_effects_to.
+  template <class F, class W>
+  static void sum_effects_balanced_to(int n, const F& f, const W& work_before, double* out,
+                                      int parallel_min = kParallelMin) {
+    *out = block_sum<double>(n, f, parallel_min, work_before);
   }
   /// Two sums of one loop into *out_a and *out_b (the backend's memory): f(i) returns both terms
   /// of i as a Sum2 and may write memory (each i evaluated exactly once); each term is added in

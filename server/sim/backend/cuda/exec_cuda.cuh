@@ -206,6 +206,13 @@ struct CudaExec {
     check(cub::DeviceReduce::Sum(scratch(0, bytes), bytes, values, out, n), "reduction");
   }
 
+  /// sum_effects_to: a GPU's threads take items, not blocks, so the work weights of the CPU's
+  /// split (CpuExec::sum_effects_balanced_to) have nothing to balance.
+  template <class F, class W>
+  static void sum_effects_balanced_to(int n, const F& f, const W& /*work_before*/, double* out, int = 0) {
+    sum_effects_to(n, f, out);
+  }
+
   /// Two sums of one loop into *out_a and *out_b, device memory: f(i) returns both terms of i as
   /// a Sum2 and may write memory (each i evaluated exactly once); one kernel writes the terms,
   /// two CUB reductions add them.
