@@ -366,6 +366,25 @@ Settled settle_before_planning(const sim::Mesh& mesh, const sim::Material& mater
   return st;
 }
 
+/// The height of a generated task that robot mode fits to the arms' reach: the grasp's lift or
+/// the fling's height (none for the fold), fitted where left to its default (< 0), and the height
+/// wanted: pseudo mode's default (the garment's length plus 0.1 / 0.15 m) or the one given.
+struct TaskHeight {
+  double tasks::TaskParams::*member = nullptr;  ///< &TaskParams::lift_height or fling_height; null: the fold
+  bool defaulted = false;                        ///< left to its default: fitted to the reach
+  double wanted = 0.0;
+};
+
+TaskHeight task_height(const ExperimentConfig& config, const garments::Garment& garment, const tasks::TaskParams& p) {
+  TaskHeight h;
+  const bool grasp = config.task == "grasp";
+  if (!grasp && config.task != "fling") return h;
+  h.member = grasp ? &tasks::TaskParams::lift_height : &tasks::TaskParams::fling_height;
+  h.defaulted = p.*h.member < 0;
+  h.wanted = h.defaulted ? garment.length + (grasp ? tasks::kLiftAboveLength : tasks::kFlingAboveLength) : p.*h.member;
+  return h;
+}
+
 /// Robot mode: a generated grasp's lift or fling's height left to its default (pseudo mode's:
 /// the garment's length plus 0.1 / 0.15 m) lowered to the highest one the arms reach with their
 /// hands within RobotOptions::lift_max_tilt of pointing down (tasks/robot_reach.h), written into
@@ -375,20 +394,17 @@ std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, cons
                                             const Eigen::Isometry3d& place,
                                             const std::shared_ptr<const robot::ArmModel>& arms,
                                             tasks::TaskParams* planned) {
-  const bool grasp = config.task == "grasp";
-  if (!(grasp && planned->lift_height < 0) && !(config.task == "fling" && planned->fling_height < 0))
-    return std::nullopt;
-  auto height_of = [grasp](tasks::TaskParams& p) -> double& { return grasp ? p.lift_height : p.fling_height; };
-  const double wanted = garment.length + (grasp ? tasks::kLiftAboveLength : tasks::kFlingAboveLength);
+  const TaskHeight height = task_height(config, garment, *planned);
+  if (!height.member || !height.defaulted) return std::nullopt;
   const auto t0 = std::chrono::steady_clock::now();
   const tasks::ReachFit fit = tasks::fit_height_to_reach(
       [&](double h) {
         tasks::TaskParams p = *planned;
-        height_of(p) = h;
+        p.*height.member = h;
         return tasks::make_task(config.task, garment, place, p);
       },
-      wanted, config.robot, arms, config.robot.lift_max_tilt);
-  height_of(*planned) = fit.height;
+      height.wanted, config.robot, arms, config.robot.lift_max_tilt);
+  planned->*height.member = fit.height;
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   constexpr double kDeg = 180 / 3.14159265358979323846;
   if (fit.lowered())
@@ -396,7 +412,7 @@ std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, cons
                    "the arms keep their hands within {:.0f} deg of pointing down ({:.1f} deg; {} inverse-kinematics "
                    "trials, {:.1f} s); give --task-param {}=H to choose",
                    config.task, fit.wanted, fit.height, fit.bound * kDeg, fit.tilt * kDeg, fit.trials, s,
-                   grasp ? "lift_height" : "fling_height");
+                   config.task == "grasp" ? "lift_height" : "fling_height");
   return fit;
 }
 
@@ -408,23 +424,20 @@ std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, cons
 tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
                                    const std::shared_ptr<const robot::ArmModel>& arms, Eigen::Isometry3d* place,
                                    sim::Mesh* mesh, Settled* settled, tasks::TaskParams* planned) {
-  const bool grasp = config.task == "grasp", fling = config.task == "fling";
-  const bool fit_height = (grasp && planned->lift_height < 0) || (fling && planned->fling_height < 0);
-  auto height_of = [grasp](tasks::TaskParams& p) -> double& { return grasp ? p.lift_height : p.fling_height; };
-  const double wanted = !fit_height ? (grasp || fling ? height_of(*planned) : 0.0)
-                                    : garment.length + (grasp ? tasks::kLiftAboveLength : tasks::kFlingAboveLength);
+  const TaskHeight height = task_height(config, garment, *planned);
+  const bool fit_height = height.member && height.defaulted;
   const auto t0 = std::chrono::steady_clock::now();
   const Eigen::Isometry3d given = *place;
   const tasks::PlacementFit fit = tasks::place_within_reach(
       [&](double shift, double h) {
         tasks::TaskParams p = *planned;
-        if (grasp || fling) height_of(p) = h;
+        if (height.member) p.*height.member = h;
         Eigen::Isometry3d moved = given;
         moved.translation().x() += shift;
         return tasks::make_task(config.task, garment, moved, p);
       },
-      wanted, fit_height, tasks::default_placement_shifts(), config.robot, arms, config.robot.lift_max_tilt);
-  if (fit_height) height_of(*planned) = fit.reach.height;
+      height.wanted, fit_height, tasks::default_placement_shifts(), config.robot, arms, config.robot.lift_max_tilt);
+  if (fit_height) planned->*height.member = fit.reach.height;
   const Vec3 dx(fit.shift, 0, 0);
   place->translation() += dx;
   for (Vec3& p : mesh->x) p += dx;
