@@ -98,10 +98,16 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
         if (b != a && !fixed[vs[b]]) f(vs[b], H + (a < b ? pair_block_offset(a, b) : pair_block_offset(b, a)), a > b);
     }
   };
-  // 2. Per row, one block per distinct column in order of first appearance: count them, lay the
-  //    rows out, then sum the blocks (mark/pos: per-thread column stamps of the current row).
-  std::vector<int>& row_ptr = out->row_ptr;
-  row_ptr.assign(n + 1, 0);
+  // 2. Per row, one slot per distinct column in order of first appearance, holding the sum of
+  //    the column's blocks, and none for a column whose sum is zero (a quarter of fold/5000's: a
+  //    barrier's Hessian couples only the corners of its closest feature). A zero slot adds
+  //    nothing to a product, so leaving it out changes no sum, and it would cost every PCG
+  //    iteration its 72 bytes and nine products. Count the columns (a bound: which sums are zero
+  //    is known once they are summed), lay the rows out at the bound, sum the blocks and move
+  //    each row's nonzero slots up, then copy the rows into place.
+  //    mark/pos: per-thread column stamps of the current row.
+  std::vector<int>& bound = out->scratch.bound;  // row i's slots at most: [bound[i], bound[i+1])
+  bound.assign(n + 1, 0);
   const int row_threads = start[n] >= 1024 ? std::max(1, omp_threads()) : 1;
 #pragma omp parallel num_threads(row_threads)
   {
@@ -112,29 +118,29 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
       each_block(i, [&](int col, const double*, bool) {
         if (mark[col] != i) mark[col] = i, ++k;
       });
-      row_ptr[i + 1] = k;
+      bound[i + 1] = k;
     }
   }
-  for (int i = 0; i < n; ++i) row_ptr[i + 1] += row_ptr[i];
-  const int blocks = row_ptr[n];
-  out->cols.resize(std::max(blocks, 1));
-  out->vals.assign(9 * static_cast<size_t>(std::max(blocks, 1)), 0.0);
-  if (blocks == 0) out->cols[0] = 0;  // keep the pointers valid
-  int* cols = out->cols.data();
-  double* vals = out->vals.data();
+  for (int i = 0; i < n; ++i) bound[i + 1] += bound[i];
+  std::vector<int>& bound_cols = out->scratch.cols;
+  std::vector<double>& bound_vals = out->scratch.vals;
+  bound_cols.resize(bound[n]);
+  bound_vals.assign(9 * static_cast<size_t>(bound[n]), 0.0);
+  std::vector<int>& row_ptr = out->row_ptr;
+  row_ptr.assign(n + 1, 0);
 #pragma omp parallel num_threads(row_threads)
   {
     std::vector<int> mark(n, -1), pos(n);
 #pragma omp for schedule(static)
     for (int i = 0; i < n; ++i) {
-      int k = row_ptr[i];
+      int k = bound[i];
       each_block(i, [&](int col, const double* block, bool transposed) {
         if (mark[col] != i) {
           mark[col] = i;
           pos[col] = k;
-          cols[k++] = col;
+          bound_cols[k++] = col;
         }
-        double* dst = vals + 9 * static_cast<size_t>(pos[col]);
+        double* dst = bound_vals.data() + 9 * static_cast<size_t>(pos[col]);
         if (transposed) {
           for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c) dst[3 * r + c] += block[3 * c + r];
@@ -142,7 +148,38 @@ void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>&
           for (int q = 0; q < 9; ++q) dst[q] += block[q];
         }
       });
+      // The row's zero slots left out, the others moved up in order (in this core's cache).
+      int kept = bound[i];
+      for (int slot = bound[i]; slot < k; ++slot) {
+        const double* v = bound_vals.data() + 9 * static_cast<size_t>(slot);
+        bool zero = true;
+        for (int q = 0; q < 9; ++q) zero &= v[q] == 0.0;
+        if (zero) continue;
+        if (kept != slot) {
+          bound_cols[kept] = bound_cols[slot];
+          std::copy_n(v, 9, bound_vals.data() + 9 * static_cast<size_t>(kept));
+        }
+        ++kept;
+      }
+      row_ptr[i + 1] = kept - bound[i];
     }
+  }
+  for (int i = 0; i < n; ++i) row_ptr[i + 1] += row_ptr[i];
+  const int blocks = row_ptr[n];
+  out->cols.resize(std::max(blocks, 1));
+  out->vals.resize(9 * static_cast<size_t>(std::max(blocks, 1)));
+  if (blocks == 0) {  // keep the pointers valid
+    out->cols[0] = 0;
+    std::fill(out->vals.begin(), out->vals.end(), 0.0);
+  }
+  int* cols = out->cols.data();
+  double* vals = out->vals.data();
+#pragma omp parallel for num_threads(row_threads) schedule(static)
+  for (int i = 0; i < n; ++i) {
+    const int from = bound[i], count = row_ptr[i + 1] - row_ptr[i];
+    std::copy_n(bound_cols.data() + from, count, cols + row_ptr[i]);
+    std::copy_n(bound_vals.data() + 9 * static_cast<size_t>(from), 9 * static_cast<size_t>(count),
+                vals + 9 * static_cast<size_t>(row_ptr[i]));
   }
 }
 

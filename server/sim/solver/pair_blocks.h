@@ -32,17 +32,20 @@ struct PairHessians {
 struct CouplingMatrix {
   std::vector<int> row_ptr, cols;
   std::vector<double> vals;
-  /// merge_pair_blocks' working arrays (per-thread counts, each vertex's pair corners), kept
-  /// from call to call rather than allocated and page-faulted every Newton iteration.
+  /// merge_pair_blocks' working arrays (per-thread counts, each vertex's pair corners, the rows
+  /// laid out at their bound before the zero blocks are left out), kept from call to call rather
+  /// than allocated and page-faulted every Newton iteration.
   struct Scratch {
-    std::vector<int> counts, start, incidences;
+    std::vector<int> counts, start, incidences, bound, cols;
+    std::vector<double> vals;
   } scratch;
 };
 
 /// Sums the off-diagonal blocks (a != b) of every pair in `lists` between free vertices (fixed[v]
 /// == 0) into `out` (overwritten; its storage is reused). n: vertex count. A row's columns come in
 /// the order they first appear (lists in order, pairs in order, a then b), and the blocks of one
-/// column are summed in that order: the same bits on any number of threads.
+/// column are summed in that order: the same bits on any number of threads. A column whose sum
+/// is zero gets no slot (it adds nothing to a product).
 void merge_pair_blocks(int n, const int* fixed, const std::vector<PairHessians>& lists, CouplingMatrix* out);
 
 }  // namespace gd::sim

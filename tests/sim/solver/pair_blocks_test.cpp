@@ -1,5 +1,6 @@
 // The contact couplings' block CSR: the sums of a plain map, columns in order of first
-// appearance, Dirichlet vertices left out, the same bits on one thread and on several.
+// appearance, Dirichlet vertices and zero sums left out, the same bits on one thread and on
+// several.
 #include "sim/solver/pair_blocks.h"
 
 #include <gtest/gtest.h>
@@ -94,6 +95,27 @@ TEST(PairBlocks, ColumnsComeInTheOrderTheyFirstAppear) {
   EXPECT_EQ(row0, (std::vector<int>{1, 2, 3, 5, 4}));
   EXPECT_EQ(out.vals[9 * (out.row_ptr[0] + 0)], 2.0);  // 0-1 in both pairs
   EXPECT_EQ(out.vals[9 * (out.row_ptr[0] + 3)], 1.0);
+}
+
+TEST(PairBlocks, ColumnsThatSumToZeroGetNoSlot) {
+  // Pair 0 couples 0-1, 0-2, 0-3, pair 1 couples 0 with 5, 4, 1. Pair 0's block (0, 2) is zero
+  // (a barrier coupling only its closest feature's corners), and pair 1's (0, 1) cancels pair 0's.
+  const std::vector<int> v{0, 1, 2, 3, 0, 5, 4, 1};
+  std::vector<double> H(2 * kPairBlockValues, 1.0);
+  for (int q = 0; q < 9; ++q) H[pair_block_offset(0, 2) + q] = 0.0;
+  for (int q = 0; q < 9; ++q) H[kPairBlockValues + pair_block_offset(0, 3) + q] = -1.0;
+  const std::vector<int> fixed(6, 0);
+  CouplingMatrix out;
+  merge_pair_blocks(6, fixed.data(), {PairHessians{2, v.data(), H.data()}}, &out);
+  const std::vector<int> row0(out.cols.begin() + out.row_ptr[0], out.cols.begin() + out.row_ptr[1]);
+  EXPECT_EQ(row0, (std::vector<int>{3, 5, 4}));  // 1 cancelled, 2 zero; the others in order
+  const std::vector<int> row2(out.cols.begin() + out.row_ptr[2], out.cols.begin() + out.row_ptr[3]);
+  EXPECT_EQ(row2, (std::vector<int>{1, 3}));  // (2, 0) is the zero block's transpose
+  for (int k = 0; k < out.row_ptr[6]; ++k) {
+    bool zero = true;
+    for (int q = 0; q < 9; ++q) zero = zero && out.vals[9 * k + q] == 0.0;
+    EXPECT_FALSE(zero) << "slot " << k << " is zero";
+  }
 }
 
 TEST(PairBlocks, NoPairsLeaveOneZeroBlock) {
