@@ -311,7 +311,8 @@ void SceneOptions::validate() const {
   if (newton_max_iters < 1 || newton_max_iters > 1000) throw InputError("option newton_max_iters must be in [1, 1000]");
   if (grip_newton_max_iters < 1 || grip_newton_max_iters > 1000)
     throw InputError("option grip_newton_max_iters must be in [1, 1000]");
-  if (pcg_max_iters < 1 || pcg_max_iters > 100000) throw InputError("option pcg_max_iters must be in [1, 100000]");
+  if (pcg_max_iters < 0 || pcg_max_iters > 100000)
+    throw InputError("option pcg_max_iters must be in [0, 100000] (0: automatic, by the vertex count)");
   positive(newton_tol, "newton_tol");
   nonneg(newton_rtol, "newton_rtol");
   nonneg(newton_atol, "newton_atol");

@@ -71,6 +71,25 @@ TEST(SceneCreate, RejectsBadOptionsWithTheirName) {
     o.compression_ratio = bad;
     EXPECT_TRUE(rejected_naming(o, "compression_ratio")) << "ratio " << bad;
   }
+  for (int bad : {-1, 100001}) {
+    o = SceneOptions();
+    o.pcg_max_iters = bad;
+    EXPECT_TRUE(rejected_naming(o, "option pcg_max_iters")) << "cap " << bad;
+  }
+}
+
+// PCG's cap (0: automatic) follows the iterations block-Jacobi needs as the mesh refines, about
+// sqrt(n): 50 up to ~22.5k vertices, 67 at gd-bench's fold/40000; a cap the user sets stays.
+TEST(SceneCreate, PcgCapGrowsWithTheMesh) {
+  SceneOptions o;
+  EXPECT_EQ(o.pcg_max_iters, 0);
+  EXPECT_EQ(effective_pcg_max_iters(o, 400), 50);
+  EXPECT_EQ(effective_pcg_max_iters(o, 20273), 50);
+  EXPECT_EQ(effective_pcg_max_iters(o, 40401), 67);
+  EXPECT_GT(effective_pcg_max_iters(o, 160000), effective_pcg_max_iters(o, 40401));
+  o.pcg_max_iters = 400;
+  EXPECT_EQ(effective_pcg_max_iters(o, 40401), 400);
+  EXPECT_NO_THROW(Scene::create(lifted_square(0.1, 0.02, 0.1), cotton(), SceneOptions()));
 }
 
 TEST(SceneCreate, RejectsZeroThicknessMaterial) {

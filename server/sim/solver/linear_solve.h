@@ -157,7 +157,8 @@ int Solver<Exec>::solve_pcg(double first_step) {
   const double mass = free_mass(), h = P_.h;  // rms_velocity's arithmetic, on the backend
   const double first = first_step;
   auto stopped = [&] { return Exec::read(pcg_s_, kPcgStop) != 0.0; };
-  for (int k = 0; k < opt_.pcg_max_iters; ++k) {
+  const int cap = effective_pcg_max_iters(opt_, n_);
+  for (int k = 0; k < cap; ++k) {
     const bool check = (k + 1) % Exec::kPcgCheckEvery == 0;
     spmv_dot_to(p_, ap_, S + kPcgPap);  // Ap, and pAp
     Exec::for_each(1, [=] GD_HD_LAMBDA(int) {  // alpha = rz / pAp, or stop where pAp is not positive

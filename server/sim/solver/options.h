@@ -3,6 +3,8 @@
 /// Options of a scene: time step, solver tolerances, backend, table contact, drag and damping.
 /// Every field has a default a user of a robotics simulator can start from.
 
+#include <algorithm>
+#include <cmath>
 #include <string>
 
 #include "sim/types.h"
@@ -78,7 +80,13 @@ struct SceneOptions {
   /// quasi-static steps (Scene::relax) always run to newton_tol.
   Real newton_rtol = 0.03;
   Real newton_atol = 1e-3;        ///< m/s
-  int pcg_max_iters = 100;        ///< PCG iteration cap per Newton iteration
+  /// PCG iteration cap per Newton iteration; 0 (the default): max(50, sqrt(n) / 3) for n vertices
+  /// (effective_pcg_max_iters). Block-Jacobi PCG (self-contact's default) reaches the cap in most
+  /// Newton iterations after a step's first, and past ~50 iterations at 5-20k vertices its slow
+  /// tail costs more than the Newton iteration it saves; the iterations it needs grow as the mesh
+  /// refines (uncapped, 92 per Newton iteration at fold/5000 and 161 at fold/20000), and so does
+  /// the cap (docs/physics.md, "Fifty-first round"). MAS solves stop well before it.
+  int pcg_max_iters = 0;
   Real pcg_tol = 1e-2;            ///< PCG relative residual tolerance (inexact Newton)
   /// With MAS in a dynamic step under the residual rule, PCG also stops once its estimate of the
   /// correction still to come (P⁻¹r as a mass-weighted RMS velocity) is at most this fraction of
@@ -169,6 +177,12 @@ struct SceneOptions {
   /// Throws InputError naming the offending option.
   void validate() const;
 };
+
+/// PCG's iteration cap in a scene of n vertices (SceneOptions::pcg_max_iters, 0 resolved).
+inline int effective_pcg_max_iters(const SceneOptions& o, int n) {
+  if (o.pcg_max_iters > 0) return o.pcg_max_iters;
+  return std::max(50, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n)) / 3)));
+}
 
 /// The preconditioner a scene with these options uses (kAuto resolved).
 inline PreconditionerKind effective_preconditioner(const SceneOptions& o) {

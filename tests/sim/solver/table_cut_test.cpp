@@ -52,7 +52,9 @@ double max_distance(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
 }
 
 // Three draws of the drop: the cut is taken, the landing takes fewer Newton iterations than with
-// the whole step scaled (97, 105, 102 against 104, 117, 113 when written: 9% fewer over the three),
+// the whole step scaled (97, 105, 102 against 104, 117, 113 when written: 9% fewer over the three;
+// 120, 118, 110 against 125, 122, 119, 5% fewer, since PCG stops at 50 iterations instead of 100
+// and Newton takes more, cheaper iterations: docs/physics.md, "Fifty-first round"),
 // no vertex reaches the table, and the two runs of a draw end within 5 mm of each other (1.5-2.6
 // mm when written: the cut changes the path of the solve, and the springing crease carries that
 // solver-tolerance difference on, as any change to the solve's arithmetic would).
@@ -71,7 +73,7 @@ TEST(TableCut, AFoldedSheetLandsInFewerNewtonIterations) {
     with_total += with.newton;
     without_total += without.newton;
   }
-  EXPECT_LT(with_total, 0.95 * without_total);
+  EXPECT_LT(with_total, 0.97 * without_total);
 }
 
 }  // namespace
