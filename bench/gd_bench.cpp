@@ -53,9 +53,11 @@
 #include <vector>
 
 #include "scene_export.h"
+#include "stream_case.h"
+#ifndef GD_BENCH_SOLVER_ONLY  // gd-bench-solver (bench/CMakeLists.txt): the solver cases alone
 #include "load_case.h"
 #include "service_case.h"
-#include "stream_case.h"
+#endif
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
@@ -347,6 +349,7 @@ int main(int argc, char** argv) {
                  "convergence from PCG's inexactness)")
       ->check(CLI::IsMember({"pcg", "direct"}))
       ->capture_default_str();
+#ifndef GD_BENCH_SOLVER_ONLY
   gd::bench::ServiceCaseOptions svc_opt;
   bool svc_json = false, svc_no_self_contact = false;
   auto* svc = app.add_subcommand("service", "gRPC service vs. its in-process core: one batched step of many scenes");
@@ -388,6 +391,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   load->add_option("--server", load_opt.server, "HOST:PORT of a running gd-server (default: start one on loopback)");
   load->add_option("--server-binary", load_opt.server_binary, "gd-server to start (default: the one beside gd-bench)");
+
+#endif
 
   gd::bench::ExportOptions exp_opt;
   auto* export_cmd =
@@ -481,6 +486,7 @@ int main(int argc, char** argv) {
     return 0;
   }
 
+#ifndef GD_BENCH_SOLVER_ONLY
   if (*load) {
     const auto r = gd::bench::run_load_case(load_opt);
     if (load_json) {
@@ -501,6 +507,7 @@ int main(int argc, char** argv) {
     }
     return r.error.empty() ? 0 : 1;
   }
+#endif
 
   std::vector<CaseResult> results;
   try {

@@ -15,7 +15,10 @@ peer whose Python package is not installed is skipped (and said so).
 
     build/venv/bin/python bench/peers/run_peers.py [--cases drape/5000,fold/5000] [--rounds 3]
         [--steps 10] [--warmup 3] [--json] [--png PATH] [--gd-bench PATH] [--peers mujoco,pybullet,vbd]
-        [--pybullet-substeps 1|K|auto] [--peer-max-seconds 120] [--keep DIR]
+        [--pybullet-substeps 1|K|auto] [--peer-max-seconds 120] [--keep DIR] [--gd-backend cpu|cuda]
+
+With --gd-backend cuda ours runs on a GPU (one host thread) against the same single-threaded peers:
+the comparison the RGBench paper makes.
 
 Results go to stdout (a table, or with --json exactly one JSON object); progress to stderr.
 """
@@ -753,9 +756,9 @@ def run_peer(name: str, scene: Scene, warmup: int, steps: int, substeps: int, ma
     return r
 
 
-def run_ours(gd_bench: Path, scene: Scene, warmup: int, steps: int) -> RunResult:
+def run_ours(gd_bench: Path, scene: Scene, warmup: int, steps: int, backend: str = "cpu") -> RunResult:
     kind, size = scene.name.split("/")
-    cmd = [str(gd_bench), "--json", "--cases", kind, "--sizes", size, "--threads", "1", "--backend", "cpu",
+    cmd = [str(gd_bench), "--json", "--cases", kind, "--sizes", size, "--threads", "1", "--backend", backend,
            "--steps", str(steps), "--warmup", str(warmup), "--max-seconds", "0"]
     r = RunResult()
     env = dict(os.environ, OMP_NUM_THREADS="1")
@@ -809,7 +812,7 @@ def run_case(case: str, args, gd_bench: Path, workdir: Path) -> dict:
         for s in sims:
             log(f"{case} round {rnd + 1}/{args.rounds}: {label[s]}")
             if s == OURS:
-                r = run_ours(gd_bench, scene, args.warmup, args.steps)
+                r = run_ours(gd_bench, scene, args.warmup, args.steps, args.gd_backend)
             else:
                 r = run_peer(s, scene, args.warmup, args.steps, substeps, args.peer_max_seconds)
             msg = f"{r.ms_per_step:.2f} ms/step" if r.ms_per_step is not None else "no timing"
@@ -868,7 +871,8 @@ def _f(v, spec: str, none: str = "-") -> str:
 
 def print_table(result: dict, file) -> None:
     st = result["settings"]
-    print(f"Peer benchmark: ms per {1e3 * (st['dt'] or 0):.0f} ms step, one thread each, median of {st['rounds']} "
+    print(f"Peer benchmark: ms per {1e3 * (st['dt'] or 0):.0f} ms step, one thread each"
+          f"{' (ours on a GPU)' if st.get('gd_backend') == 'cuda' else ''}, median of {st['rounds']} "
           f"interleaved rounds of {st['steps']} timed steps after {st['warmup']} warm-up steps", file=file)
     hdr = (f"{'case':<12} {'simulator':<26} {'vertices':>8} {'ms/step':>10} {'ratio':>7}  {'status':<9}"
            f" {'max speed':>9} {'lowest z':>9} {'max strain':>10} {'min strain':>10}  notes")
@@ -972,6 +976,8 @@ def parse_args(argv=None):
     ap.add_argument("--steps", type=int, default=10, help="timed steps per simulator and round")
     ap.add_argument("--warmup", type=int, default=3, help="untimed warm-up steps before them")
     ap.add_argument("--gd-bench", help="gd-bench binary (default: build/bin/gd-bench or build-cpu/bin/gd-bench)")
+    ap.add_argument("--gd-backend", default="cpu", choices=["cpu", "cuda"],
+                    help="our backend: cpu (one thread, as the peers run) or cuda (a GPU, one host thread)")
     ap.add_argument("--peers", default="mujoco,pybullet",
                     help="comma-separated peers: mujoco, pybullet, vbd (Newton's VBD cloth solver on warp's CPU "
                          "device; opt-in: pip install -r bench/peers/requirements-vbd.txt); a peer whose package is not installed is skipped")
@@ -1036,7 +1042,7 @@ def main(argv=None) -> int:
     workdir = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="gd-peers-"))
     workdir.mkdir(parents=True, exist_ok=True)
     result = {"settings": {"cases": args.case_list, "rounds": args.rounds, "steps": args.steps,
-                           "warmup": args.warmup, "threads": 1, "dt": None, "gd_bench": str(gd_bench),
+                           "warmup": args.warmup, "threads": 1, "gd_backend": args.gd_backend, "dt": None, "gd_bench": str(gd_bench),
                            "pybullet_substeps": args.pybullet_substeps, "mujoco_memory": args.mujoco_memory,
                            "peers": args.peers},
               "versions": versions(), "skipped_peers": skipped, "cases": []}

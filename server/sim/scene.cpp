@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <string>
 
 #include "sim/backend/cpu/omp_threads.h"
 #include "sim/demand.h"
@@ -265,6 +266,13 @@ bool Scene::do_step(bool quasi_static) {
                   "(queries {}) min gap {:.3g} barrier x{:g} grip {:.3g} N intersecting {} (found {}){}",
                   time_, stats_.newton_iters, stats_.pcg_iters, stats_.min_alpha, stats_.step_norm, stats_.contacts,
                   stats_.candidates, stats_.broad_phase_queries, stats_.min_self_distance, stats_.barrier_scale, stats_.max_grip_force, stats_.intersecting_pairs, stats_.intersecting_found, stats_.untangled ? " (untangled)" : "");
+  if (gd::log().should_log(spdlog::level::debug)) {  // where the step went, stage by stage
+    std::string stages;
+    stats_.stage.for_each_ms([&](const char* name, double ms) {
+      if (ms >= 0.05) stages += fmt::format(" {} {:.1f}", name, ms);
+    });
+    gd::log().debug("step t={:.3f}: {:.1f} ms:{}", time_, 1e3 * stats_.seconds, stages);
+  }
   return true;
 }
 
