@@ -84,8 +84,9 @@ TEST(SceneCreate, PcgCapGrowsWithTheMesh) {
   SceneOptions o;
   EXPECT_EQ(o.pcg_max_iters, 0);
   EXPECT_EQ(effective_pcg_max_iters(o, 400), 50);
-  EXPECT_EQ(effective_pcg_max_iters(o, 20273), 50);
-  EXPECT_EQ(effective_pcg_max_iters(o, 40401), 67);
+  EXPECT_EQ(effective_pcg_max_iters(o, 15625), 50);
+  EXPECT_EQ(effective_pcg_max_iters(o, 20273), 57);
+  EXPECT_EQ(effective_pcg_max_iters(o, 40401), 81);
   EXPECT_GT(effective_pcg_max_iters(o, 160000), effective_pcg_max_iters(o, 40401));
   o.pcg_max_iters = 400;
   EXPECT_EQ(effective_pcg_max_iters(o, 40401), 400);

@@ -80,12 +80,13 @@ struct SceneOptions {
   /// quasi-static steps (Scene::relax) always run to newton_tol.
   Real newton_rtol = 0.03;
   Real newton_atol = 1e-3;        ///< m/s
-  /// PCG iteration cap per Newton iteration; 0 (the default): max(50, sqrt(n) / 3) for n vertices
+  /// PCG iteration cap per Newton iteration; 0 (the default): max(50, sqrt(n) / 2.5) for n vertices
   /// (effective_pcg_max_iters). Block-Jacobi PCG (self-contact's default) reaches the cap in most
   /// Newton iterations after a step's first, and past ~50 iterations at 5-20k vertices its slow
   /// tail costs more than the Newton iteration it saves; the iterations it needs grow as the mesh
   /// refines (uncapped, 92 per Newton iteration at fold/5000 and 161 at fold/20000), and so does
-  /// the cap (docs/physics.md, "Fifty-first round"). MAS solves stop well before it.
+  /// the cap (docs/physics.md, "Fifty-first round", "Fifty-second round"). MAS solves stop well
+  /// before it.
   int pcg_max_iters = 0;
   Real pcg_tol = 1e-2;            ///< PCG relative residual tolerance (inexact Newton)
   /// With MAS in a dynamic step under the residual rule, PCG also stops once its estimate of the
@@ -181,7 +182,7 @@ struct SceneOptions {
 /// PCG's iteration cap in a scene of n vertices (SceneOptions::pcg_max_iters, 0 resolved).
 inline int effective_pcg_max_iters(const SceneOptions& o, int n) {
   if (o.pcg_max_iters > 0) return o.pcg_max_iters;
-  return std::max(50, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n)) / 3)));
+  return std::max(50, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n)) / 2.5)));
 }
 
 /// The preconditioner a scene with these options uses (kAuto resolved).
