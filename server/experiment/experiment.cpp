@@ -199,7 +199,9 @@ class Run {
     f << "t,min_z,max_z,mean_z,extent_x,extent_y,kinetic,contacts,intersecting_pairs,newton_iters,pcg_iters,ms";
     if (robot_)
       f << ",left_gripper,right_gripper,left_squeeze_n,right_squeeze_n,left_table_lift,right_table_lift,"
-           "left_grip_limit_n,right_grip_limit_n";
+           "left_grip_limit_n,right_grip_limit_n,left_push_open_n,left_push_close_n,right_push_open_n,"
+           "right_push_close_n,left_vertices_open,left_vertices_close,right_vertices_open,right_vertices_close,"
+           "left_reached,right_reached";
     f << "\n";
     for (const std::string& r : rows_) f << r << "\n";
   }
@@ -217,6 +219,10 @@ class Run {
       const tasks::RobotArmState &l = robot_->state(tasks::Arm::kLeft), &r = robot_->state(tasks::Arm::kRight);
       rows_.back() += fmt::format(",{:.6f},{:.6f},{:.4f},{:.4f},{:.6f},{:.6f},{:.4f},{:.4f}", l.gripper, r.gripper,
                                   l.squeeze, r.squeeze, l.table_lift, r.table_lift, l.grip_force, r.grip_force);
+      // The squeeze split by the side the cloth pushes from (RobotArmState::push_open ...).
+      rows_.back() += fmt::format(",{:.4f},{:.4f},{:.4f},{:.4f},{},{},{},{},{:.4f},{:.4f}", l.push_open, l.push_close,
+                                  r.push_open, r.push_close, l.vertices_open, l.vertices_close, r.vertices_open,
+                                  r.vertices_close, l.reached, r.reached);
     }
     next_record_ = scene_->time() + frame_interval_;
     // Every anim_stride_-th frame for the animation; past kMaxAnimationFrames every other

@@ -107,13 +107,31 @@ void Scene::remove_collider(int id) {
   collider_reached_.erase(collider_reached_.begin() + k);
 }
 
-std::vector<Vec3> Scene::collider_forces(const std::vector<int>& ids) {
+std::vector<size_t> Scene::collider_index(const std::vector<int>& ids, const char* what) const {
   std::vector<size_t> index;
   for (const int id : ids) {
     const auto it = std::find(collider_ids_.begin(), collider_ids_.end(), id);
-    if (it == collider_ids_.end()) throw InputError("collider_forces: no collider with id " + std::to_string(id));
+    if (it == collider_ids_.end()) throw InputError(std::string(what) + ": no collider with id " + std::to_string(id));
     index.push_back(static_cast<size_t>(it - collider_ids_.begin()));
   }
+  return index;
+}
+
+std::vector<ColliderPush> Scene::collider_pushes(const std::vector<int>& ids) {
+  const std::vector<size_t> index = collider_index(ids, "collider_pushes");
+  std::vector<ColliderPush> out(ids.size());
+  if (ids.empty()) return out;
+  solver_->set_colliders(colliders_, time_, time_);  // the poses now, as collider_forces
+  const std::vector<double> p = solver_->collider_pushes();
+  for (size_t a = 0; a < index.size(); ++a) {
+    const double* q = p.data() + 4 * index[a];
+    out[a] = {q[0], q[1], static_cast<int>(std::lround(q[2])), static_cast<int>(std::lround(q[3]))};
+  }
+  return out;
+}
+
+std::vector<Vec3> Scene::collider_forces(const std::vector<int>& ids) {
+  const std::vector<size_t> index = collider_index(ids, "collider_forces");
   std::vector<Vec3> out(ids.size(), Vec3::Zero());
   if (ids.empty()) return out;
   // The poses now (the next step sends its own again).
@@ -125,11 +143,7 @@ std::vector<Vec3> Scene::collider_forces(const std::vector<int>& ids) {
 
 std::vector<double> Scene::collider_reached(const std::vector<int>& ids) const {
   std::vector<double> out;
-  for (const int id : ids) {
-    const auto it = std::find(collider_ids_.begin(), collider_ids_.end(), id);
-    if (it == collider_ids_.end()) throw InputError("collider_reached: no collider with id " + std::to_string(id));
-    out.push_back(collider_reached_[static_cast<size_t>(it - collider_ids_.begin())]);
-  }
+  for (const size_t k : collider_index(ids, "collider_reached")) out.push_back(collider_reached_[k]);
   return out;
 }
 

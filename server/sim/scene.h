@@ -28,6 +28,14 @@ namespace gd::sim {
 /// A rigid motion over time, t in seconds of scene time.
 using PoseFn = std::function<Eigen::Isometry3d(double t)>;
 
+/// A collider's push from the cloth along its own local z axis, split by sign
+/// (Scene::collider_pushes, SolverBase::collider_pushes).
+struct ColliderPush {
+  double along_z = 0;    ///< N (>= 0): the vertices pushing it towards its +z, summed
+  double against_z = 0;  ///< N (<= 0): those pushing it towards -z
+  int vertices_along = 0, vertices_against = 0;
+};
+
 class Scene {
  public:
   /// Validates the mesh, material and options (InputError with a message on failure) and
@@ -71,6 +79,10 @@ class Scene {
   /// friction not included (SolverBase::collider_forces). What a force-limited gripper finger
   /// feels. Unknown ids throw InputError.
   std::vector<Vec3> collider_forces(const std::vector<int>& ids);
+  /// collider_forces' component along each collider's own local z axis, split into the vertices
+  /// pushing it towards +z and those pushing it towards -z (a gripper pad's inner face against
+  /// cloth wrapped round its outer face). Unknown ids throw InputError.
+  std::vector<ColliderPush> collider_pushes(const std::vector<int>& ids);
   /// How much of its motion over the last step each of these colliders made: 1, or less where a
   /// yielding collider (Collider::set_yielding) stopped short because the cloth could not get out
   /// of its way in time. Its pose function should then start the next step from the pose it
@@ -108,6 +120,8 @@ class Scene {
   std::string backend() const { return solver_->backend_name(); }
 
  private:
+  /// Positions of these collider ids in colliders_; unknown ids throw InputError naming `what`.
+  std::vector<size_t> collider_index(const std::vector<int>& ids, const char* what) const;
   Scene() = default;
   struct Group {
     int id;

@@ -398,8 +398,9 @@ void RobotController::update(sim::Scene& scene, double t_end) {
   const std::vector<double> reached = scene.collider_reached(pads);
   for (int k = 0; k < 4; ++k)
     if (reached[k] < 1.0) poses_->pose[k][1] = poses_->at(k, poses_->t0 + reached[k] * (poses_->t1 - poses_->t0));
-  // The cloth's push on the four pads now, in one pass over the cloth.
-  const std::vector<Vec3> forces = scene.collider_forces(pads);
+  // The cloth's push on the four pads now along their opening directions (each pad's z), split
+  // into the cloth on their inner faces (opening them) and round their outer faces (closing them).
+  const std::vector<sim::ColliderPush> pushes = scene.collider_pushes(pads);
   for (Arm a : {Arm::kLeft, Arm::kRight}) {
     const int ai = static_cast<int>(a);
     RobotArmState& st = state_[ai];
@@ -407,10 +408,16 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     // The mean push on the two pads along each pad's opening direction (its link's z).
     double squeeze = 0;
     bool pressed = false;  // cloth pushes some pad's inner face apart
+    st.reached = std::min(reached[2 * ai], reached[2 * ai + 1]);
+    st.push_open = st.push_close = 0;
+    st.vertices_open = st.vertices_close = 0;
     for (int f = 0; f < 2; ++f) {
-      const double push = forces[2 * ai + f].dot(poses_->pose[2 * ai + f][1].linear().col(2));
+      const sim::ColliderPush& p = pushes[2 * ai + f];
+      const double push = p.along_z + p.against_z;
       squeeze += 0.5 * push;
       pressed = pressed || push > 0;
+      st.push_open += 0.5 * p.along_z, st.push_close += 0.5 * p.against_z;
+      st.vertices_open += p.vertices_along, st.vertices_close += p.vertices_against;
     }
     st.squeeze = squeeze;
     // A position-controlled, force-limited finger joint.

@@ -113,6 +113,14 @@ struct RobotArmState {
   double gripper = 0;               ///< finger opening at the step's end, m (each finger)
   double gripper_command = 0;       ///< what the trajectory asks, m
   double squeeze = 0;               ///< N: the cloth's mean push on the two pads at the step's start
+  /// The squeeze split (squeeze = push_open + push_close): the mean push of the cloth on the
+  /// two pads' inner faces (opening them, N >= 0) and round their outer faces (closing them, N
+  /// <= 0), and the vertices doing each (Scene::collider_pushes).
+  double push_open = 0, push_close = 0;
+  int vertices_open = 0, vertices_close = 0;
+  /// The smaller fraction of its last step's motion either pad made (1 unless the cloth stopped
+  /// it short: Collider::set_yielding); the squeeze above is measured where the pads got to.
+  double reached = 1;
   double table_lift = 0;            ///< m the hand was raised to stay off the table
   double grip_force = 0;            ///< N: the squeeze limit at the step's end (RobotOptions)
   /// s: when the closed fingers first squeezed the cloth with half their limit (< 0: not yet).

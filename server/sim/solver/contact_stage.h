@@ -107,6 +107,26 @@ double Solver<Exec>::max_grip_force() {
   });
 }
 
+namespace detail {
+/// The barrier's gradient at free vertex i against collider c at its end-of-step pose: the
+/// reaction the collider receives from that vertex (zero beyond dhat; zero for a vertex inside).
+GD_HD Vec3 collider_reaction(const View& V, const Params& P, const double* x, int c, int i) {
+  const double* q = V.col_pose + 24 * c;
+  const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+  const Vec3 t1(q[21], q[22], q[23]);
+  Vec3 g;
+  const Real e = point_collider_energy(load3(x, i), R1, t1, V.col_shape[c], 0.0, P.dhat,
+                                       P.kappa_per_mass * V.mass[i] * V.col_kappa[c], &g, nullptr, HessianKind::kNone,
+                                       &V.col_mesh);
+  return e > 0 && std::isfinite(e) ? g : Vec3::Zero();
+}
+/// Collider c's local z axis at its end-of-step pose (world frame).
+GD_HD Vec3 collider_z(const View& V, int c) {
+  const double* q = V.col_pose + 24 * c + 12;  // R1, row-major: its third column
+  return Vec3(q[2], q[5], q[8]);
+}
+}  // namespace detail
+
 /// Barrier force on each collider from the cloth (SolverBase::collider_forces): the reaction to
 /// the barrier's push on each free vertex, at the colliders' end-of-step poses.
 template <class Exec>
@@ -119,16 +139,30 @@ std::vector<double> Solver<Exec>::collider_forces() {
   for (int c = 0; c < n_col_; ++c)
     for (int k = 0; k < 3; ++k)
       out[3 * c + k] = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
-        if (V.fixed[i]) return 0.0;
-        const double* q = V.col_pose + 24 * c;
-        const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
-        const Vec3 t1(q[21], q[22], q[23]);
-        Vec3 g;
-        const Real e = point_collider_energy(detail::load3(x, i), R1, t1, V.col_shape[c], 0.0, P.dhat,
-                                             P.kappa_per_mass * V.mass[i] * V.col_kappa[c], &g, nullptr, HessianKind::kNone,
-                                             &V.col_mesh);
-        return e > 0 && std::isfinite(e) ? static_cast<double>(g[k]) : 0.0;
+        return V.fixed[i] ? 0.0 : static_cast<double>(detail::collider_reaction(V, P, x, c, i)[k]);
       });
+  return out;
+}
+
+/// Each collider's push along its own z axis split by sign (SolverBase::collider_pushes): the
+/// vertices pushing it towards +z and their sum, those pushing it towards -z and theirs.
+template <class Exec>
+std::vector<double> Solver<Exec>::collider_pushes() {
+  std::vector<double> out(4 * static_cast<size_t>(n_col_), 0.0);
+  if (n_col_ == 0) return out;
+  const detail::View V = view();
+  const detail::Params P = P_;
+  const double* x = Exec::ptr(x_);
+  for (int c = 0; c < n_col_; ++c)
+    for (const int sign : {1, -1}) {
+      const auto push = [=] GD_HD_LAMBDA(int i) {
+        if (V.fixed[i]) return 0.0;
+        const double f = detail::collider_reaction(V, P, x, c, i).dot(detail::collider_z(V, c));
+        return sign * f > 0 ? f : 0.0;
+      };
+      out[4 * c + (sign > 0 ? 0 : 1)] = Exec::sum(n_, push);
+      out[4 * c + (sign > 0 ? 2 : 3)] = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return push(i) != 0.0 ? 1.0 : 0.0; });
+    }
   return out;
 }
 

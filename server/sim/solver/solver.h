@@ -124,6 +124,12 @@ class SolverBase {
   /// frame (the sum over free vertices of the barrier's gradient; friction not included). What
   /// a force-limited gripper finger feels (robot mode).
   virtual std::vector<double> collider_forces() = 0;
+  /// collider_forces' push along each collider's own local z axis (at its end-of-step pose) split
+  /// by sign: 4 per collider, {sum of the vertices' pushes towards +z (N, >= 0), sum of those
+  /// towards -z (N, <= 0), vertices pushing towards +z, vertices pushing towards -z}. For a gripper
+  /// pad whose z is its opening direction: the cloth on its inner face against the cloth wrapped
+  /// round its outer face (robot mode's timeseries).
+  virtual std::vector<double> collider_pushes() = 0;
   /// Per collider of the last set_colliders: the fraction of its motion over the last step that it
   /// made, 1 unless a yielding collider (Collider::set_yielding) stopped short.
   virtual std::vector<double> collider_reached() const = 0;

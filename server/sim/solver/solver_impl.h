@@ -381,6 +381,7 @@ class Solver final : public SolverBase {
   // Energies, strain and memory for reports (diagnostics.h)
   EnergyReport energies() override;
   std::vector<double> collider_forces() override;
+  std::vector<double> collider_pushes() override;
   std::vector<double> collider_reached() const override { return col_reached_; }
   /// Which barriers are infinite at x_ (a diagnostic for a failed step): vertices inside each
   /// collider's end pose or below the table, and the closest self-contact pair.

@@ -35,6 +35,7 @@ class GuardedCudaSolver final : public SolverBase {
   void set_external_forces(const std::vector<double>& f) override { guarded([&] { s_->set_external_forces(f); }); }
   EnergyReport energies() override { return guarded([&] { return s_->energies(); }); }
   std::vector<double> collider_forces() override { return guarded([&] { return s_->collider_forces(); }); }
+  std::vector<double> collider_pushes() override { return guarded([&] { return s_->collider_pushes(); }); }
   std::vector<double> collider_reached() const override { return s_->collider_reached(); }
   double max_strain() override { return guarded([&] { return s_->max_strain(); }); }
   size_t bytes() const override { return s_->bytes(); }
