@@ -79,7 +79,6 @@ def main() -> int:
     # Stages of each series' largest case, stacked.
     stages = ["predictor", "contacts", "assembly", "couplings", "precond", "pcg", "ccd", "line_search",
               "intersections", "untangle", "stopping"]
-    names, bottoms = [], None
     picks = [(f"{label}\n{pts[-1][2]['case']}", pts[-1][2].get("stage_ms", {})) for label, _, pts in series]
     bottoms = [0.0] * len(picks)
     for s in stages:
