@@ -14,7 +14,8 @@
 ///       a mesh-convergence study: the same run at each resolution, each shape's distance to the
 ///       finest run's (server/experiment/convergence.h lists the files it writes); --draws K
 ///       runs K meshes of nearly each resolution and reports their spread beside it; --jobs J
-///       runs J of the runs at once.
+///       runs J of the runs at once; --dts 0.01,0.005,0.0025 with one vertex count studies the
+///       time step instead (each shape's distance to the smallest step's run).
 ///
 ///
 /// With `--server HOST:PORT` the same `gd run` is submitted to a gd-server as a job (progress
@@ -114,28 +115,34 @@ int cmd_converge(const gd::experiment::ConvergenceConfig& cfg, bool quiet) {
   };
   const auto result = gd::experiment::run_convergence(cfg, progress);
   if (bar) bar->finish();
-  std::printf("distance to the finest run (%d vertices), symmetric, mm:\n",
-              result.summary["reference_vertices"].get<int>());
+  const bool by_dt = !cfg.dts.empty();
+  if (by_dt)
+    std::printf("distance to the run at the smallest time step (%g ms, %d vertices), symmetric, mm:\n",
+                1e3 * result.summary["reference_dt"].get<double>(), result.summary["reference_vertices"].get<int>());
+  else
+    std::printf("distance to the finest run (%d vertices), symmetric, mm:\n",
+                result.summary["reference_vertices"].get<int>());
   const bool floors = cfg.draws > 1;
+  const char* level = by_dt ? "dt (ms)" : "vertices";
   if (floors) {
-    std::printf("(means over %d draws per resolution; floor: between two draws of the run's resolution, "
-                "ref floor: of the finest)\n", cfg.draws);
-    std::printf("%9s %9s %10s %10s %14s %14s\n", "vertices", "t (s)", "chamfer", "hausdorff", "chamfer floor",
-                "ref floor");
+    std::printf("(means over %d draws per %s; floor: between two draws of the run's, ref floor: of the reference)\n",
+                cfg.draws, by_dt ? "time step (meshes 2.5%, 5%... apart)" : "resolution");
+    std::printf("%9s %9s %10s %10s %14s %14s\n", level, "t (s)", "chamfer", "hausdorff", "chamfer floor", "ref floor");
   } else {
-    std::printf("%9s %9s %10s %10s\n", "vertices", "t (s)", "chamfer", "hausdorff");
+    std::printf("%9s %9s %10s %10s\n", level, "t (s)", "chamfer", "hausdorff");
   }
   for (const auto& r : result.rows) {
     const std::string t = r.final ? std::string("final") : fmt::format("{:.2f}", r.t);
+    const std::string at = by_dt ? fmt::format("{:g}", 1e3 * r.dt) : std::to_string(r.vertices);
     if (floors)
-      std::printf("%9d %9s %10.2f %10.2f %14.2f %14.2f\n", r.vertices, t.c_str(), 1e3 * r.cd, 1e3 * r.hd,
+      std::printf("%9s %9s %10.2f %10.2f %14.2f %14.2f\n", at.c_str(), t.c_str(), 1e3 * r.cd, 1e3 * r.hd,
                   1e3 * r.cd_floor, 1e3 * r.ref_cd_floor);
     else
-      std::printf("%9d %9s %10.2f %10.2f\n", r.vertices, t.c_str(), 1e3 * r.cd, 1e3 * r.hd);
+      std::printf("%9s %9s %10.2f %10.2f\n", at.c_str(), t.c_str(), 1e3 * r.cd, 1e3 * r.hd);
   }
   const bool png = std::filesystem::exists(cfg.base.out_dir + "/convergence.png");
-  std::printf("files in %s: convergence.csv, convergence.json%s, v<N>/ per run\n", cfg.base.out_dir.c_str(),
-              png ? ", convergence.png" : "");
+  std::printf("files in %s: convergence.csv, convergence.json%s, %s/ per run\n", cfg.base.out_dir.c_str(),
+              png ? ", convergence.png" : "", by_dt ? "dt<ms>ms" : "v<N>");
   for (const auto& run : result.summary["runs"])
     if (run.value("failed", false)) {
       std::fprintf(stderr, "gd: the run at %d vertices failed: %s\n", run.value("vertices", 0),
@@ -310,10 +317,10 @@ int main(int argc, char** argv) {
   syn->add_option("--out", syn_out, "capture directory to write")->required();
 
   gd::experiment::ConvergenceConfig conv;
-  std::string conv_vertices = "1000,2000,4000";
+  std::string conv_vertices = "1000,2000,4000", conv_dts;
   bool conv_quiet = false, conv_no_plots = false;
-  auto* cvg = app.add_subcommand("converge", "mesh-convergence study: one task at several resolutions, shapes "
-                                             "compared with the finest run's");
+  auto* cvg = app.add_subcommand("converge", "mesh-convergence study: one task at several resolutions (or time "
+                                             "steps, --dts), shapes compared with the finest run's");
   cvg->add_option("--garment", conv.base.garment, "garment type (generated at each vertex count)")->capture_default_str();
   cvg->add_option("--material", conv.base.material, "fabric")->capture_default_str();
   cvg->add_option("--task", conv.base.task, "grasp | fold | fling")->capture_default_str();
@@ -333,6 +340,9 @@ int main(int argc, char** argv) {
                   "the jobs); the results are those of one run after another")
       ->capture_default_str();
   cvg->add_option("--dt", conv.base.scene.dt, "time step, s")->capture_default_str();
+  cvg->add_option("--dts", conv_dts,
+                  "comma-separated time steps, s: a time-step study instead, one vertex count (--vertices N) at "
+                  "each step, compared with the smallest step's run");
   cvg->add_option("--time-scale", conv.base.task_params.time_scale, "speed factor of the task's slow parts")
       ->capture_default_str();
   cvg->add_option("--settle", conv.base.settle_after, "seconds simulated after the trajectory ends")->capture_default_str();
@@ -441,6 +451,16 @@ int main(int argc, char** argv) {
           if (used != item.size()) throw std::invalid_argument(item);
         } catch (const std::exception&) {
           throw gd::sim::InputError("--vertices takes comma-separated integers (got '" + conv_vertices + "')");
+        }
+      }
+      std::stringstream dts(conv_dts);
+      for (std::string item; !conv_dts.empty() && std::getline(dts, item, ',');) {
+        try {
+          size_t used = 0;
+          conv.dts.push_back(std::stod(item, &used));
+          if (used != item.size()) throw std::invalid_argument(item);
+        } catch (const std::exception&) {
+          throw gd::sim::InputError("--dts takes comma-separated time steps in seconds (got '" + conv_dts + "')");
         }
       }
       if (conv_no_plots) conv.base.plots = false;

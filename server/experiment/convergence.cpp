@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -181,15 +182,58 @@ SurfaceDistance mean_distance(const std::vector<std::string>& a, const std::vect
 
 std::string csv_number(double v) { return std::isfinite(v) ? fmt::format("{:.6f}", v) : std::string(); }
 
-}  // namespace
+/// One resolution of a study (a mesh study's vertex count, or a time-step study's step), coarsest
+/// first: the last is the reference.
+struct Level {
+  int vertices = 0;  ///< target vertex count of the nominal draw
+  double dt = 0;     ///< s
+  std::string stem;  ///< its runs' directory, out_dir/stem (draw k > 0: stem_d<k>)
+};
 
-ConvergenceResult run_convergence(const ConvergenceConfig& config, const ConvergenceProgressFn& progress) {
+std::vector<Level> study_levels(const ConvergenceConfig& config) {
   std::vector<int> counts = config.vertices;
   std::sort(counts.begin(), counts.end());
   counts.erase(std::unique(counts.begin(), counts.end()), counts.end());
-  if (counts.size() < 2) throw InputError("gd converge needs at least two different vertex counts (e.g. --vertices 1000,2000,4000)");
   for (int n : counts)
     if (n <= 0) throw InputError(fmt::format("vertex counts must be positive (got {})", n));
+  std::vector<Level> levels;
+  if (config.dts.empty()) {
+    if (counts.size() < 2)
+      throw InputError("gd converge needs at least two different vertex counts (e.g. --vertices 1000,2000,4000)");
+    for (int n : counts) levels.push_back({n, config.base.scene.dt, fmt::format("v{}", n)});
+    return levels;
+  }
+  std::vector<double> dts = config.dts;
+  for (double dt : dts)
+    if (!(std::isfinite(dt) && dt > 0)) throw InputError(fmt::format("time steps must be positive (got {})", dt));
+  std::sort(dts.begin(), dts.end(), std::greater<double>());  // the largest step is the coarsest
+  dts.erase(std::unique(dts.begin(), dts.end()), dts.end());
+  if (dts.size() < 2) throw InputError("a time-step study needs at least two different time steps (e.g. --dts 0.01,0.005,0.0025)");
+  if (counts.size() != 1)
+    throw InputError(fmt::format("a time-step study runs one resolution: give one vertex count (e.g. --vertices 2000), "
+                                 "got {}", counts.size()));
+  for (double dt : dts) levels.push_back({counts[0], dt, fmt::format("dt{:g}ms", 1e3 * dt)});
+  return levels;
+}
+
+/// The shape of `shapes` at `ms` (the final one at -1), or at a time within `tol_ms` of it: runs
+/// at different time steps write their snapshots at the first step past each interval.
+const std::string* shape_near(const std::map<long, std::string>& shapes, long ms, long tol_ms) {
+  if (ms < 0) {
+    const auto it = shapes.find(-1);
+    return it == shapes.end() ? nullptr : &it->second;
+  }
+  const std::string* best = nullptr;
+  long best_gap = tol_ms + 1;
+  for (auto it = shapes.lower_bound(std::max(0L, ms - tol_ms)); it != shapes.end() && it->first <= ms + tol_ms; ++it)
+    if (std::abs(it->first - ms) < best_gap) best_gap = std::abs(it->first - ms), best = &it->second;
+  return best;
+}
+
+}  // namespace
+
+ConvergenceResult run_convergence(const ConvergenceConfig& config, const ConvergenceProgressFn& progress) {
+  const std::vector<Level> levels = study_levels(config);
   const std::string& g = config.base.garment;
   if (g.size() > 4 && g.substr(g.size() - 4) == ".obj")
     throw InputError("gd converge needs a generated garment type (it remeshes it at each vertex count), not an .obj file");
@@ -198,50 +242,53 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
   if (config.samples < 100) throw InputError(fmt::format("samples must be at least 100 (got {})", config.samples));
   if (config.draws < 1 || config.draws > 20) throw InputError(fmt::format("draws must be 1..20 (got {})", config.draws));
   if (config.jobs < 1 || config.jobs > 64) throw InputError(fmt::format("jobs must be 1..64 (got {})", config.jobs));
-  for (int n : counts)
+  for (const Level& level : levels)
     for (int k = 0; k < config.draws; ++k) {
-      const long v = std::lround(n * draw_vertex_factor(k));
+      const long v = std::lround(level.vertices * draw_vertex_factor(k));
       if (v < garments::kMinTargetVertices || v > garments::kMaxTargetVertices)
         throw InputError(fmt::format("draw {} of {} vertices would mesh {} vertices; garments take {}-{} (use fewer "
-                                     "draws or other vertex counts)", k, n, v, garments::kMinTargetVertices,
+                                     "draws or other vertex counts)", k, level.vertices, v, garments::kMinTargetVertices,
                                      garments::kMaxTargetVertices));
     }
   fs::create_directories(config.base.out_dir);
 
   ConvergenceResult result;
-  const int total = static_cast<int>(counts.size());
+  const int total = static_cast<int>(levels.size());
   const int draws = config.draws;
   const int run_count = total * draws;
-  // Run `run` is resolution run / draws's draw run % draws; summaries[run] its summary, dirs[r][k]
+  // Run `run` is level run / draws's draw run % draws; summaries[run] its summary, dirs[r][k]
   // its directory ("" where the run failed).
   std::vector<nlohmann::json> summaries(run_count);
   std::vector<std::vector<std::string>> dirs(total, std::vector<std::string>(draws));
-  std::vector<int> actual(total);  // vertex count of each resolution's nominal draw
+  std::vector<int> actual(total);  // vertex count of each level's nominal draw
   const int jobs = std::min(config.jobs, run_count);
   int threads = config.base.scene.threads;  // each run's; with jobs and "all" threads, the cores shared
   if (jobs > 1 && threads <= 0) threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / jobs);
   std::mutex progress_mutex;  // the callback is called from every job's thread, one call at a time
   auto run_one = [&](int run) {
     const int r = run / draws, k = run % draws;
+    const Level& level = levels[r];
     ExperimentConfig c = config.base;
     c.scene.threads = threads;
-    c.vertices = static_cast<int>(std::lround(counts[r] * draw_vertex_factor(k)));
-    c.out_dir = k == 0 ? fmt::format("{}/v{}", config.base.out_dir, counts[r])
-                       : fmt::format("{}/v{}_d{}", config.base.out_dir, counts[r], k);
+    c.scene.dt = level.dt;
+    c.vertices = static_cast<int>(std::lround(level.vertices * draw_vertex_factor(k)));
+    c.out_dir = k == 0 ? fmt::format("{}/{}", config.base.out_dir, level.stem)
+                       : fmt::format("{}/{}_d{}", config.base.out_dir, level.stem, k);
     c.mesh_interval = config.snapshot_interval;
-    gd::log().info("gd converge: run {}/{} at {} vertices{} -> {}", run + 1, run_count, c.vertices,
-                   k == 0 ? "" : fmt::format(" (draw {} of resolution {})", k, counts[r]), c.out_dir);
+    gd::log().info("gd converge: run {}/{} at {} vertices, dt {:g} s{} -> {}", run + 1, run_count, c.vertices, c.scene.dt,
+                   k == 0 ? "" : fmt::format(" (draw {} of {})", k, level.stem), c.out_dir);
     const ExperimentResult res = run_experiment(c, [&](double t, double end, const sim::StepStats&) {
       if (!progress) return;
       const std::lock_guard<std::mutex> lock(progress_mutex);
-      progress(run, run_count, counts[r], t, end);
+      progress(run, run_count, level.vertices, t, end);
     });
     nlohmann::json summary = res.summary;
     summary["draw"] = k;
-    summary["resolution"] = counts[r];
+    summary["resolution"] = level.vertices;
+    summary["dt"] = level.dt;
     summaries[run] = summary;
     dirs[r][k] = res.summary.value("failed", false) ? std::string() : c.out_dir;
-    if (k == 0) actual[r] = res.summary.value("vertices", counts[r]);
+    if (k == 0) actual[r] = res.summary.value("vertices", level.vertices);
   };
   if (jobs <= 1) {
     for (int run = 0; run < run_count; ++run) run_one(run);
@@ -267,21 +314,23 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
   }
   const nlohmann::json runs = summaries;  // in run order, whatever order they ended in
   if (dirs.back()[0].empty())
-    throw InputError(fmt::format("the finest run ({} vertices) failed: {}", counts.back(),
+    throw InputError(fmt::format("the reference run ({}) failed: {}", levels.back().stem,
                                  runs[(total - 1) * draws].value("failure", std::string("?"))));
 
   // The shapes each draw that ran wrote (time in ms -> OBJ; -1: final), and those of one
-  // resolution's draws at one time.
+  // level's draws at one time (or within half the largest step of it: a time-step study's runs
+  // write their snapshots at different steps).
   std::vector<std::vector<std::map<long, std::string>>> written(total);
   for (int r = 0; r < total; ++r)
     for (const std::string& d : dirs[r])
       if (!d.empty()) written[r].push_back(run_shapes(d));
+  double max_dt = 0;
+  for (const Level& level : levels) max_dt = std::max(max_dt, level.dt);
+  const long tol_ms = std::lround(0.5e3 * max_dt);
   auto shapes_at = [&](int r, long ms) {
     std::vector<std::string> out;
-    for (const auto& shapes : written[r]) {
-      const auto it = shapes.find(ms);
-      if (it != shapes.end()) out.push_back(it->second);
-    }
+    for (const auto& shapes : written[r])
+      if (const std::string* path = shape_near(shapes, ms, tol_ms)) out.push_back(*path);
     return out;
   };
   // Every shape of the finest run, compared with the same time's shape of each other run.
@@ -298,6 +347,7 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
       const SurfaceDistance floor = mean_distance(own, own, true, config.samples, &cache);
       ShapeDistance row;
       row.vertices = actual[r];
+      row.dt = levels[r].dt;
       row.final = ms < 0;
       row.t = ms < 0 ? end_time : 1e-3 * ms;
       row.cd = d.cd;
@@ -308,21 +358,24 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
     }
   }
   std::sort(result.rows.begin(), result.rows.end(), [](const ShapeDistance& a, const ShapeDistance& b) {
-    return a.final != b.final ? b.final : (a.t != b.t ? a.t < b.t : a.vertices < b.vertices);
+    if (a.final != b.final) return b.final;
+    if (a.t != b.t) return a.t < b.t;
+    return a.vertices != b.vertices ? a.vertices < b.vertices : a.dt > b.dt;  // coarsest first
   });
 
   const std::string out = config.base.out_dir;
   std::ofstream csv(out + "/convergence.csv");
   if (!csv) throw InputError(fmt::format("cannot write '{}/convergence.csv'", out));
-  csv << "vertices,reference_vertices,t,final,cd,hd,cd_floor,hd_floor,ref_cd_floor,ref_hd_floor\n";
+  csv << "vertices,reference_vertices,t,final,cd,hd,cd_floor,hd_floor,ref_cd_floor,ref_hd_floor,dt,reference_dt\n";
   const int ref_vertices = actual.back();
+  const double ref_dt = levels.back().dt;
   auto json_number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   nlohmann::json rows = nlohmann::json::array();
   for (const ShapeDistance& s : result.rows) {
-    csv << fmt::format("{},{},{:.3f},{},{:.6f},{:.6f},{},{},{},{}\n", s.vertices, ref_vertices, s.t, s.final ? 1 : 0,
-                       s.cd, s.hd, csv_number(s.cd_floor), csv_number(s.hd_floor), csv_number(s.ref_cd_floor),
-                       csv_number(s.ref_hd_floor));
-    rows.push_back({{"vertices", s.vertices}, {"t", s.t}, {"final", s.final}, {"cd", s.cd}, {"hd", s.hd},
+    csv << fmt::format("{},{},{:.3f},{},{:.6f},{:.6f},{},{},{},{},{:g},{:g}\n", s.vertices, ref_vertices, s.t,
+                       s.final ? 1 : 0, s.cd, s.hd, csv_number(s.cd_floor), csv_number(s.hd_floor),
+                       csv_number(s.ref_cd_floor), csv_number(s.ref_hd_floor), s.dt, ref_dt);
+    rows.push_back({{"vertices", s.vertices}, {"dt", s.dt}, {"t", s.t}, {"final", s.final}, {"cd", s.cd}, {"hd", s.hd},
                     {"cd_floor", json_number(s.cd_floor)}, {"hd_floor", json_number(s.hd_floor)},
                     {"ref_cd_floor", json_number(s.ref_cd_floor)}, {"ref_hd_floor", json_number(s.ref_hd_floor)}});
   }
@@ -330,8 +383,21 @@ ConvergenceResult run_convergence(const ConvergenceConfig& config, const Converg
   result.summary = {{"garment", config.base.garment},
                     {"task", config.base.task},
                     {"material", config.base.material},
-                    {"vertices", counts},
+                    {"axis", config.dts.empty() ? "vertices" : "dt"},
+                    {"vertices", [&] {
+                       std::vector<int> v;
+                       for (const Level& level : levels)
+                         if (v.empty() || v.back() != level.vertices) v.push_back(level.vertices);
+                       return v;
+                     }()},
+                    {"dts", [&] {
+                       std::vector<double> v;
+                       for (const Level& level : levels)
+                         if (v.empty() || v.back() != level.dt) v.push_back(level.dt);
+                       return v;
+                     }()},
                     {"reference_vertices", ref_vertices},
+                    {"reference_dt", ref_dt},
                     {"snapshot_interval", config.snapshot_interval},
                     {"samples", config.samples},
                     {"draws", draws},

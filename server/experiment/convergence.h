@@ -3,14 +3,18 @@
 /// A mesh-convergence study (`gd converge`): the same experiment run at several resolutions of
 /// one garment, each run's shapes compared with the finest run's at the same times. An FEM
 /// cloth model should give shapes that approach each other as the mesh is refined; this measures
-/// by how much they do. Writes
+/// by how much they do. A time-step study (ConvergenceConfig::dts) does the same along the other
+/// axis: one resolution at several time steps, each compared with the smallest step's run.
+/// Writes
 ///
 ///     OUT/v<N>/...                   each run's own files (experiment.h), meshes in OUT/v<N>/meshes
+///                                    (a time-step study: OUT/dt<ms>ms/..., e.g. OUT/dt2.5ms)
 ///     OUT/v<N>_d<k>/...              draw k's (ConvergenceConfig::draws)
-///     OUT/convergence.csv            vertices, t, cd, hd (and the draws' floors), per compared shape (m)
+///     OUT/convergence.csv            vertices, t, cd, hd (and the draws' floors), per compared shape (m),
+///                                    and each run's time step (dt, reference_dt; s)
 ///     OUT/convergence.json           the same rows, each run's summary, the study's settings
-///     OUT/convergence.png            distance to the finest run against vertex count, one line
-///                                    per compared time (scripts/plot_convergence.py)
+///     OUT/convergence.png            distance to the finest run against vertex count (or time
+///                                    step), one line per compared time (scripts/plot_convergence.py)
 ///
 /// Shapes are compared as surfaces, not vertex sets (a coarse mesh's vertices would be
 /// `spacing` apart from a fine one's on the very same surface): each mesh is sampled with
@@ -35,7 +39,13 @@ struct ConvergenceConfig {
   /// out_dir/v<N>, and out_dir/v<N>_d<k> for draw k > 0); `out_dir` is the study's directory.
   /// Needs a generated garment (a type name).
   ExperimentConfig base;
-  std::vector<int> vertices;      ///< target vertex counts, at least two; the largest is the reference
+  /// Target vertex counts, at least two; the largest is the reference. A time-step study takes
+  /// exactly one.
+  std::vector<int> vertices;
+  /// Time steps, s: two or more make a time-step study at the one vertex count in `vertices`, the
+  /// smallest step the reference (implicit Euler's damping grows with the step, and an outcome
+  /// that depends on it has not converged in time). Empty: a mesh study at base.scene.dt.
+  std::vector<double> dts;
   /// Seconds between shapes compared along the runs (each run writes its meshes then); 0: the
   /// final shapes only.
   double snapshot_interval = 0;
@@ -59,6 +69,7 @@ double draw_vertex_factor(int k);
 /// Distance of one run's shape at time t to the finest run's shape at the same time.
 struct ShapeDistance {
   int vertices = 0;     ///< the run's actual vertex count
+  double dt = 0;        ///< s: the run's time step
   double t = 0;         ///< s; the final shape has t = the runs' end time
   bool final = false;   ///< the runs' final shapes
   double cd = 0;        ///< symmetric Chamfer distance, m
@@ -79,8 +90,9 @@ struct ConvergenceResult {
 using ConvergenceProgressFn = std::function<void(int run, int runs, int vertices, double sim_time, double end_time)>;
 
 /// Runs the study and writes its files. Throws InputError for fewer than two distinct vertex
-/// counts, an imported (.obj) garment or bad experiment settings; a run whose simulation fails
-/// is reported in the summary and compared no further.
+/// counts (a time-step study: two time steps and one count), an imported (.obj) garment or bad
+/// experiment settings; a run whose simulation fails is reported in the summary and compared no
+/// further.
 ConvergenceResult run_convergence(const ConvergenceConfig& config, const ConvergenceProgressFn& progress = {});
 
 /// Running sums of the triangles' areas, m² (entry t: triangles 0..t): what an area-weighted

@@ -156,7 +156,53 @@ TEST(Convergence, RefusesWhatItCannotStudy) {
   ConvergenceConfig no_jobs = small_study(tmp.str());
   no_jobs.jobs = 0;
   EXPECT_THROW(run_convergence(no_jobs), sim::InputError) << "no job to run the runs";
+  ConvergenceConfig two_counts = small_study(tmp.str());
+  two_counts.dts = {0.01, 0.005};
+  EXPECT_THROW(run_convergence(two_counts), sim::InputError) << "a time-step study runs one vertex count";
+  ConvergenceConfig one_dt = small_study(tmp.str());
+  one_dt.vertices = {200};
+  one_dt.dts = {0.01, 0.01};
+  EXPECT_THROW(run_convergence(one_dt), sim::InputError) << "one distinct time step";
+  ConvergenceConfig bad_dt = one_dt;
+  bad_dt.dts = {0.01, -0.005};
+  EXPECT_THROW(run_convergence(bad_dt), sim::InputError) << "a negative time step";
   EXPECT_FALSE(fs::exists(tmp / "v200")) << "refused before running anything";
+  EXPECT_FALSE(fs::exists(tmp / "dt10ms"));
+}
+
+// A time-step study (--dts): one resolution at two steps, each shape compared with the smaller
+// step's run at the same time. Steps of 10 and 7.5 ms write their snapshots at different steps
+// (0.5 s and 0.5025 s), which are matched within half the larger step.
+TEST(Convergence, ATimeStepStudyComparesEachStepWithTheSmallestAtTheSameTimes) {
+  const testing::TempDir tmp("convergence_dts");
+  ConvergenceConfig c = small_study(tmp.str());
+  c.vertices = {200};
+  c.dts = {0.0075, 0.01};  // any order: the smallest is the reference
+  const ConvergenceResult r = run_convergence(c);
+  for (const char* f : {"dt10ms/final.obj", "dt7.5ms/final.obj", "dt7.5ms/meshes", "convergence.csv"})
+    ASSERT_TRUE(fs::exists(tmp / f)) << f;
+  EXPECT_EQ(r.summary["axis"], "dt");
+  EXPECT_EQ(r.summary["reference_dt"].get<double>(), 0.0075);
+  int snapshots = 0;  // the reference's shapes along the run, t = 0 included
+  for (const auto& e : fs::directory_iterator(tmp / "dt7.5ms/meshes")) snapshots += e.path().extension() == ".obj";
+  ASSERT_GE(snapshots, 3);
+  ASSERT_EQ(static_cast<int>(r.rows.size()), snapshots + 1) << "every snapshot matched, and the final shapes";
+  for (const ShapeDistance& d : r.rows) {
+    EXPECT_EQ(d.dt, 0.01);
+    EXPECT_EQ(d.vertices, r.summary["reference_vertices"].get<int>()) << "the same mesh at both steps";
+    EXPECT_TRUE(std::isfinite(d.cd) && std::isfinite(d.hd));
+  }
+  EXPECT_LT(r.rows.front().cd, 1e-9) << "at t = 0 the same mesh lies as placed at both steps";
+  const ShapeDistance& fin = r.rows.back();
+  ASSERT_TRUE(fin.final);
+  const SurfaceDistance d = surface_distance(sim::read_obj(tmp / "dt10ms/final.obj"),
+                                             sim::read_obj(tmp / "dt7.5ms/final.obj"), c.samples);
+  EXPECT_EQ(fin.cd, d.cd);
+  EXPECT_GT(fin.cd, 1e-6) << "the steps moved the lifted towel differently";
+  std::ifstream csv(tmp / "convergence.csv");
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_NE(header.find(",dt,reference_dt"), std::string::npos) << header;
 }
 
 // --jobs: the study's four runs (two resolutions, two draws each), one thread each, three at a

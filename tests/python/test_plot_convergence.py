@@ -37,3 +37,15 @@ def test_an_empty_study_is_an_error_not_a_blank_plot(tmp_path: Path) -> None:
     assert r.returncode == 1
     assert "no rows" in r.stderr
     assert not (tmp_path / "convergence.png").exists()
+
+
+def test_a_time_step_study_is_drawn_against_the_step(tmp_path: Path) -> None:
+    header = "vertices,reference_vertices,t,final,cd,hd,cd_floor,hd_floor,ref_cd_floor,ref_hd_floor,dt,reference_dt"
+    rows = [header]
+    for dt, cd in ((0.01, 0.02), (0.005, 0.01)):
+        rows.append(f"2000,2000,0.000,0,{cd / 10},{cd},,,,,{dt},0.0025")
+        rows.append(f"2000,2000,13.7,1,{cd},{8 * cd},0.009,0.1,0.008,0.09,{dt},0.0025")
+    (tmp_path / "convergence.csv").write_text("\n".join(rows) + "\n")
+    subprocess.run([sys.executable, str(PLOT), str(tmp_path)], check=True)
+    width, height = png_size(tmp_path / "convergence.png")
+    assert width > 1000 and height > 400
