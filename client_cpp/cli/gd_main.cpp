@@ -225,6 +225,12 @@ int main(int argc, char** argv) {
                 "nearer, to where "
                 "they lift it highest within --lift-max-tilt (the fold, or a given height: where the hands tilt "
                 "least); docs/robot.md, \"Placed within reach\"");
+  run->add_option("--refine-grasp", cfg.refine_grasp_edge,
+                  "EDGE: refine the mesh to EDGE m near the grasp points (shoulders; the fold's hem corners too), "
+                  "e.g. 0.006 for robot mode's 2 x 4 cm pads (docs/robot.md, \"Finer cloth under the pads\"); 0: off")
+      ->capture_default_str();
+  run->add_option("--refine-grasp-radius", cfg.refine_grasp_radius, "m round each grasp point that --refine-grasp refines")
+      ->capture_default_str();
   std::vector<std::string> garment_params;
   run->add_option("--garment-param", garment_params,
                   "a size of a generated garment, NAME=VALUE (repeatable; e.g. hood_length=0.25; names in docs/garments.md)");

@@ -15,6 +15,7 @@
 #include <limits>
 
 #include "garments/generator.h"
+#include "garments/refine.h"
 #include "garments/obj_import.h"
 #include "metrics/alignment.h"
 #include "metrics/cloud_io.h"
@@ -322,6 +323,12 @@ void ExperimentConfig::validate() const {
   if (keep_frames < 0) throw InputError("keep_frames must be >= 0");
   if (!(mesh_interval >= 0) || !std::isfinite(mesh_interval))
     throw InputError(fmt::format("mesh_interval must be >= 0 s (got {})", mesh_interval));
+  if (refine_grasp_edge != 0 && !(std::isfinite(refine_grasp_edge) && refine_grasp_edge >= 1e-3))
+    throw InputError(fmt::format("the refined edge near the grasp points must be 0 (off) or at least 1 mm (got {} m)",
+                                 refine_grasp_edge));
+  if (!(std::isfinite(refine_grasp_radius) && refine_grasp_radius > 0))
+    throw InputError(fmt::format("the refinement radius round the grasp points must be positive (got {} m)",
+                                 refine_grasp_radius));
   if (!garment_params.empty() && ends_with(garment, ".obj"))
     throw InputError("garment_params size a generated garment; an .obj mesh takes none");
   if (!garment_params.empty()) garments::make_pattern(garment, garment_sizes(*this));  // sizes that make no garment
@@ -330,8 +337,19 @@ void ExperimentConfig::validate() const {
 }
 
 garments::Garment make_experiment_garment(const ExperimentConfig& c) {
-  if (ends_with(c.garment, ".obj")) return garments::load_garment_obj(c.garment);
-  return garments::make_garment(c.garment, c.vertices, garment_sizes(c));
+  garments::Garment g = ends_with(c.garment, ".obj") ? garments::load_garment_obj(c.garment)
+                                                     : garments::make_garment(c.garment, c.vertices, garment_sizes(c));
+  if (c.refine_grasp_edge > 0) {
+    garments::RefineRegion region;
+    region.centres = garments::grasp_landmarks(g.landmarks, tasks::task_kind_from_name(c.task) == tasks::TaskKind::kFold);
+    region.radius = c.refine_grasp_radius;
+    region.edge = c.refine_grasp_edge;
+    const size_t before = g.mesh.x.size();
+    const int added = garments::refine_near(g, region);
+    gd::log().info("garment refined to {:.1f} mm edges within {:.1f} cm of its {} grasp points: {} -> {} vertices",
+                   1e3 * region.edge, 1e2 * region.radius, region.centres.size(), before, before + added);
+  }
+  return g;
 }
 
 namespace {
@@ -736,6 +754,8 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   // Where the garment lay: the given position, moved by automatic placement where that ran.
   const Vec3 position = config.garment_position + Vec3(placement ? placement->shift : 0.0, 0, 0);
   s["garment_position"] = {position.x(), position.y(), position.z()};
+  if (config.refine_grasp_edge > 0)
+    s["refine_grasp"] = {{"edge_m", config.refine_grasp_edge}, {"radius_m", config.refine_grasp_radius}};
   s["trajectory"] = traj_source;
   // The generated task's parameters (defaults included); none for a trajectory file or capture.
   s["task_params"] = nlohmann::json::object();

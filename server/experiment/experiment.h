@@ -63,6 +63,12 @@ struct ExperimentConfig {
   /// settles before the search; the table is a plane, so moving the settled garment along it
   /// changes nothing of its shape.
   bool place_within_reach = false;
+  /// m: the mesh refined to this edge length near the task's grasp points (garments::refine_near:
+  /// both shoulders; for the fold the hem corners too, and a hooded garment's hood corners), the
+  /// rest as meshed; 0: off. Robot mode's pads touch the cloth at its vertices, and a coarse mesh
+  /// puts one or two of each layer between them (docs/robot.md, "Finer cloth under the pads").
+  double refine_grasp_edge = 0;
+  double refine_grasp_radius = 0.05;  ///< m around each grasp point
   /// Sizes of a generated garment by GarmentParams field name (e.g. {"hood_length", 0.25});
   /// absent ones take the type's defaults (docs/garments.md).
   std::map<std::string, double> garment_params;

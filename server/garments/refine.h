@@ -1,0 +1,39 @@
+#pragma once
+/// \file
+/// Local refinement of a garment's mesh: finer triangles where something small touches the
+/// cloth. Robot mode's gripper pads (2 x 4 cm) touch the cloth at its vertices, and a garment
+/// meshed at 2000 vertices (edges of ~2.5 cm) puts one or two vertices of each layer between
+/// them (docs/robot.md, "Finer cloth under the pads"); refining only there keeps the rest of the
+/// garment, and the cost of a step, as it was.
+
+#include <vector>
+
+#include "garments/garment.h"
+
+namespace gd::garments {
+
+/// Where and how finely refine_near refines.
+struct RefineRegion {
+  std::vector<Vec3> centres;  ///< garment frame, m
+  Real radius = 0.06;         ///< m: triangles with a corner or centroid within this of a centre
+  Real edge = 0.006;          ///< m: refined until their longest edge is at most this
+};
+
+/// Refines `g` by longest-edge bisection (Rivara's LEPP): every triangle near a centre whose
+/// longest edge exceeds `edge` is bisected, and so is each neighbour whose longest edge is the
+/// one split first, so the mesh stays conforming and its angles stay bounded (at most halved once,
+/// whatever the depth). New vertices are edge midpoints: on the flat garment they lie on the
+/// cloth, and their pattern coordinates (one per panel on a seam) are the midpoints of the edge's
+/// own, so the rest shape is the same surface. Existing vertex indices are kept (landmark
+/// vertices stay valid); a split seam edge puts its midpoint into the seam's vertex list, a split
+/// crease or elastic edge gives two with the same values, and each new triangle keeps its
+/// parent's panel. `g.spacing` stays the coarse mesh's spacing. Throws sim::InputError for a
+/// non-positive or non-finite radius or edge, or an edge below 1 mm; returns the number of
+/// vertices added.
+int refine_near(Garment& g, const RefineRegion& region);
+
+/// The points a task grasps, in the garment frame: both shoulders (grasp, fling), with `fold`
+/// also both hem corners and, on a hooded garment, the hood's face corners (tasks/generators.h).
+std::vector<Vec3> grasp_landmarks(const Landmarks& l, bool fold);
+
+}  // namespace gd::garments
