@@ -84,6 +84,24 @@ int cmd_metrics(const std::string& sim, const std::string& real, bool json) {
   return 0;
 }
 
+/// The numbers of a comma-separated list, each read whole by `parse` (empty text: none); an
+/// InputError that starts with `what` and quotes the text otherwise.
+template <class T, class Parse>
+std::vector<T> number_list(const std::string& text, Parse parse, const std::string& what) {
+  std::vector<T> out;
+  std::stringstream list(text);
+  for (std::string item; !text.empty() && std::getline(list, item, ',');) {
+    try {
+      size_t used = 0;
+      out.push_back(parse(item, &used));
+      if (used != item.size()) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      throw gd::sim::InputError(what + " (got '" + text + "')");
+    }
+  }
+  return out;
+}
+
 int cmd_converge(const gd::experiment::ConvergenceConfig& cfg, bool quiet) {
   std::unique_ptr<gd::experiment::ProgressBar> bar;
   int bar_run = -1;
@@ -448,27 +466,10 @@ int main(int argc, char** argv) {
       return cmd_run(cfg, quiet);
     }
     if (*cvg) {
-      conv.vertices.clear();
-      std::stringstream list(conv_vertices);
-      for (std::string item; std::getline(list, item, ',');) {
-        try {
-          size_t used = 0;
-          conv.vertices.push_back(std::stoi(item, &used));
-          if (used != item.size()) throw std::invalid_argument(item);
-        } catch (const std::exception&) {
-          throw gd::sim::InputError("--vertices takes comma-separated integers (got '" + conv_vertices + "')");
-        }
-      }
-      std::stringstream dts(conv_dts);
-      for (std::string item; !conv_dts.empty() && std::getline(dts, item, ',');) {
-        try {
-          size_t used = 0;
-          conv.dts.push_back(std::stod(item, &used));
-          if (used != item.size()) throw std::invalid_argument(item);
-        } catch (const std::exception&) {
-          throw gd::sim::InputError("--dts takes comma-separated time steps in seconds (got '" + conv_dts + "')");
-        }
-      }
+      conv.vertices = number_list<int>(conv_vertices, [](const std::string& v, size_t* used) { return std::stoi(v, used); },
+                                       "--vertices takes comma-separated integers");
+      conv.dts = number_list<double>(conv_dts, [](const std::string& v, size_t* used) { return std::stod(v, used); },
+                                     "--dts takes comma-separated time steps in seconds");
       if (conv_no_plots) conv.base.plots = false;
       return cmd_converge(conv, conv_quiet);
     }
