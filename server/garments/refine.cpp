@@ -35,7 +35,7 @@ class Refiner {
           refine(t);
           changed = true;
           if (static_cast<long>(m_.x.size()) - start > max_added)
-            throw sim::InputError(fmt::format("refining within {} m of the grasp points to {} m edges would add more than "
+            throw sim::InputError(fmt::format("refining within {} m of the given points to {} m edges would add more than "
                                               "{} vertices; use a larger edge or a smaller radius", r_.radius, r_.edge,
                                               max_added));
         }
