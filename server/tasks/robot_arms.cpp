@@ -113,6 +113,39 @@ Eigen::Isometry3d pad_catch_up(const Eigen::Isometry3d& at, const Eigen::Isometr
   return move > reach ? blend_pose(at, target, reach / move) : target;
 }
 
+double finger_joint_step(const FingerJointInput& in) {
+  const double g = in.opening;
+  if (in.command < g) {
+    // Closing: full speed until the squeeze passes 10% of the limit (below it, a pad pressing on
+    // cloth from above or pushing it aside says nothing of the grip); then steps of half the way
+    // to the limit by the secant stiffness (the barrier's force rises from 0 to the limit within
+    // the contact distance, so fixed steps would swing past it), or 5% of the contact distance
+    // while the stiffness is unknown. Above the limit the fingers give way the same way, but not
+    // while the pads stand stopped short: opening on that squeeze let the T-shirt's fling slip out
+    // of a hand after the turn (docs/robot.md, "Holding while the pads are stopped short").
+    const double error = in.limit - std::max(0.0, in.squeeze);
+    double step = in.max_step;
+    if (in.squeeze > 0.1 * in.limit)
+      step = std::min(step, in.stiffness > 0 ? 0.5 * std::abs(error) / in.stiffness : 0.05 * in.dhat);
+    if (error < 0 && in.reached < 1.0) step = 0;
+    return error >= 0 ? std::max(in.command, g - step) : std::min(in.opening_max, g + step);
+  }
+  if (in.command > g) {
+    // Opening against cloth that presses the pads' outer faces inwards (cloth folded round the
+    // fingers, or lying beside them on the table): the same joint, so the same force limit. Full
+    // speed while the push is below 10% of the limit, then steps of 5% of the contact distance
+    // (the barrier's force rises from 0 to any value within it); the fingers stop at the limit and
+    // give way (close) above it, down to the floor below. A kinematic pad that opened regardless
+    // pressed the cloth it swept against the table and the layers beneath with hundreds of
+    // newtons, until the cloth ended inside a pad (docs/robot.md, "Opening against the cloth").
+    const double resist = std::max(0.0, -in.squeeze);
+    double step = in.max_step;
+    if (resist > 0.1 * in.limit) step = std::min(step, 0.05 * in.dhat);
+    return resist <= in.limit ? std::min(in.command, g + step) : std::max(0.0, g - step);
+  }
+  return g;
+}
+
 RobotController::RobotController(DualArmTrajectory traj, RobotOptions options)
     : RobotController(std::move(traj), options, [&] {
         options.validate();  // the URDF's path first of all
@@ -439,7 +472,6 @@ void RobotController::update(sim::Scene& scene, double t_end) {
                        t0, st.force_at_loss);
       }
     }
-    double g = st.gripper;
     // The squeeze's stiffness against the opening, from the last two measurements (a secant).
     if (st.gripper != prev_[ai].gripper && squeeze > 0) {
       const double k = (squeeze - prev_[ai].squeeze) / (prev_[ai].gripper - st.gripper);
@@ -447,30 +479,9 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     }
     prev_[ai].gripper = st.gripper;
     prev_[ai].squeeze = squeeze;
-    if (command < g) {
-      // Closing: full speed until the squeeze passes 10% of the limit (below it, a pad pressing on
-      // cloth from above or pushing it aside says nothing of the grip); then steps of half the way to the limit
-      // by the secant stiffness (the barrier's force rises from 0 to the limit within the contact
-      // distance, so fixed steps would swing past it), or 5% of the contact distance while the
-      // stiffness is unknown. Above the limit the fingers give way the same way.
-      const double error = limit - std::max(0.0, squeeze);
-      double step = finger_speed_ * dt;
-      if (squeeze > 0.1 * limit)
-        step = std::min(step, prev_[ai].stiffness > 0 ? 0.5 * std::abs(error) / prev_[ai].stiffness : 0.05 * dhat);
-      g = error >= 0 ? std::max(command, g - step) : std::min(model_->gripper_max(), g + step);
-    } else if (command > g) {
-      // Opening against cloth that presses the pads' outer faces inwards (cloth folded round the
-      // fingers, or lying beside them on the table): the same joint, so the same force limit. Full
-      // speed while the push is below 10% of the limit, then steps of 5% of the contact distance
-      // (the barrier's force rises from 0 to any value within it); the fingers stop at the limit and
-      // give way (close) above it, down to the floor below. A kinematic pad that opened regardless
-      // pressed the cloth it swept against the table and the layers beneath with hundreds of
-      // newtons, until the cloth ended inside a pad (docs/robot.md, "Opening against the cloth").
-      const double resist = std::max(0.0, -squeeze);
-      double step = finger_speed_ * dt;
-      if (resist > 0.1 * limit) step = std::min(step, 0.05 * dhat);
-      g = resist <= limit ? std::min(command, g + step) : std::max(0.0, g - step);
-    }
+    double g = finger_joint_step({.opening = st.gripper, .command = command, .squeeze = squeeze, .limit = limit,
+                                  .stiffness = prev_[ai].stiffness, .reached = st.reached,
+                                  .max_step = finger_speed_ * dt, .dhat = dhat, .opening_max = model_->gripper_max()});
     // Never so near that the pads' faces meet with cloth between them (no room left for it). Cloth
     // pressing one pad's inner face counts even when cloth wrapped round the other pad's outer face
     // pulls the mean squeeze below zero (a towel turned over in a fold or a fling: the fingers then

@@ -55,6 +55,33 @@ Eigen::Isometry3d blend_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d
 Eigen::Isometry3d pad_catch_up(const Eigen::Isometry3d& at, const Eigen::Isometry3d& last_target,
                                const Eigen::Isometry3d& target, double max_extra);
 
+/// What a finger joint knows at the start of a step (finger_joint_step).
+struct FingerJointInput {
+  double opening = 0;      ///< m, the joint's opening now (0: the pads' inner faces meet)
+  double command = 0;      ///< m, the opening the trajectory asks for
+  /// N, the cloth's mean push on the two pads along their opening directions: > 0 squeezed
+  /// between them (pushing them apart), < 0 pressing their outer faces (pushing them together).
+  double squeeze = 0;
+  double limit = 0;        ///< N, the joint's force limit now
+  double stiffness = 0;    ///< N/m, the squeeze's secant stiffness against the opening; <= 0 unknown
+  /// Fraction of their last step's motion the hand's pads made (the lesser of the two;
+  /// sim::Scene::collider_reached): < 1 where they stopped short on cloth that could not get out
+  /// of their way in time.
+  double reached = 1;
+  double max_step = 0;     ///< m, the joint's travel at full speed over the step
+  double dhat = 0;         ///< m, the contact distance
+  double opening_max = 0;  ///< m, the joint's upper limit
+};
+
+/// The opening after one step of a position-controlled, force-limited finger joint (the
+/// gripper's prismatic joint): towards the command at full speed while the load is under 10% of
+/// the limit, then in steps that approach the limit (half the way by the secant stiffness, or 5%
+/// of the contact distance while it is unknown); above the limit the joint gives way, opening when
+/// closing on cloth, closing when opening against it. It does not give way while the pads stand
+/// stopped short (reached < 1): the squeeze then is the cloth the moving hand pressed, not the
+/// load on the joint (docs/robot.md, "Holding while the pads are stopped short").
+double finger_joint_step(const FingerJointInput& in);
+
 struct RobotOptions {
   std::string urdf;                 ///< path of the arms' URDF (required unless a model is given)
   robot::ArmModelOptions arm;       ///< links, finger joints and pads of the URDF
