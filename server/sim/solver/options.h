@@ -80,6 +80,14 @@ struct SceneOptions {
   /// quasi-static steps (Scene::relax) always run to newton_tol.
   Real newton_rtol = 0.03;
   Real newton_atol = 1e-3;        ///< m/s
+  /// The residual rule's test also over the cloth pinched between a hand's pads alone (a yield
+  /// group's two colliders; the vertices Solver's predictor carries with them), as a mass-weighted
+  /// RMS over those vertices against the same threshold. Over the whole garment a few pinched
+  /// vertices weigh little: steps stopped with the pinch's friction unbalanced, a correction of
+  /// centimetres per second still to come there, and over a lift the pinch walked out between
+  /// the pads (a dress lost both hands at 10 N; held with newton_rtol ten times tighter:
+  /// docs/robot.md, "The pinch's own stopping test"). No effect without such a hand.
+  bool pinch_stopping_rule = true;
   /// PCG iteration cap per Newton iteration; 0 (the default): max(50, sqrt(n) / 2.5) for n vertices
   /// (effective_pcg_max_iters). Block-Jacobi PCG (self-contact's default) reaches the cap in most
   /// Newton iterations after a step's first, and past ~50 iterations at 5-20k vertices its slow

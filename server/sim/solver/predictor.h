@@ -91,6 +91,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     const Vec3 step = detail::clear_of_table(P, xt, detail::inertia_target(V, P, i) - xt);  // clear of the table
     detail::store3(x, i, xt + step);
   });
+  pinch_mass_ = 0;                                   // no pinch until carry_pinched_cloth finds one
   if (n_col_ > 0) carry_pinched_cloth();            // cloth pinched by a hand's pads goes with the hand
   if (n_col_ > 0) project_out_of_colliders(false);  // a collider may have moved into the cloth
   if (self_) {
@@ -209,6 +210,8 @@ void Solver<Exec>::carry_pinched_cloth() {
   Exec::download(host_xt_, x_t_);
   const double reach = kPinchReach * P_.dhat;
   bool moved = false;
+  const bool weigh = opt_.pinch_stopping_rule && residual_rule();
+  if (weigh) pinch_w_host_.assign(n_, 0.0);
   for (const auto& [k0, k1] : hands) {
     const Collider& c0 = (*colliders_)[k0];
     const Collider& c1 = (*colliders_)[k1];
@@ -236,9 +239,11 @@ void Solver<Exec>::carry_pinched_cloth() {
       const Vec3 step = detail::clear_of_table(P_, p, inertial + q0.normal * q0.normal.dot(to - inertial) - p);
       for (int r = 0; r < 3; ++r) host_x_[3 * i + r] = p[r] + step[r];
       moved = true;
+      if (weigh && pinch_w_host_[i] == 0) pinch_w_host_[i] = data_->mass[i], pinch_mass_ += data_->mass[i];
     }
   }
   if (moved) Exec::upload(x_, host_x_);
+  if (pinch_mass_ > 0) Exec::upload(pinch_w_, pinch_w_host_);
 }
 
 /// After CCD scaled the predictor's motion back, the guess may lie inside a collider's end pose.

@@ -167,7 +167,8 @@ class Solver final : public SolverBase {
       gd::log().trace("newton {}: step rms {:.3g} m/s (max |dx|/h {:.3g}), alpha {:.3g} (max {:.3g}), pcg {}, "
                       "candidates {}, evaluations {}", k, taken, st.step_norm, alpha, alpha_max, st.pcg_iters, cand_.n,
                       st.energy_evals);
-      if (k > 0 && residual_rule() && taken <= residual_threshold(scale) && !pressed()) {  // last correction small
+      if (k > 0 && residual_rule() && taken <= residual_threshold(scale) && !pressed() &&
+          pinch_settled(dx_, alpha, residual_threshold(scale))) {  // last correction small, at the pinch too
         st.converged = true;
         break;
       }
@@ -296,6 +297,9 @@ class Solver final : public SolverBase {
   double rms_velocity(const Vec<double>& d);
   void rms_velocity_to(const Vec<double>& d, double* out);
   double rms_of_sum(double num) const { return std::sqrt(num / free_mass()) / P_.h; }
+  double pinch_rms_velocity(const Vec<double>& d, double scale);
+  double pinch_residual_bound();
+  bool pinch_settled(const Vec<double>& d, double scale, double threshold);
 
   // L, its gradient and PSD-projected Hessian (assembly.h)
   double assemble();
@@ -518,6 +522,11 @@ class Solver final : public SolverBase {
   Vec<Eigen::Vector3i> col_tris_;
   Vec<double> col_pose_, col_mu_, col_kappa_;
   std::vector<double> host_x_, host_xt_;
+  /// The cloth pinched between a hand's pads this step (carry_pinched_cloth): per vertex its mass
+  /// where pinched, else 0, and their total (0: no pinch; SceneOptions::pinch_stopping_rule).
+  std::vector<double> pinch_w_host_;
+  Vec<double> pinch_w_;
+  double pinch_mass_ = 0;
   /// At least n values in v for the caller to overwrite, grown only: the pair lists and their
   /// scratch change length every Newton iteration, and a shrink then a grow would reallocate or
   /// zero megabytes each time.

@@ -47,6 +47,14 @@ bool Solver<Exec>::converged(StepStats* st, int k, bool gradient_known, double s
       st->residual = residual_bound();
     }
     st->converged = st->residual <= residual_threshold(scale);
+    // The pinch on its own too: the same estimate (or bound) over the pinched vertices alone.
+    if (st->converged && pinch_mass_ > 0) {
+      const double pinch = precond_ready_ && estimator->estimates_smooth_modes() ? pinch_rms_velocity(z_, 1.0)
+                                                                                 : pinch_residual_bound();
+      st->converged = pinch <= residual_threshold(scale);
+      if (!st->converged)
+        gd::log().trace("newton {}: the pinch's next correction {:.3g} m/s, not converged", k, pinch);
+    }
   });
   gd::log().trace("newton {}: next correction {:.3g} m/s (first step {:.3g}){}", k, st->residual, scale,
                   st->converged ? ", converged" : "");
@@ -67,8 +75,36 @@ bool Solver<Exec>::pressed() {
 template <class Exec>
 bool Solver<Exec>::predictor_converged(StepStats* st) {
   st->residual0 = st->residual = residual_bound();
-  st->converged = st->residual0 <= opt_.newton_atol;
+  st->converged = st->residual0 <= opt_.newton_atol && (pinch_mass_ == 0 || pinch_residual_bound() <= opt_.newton_atol);
   return st->converged;
+}
+
+/// Whether the pinched cloth's share of a correction `scale` x d is within `threshold` too (true
+/// with no pinch): SceneOptions::pinch_stopping_rule.
+template <class Exec>
+bool Solver<Exec>::pinch_settled(const Vec<double>& d, double scale, double threshold) {
+  return pinch_mass_ == 0 || pinch_rms_velocity(d, scale) <= threshold;
+}
+
+/// rms_velocity over the pinched vertices alone (pinch_w_), of the correction scale x d, m/s.
+template <class Exec>
+double Solver<Exec>::pinch_rms_velocity(const Vec<double>& d, double scale) {
+  const double* w = Exec::ptr(pinch_w_);
+  const double* p = Exec::ptr(d);
+  const double num = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return w[i] * detail::load3(p, i).squaredNorm(); });
+  return std::abs(scale) * std::sqrt(num / pinch_mass_) / P_.h;
+}
+
+/// residual_bound's arithmetic over the pinched vertices alone: not a bound there (the correction
+/// at the pinch also answers the gradient elsewhere), the pinch's own share of it.
+template <class Exec>
+double Solver<Exec>::pinch_residual_bound() {
+  const double* w = Exec::ptr(pinch_w_);
+  const double* g = Exec::ptr(g_);
+  const double num = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+    return w[i] > 0 ? detail::load3(g, i).squaredNorm() / w[i] : 0.0;
+  });
+  return P_.h * std::sqrt(num / pinch_mass_);
 }
 
 /// An upper bound of the velocity correction the gradient g_ still asks for: the Hessian is at
