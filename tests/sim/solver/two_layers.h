@@ -2,10 +2,23 @@
 // gripper pads), and the scene options they run with.
 #pragma once
 
+#include <algorithm>
+
 #include "sim/mesh.h"
 #include "sim/scene.h"
 
 namespace gd::sim::testing_layers {
+
+/// A pad's pose over one step: from `from` (where it got to) to `to` (its target), linear (a
+/// yielding pad's owner starts each step where the pad got to: Scene::collider_reached).
+struct PadMotion {
+  double t0 = 0, t1 = 0;
+  Vec3 from = Vec3::Zero(), to = Vec3::Zero();
+  Eigen::Isometry3d at(double t) const {
+    const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
+    return Eigen::Isometry3d(Eigen::Translation3d((1 - u) * from + u * to));
+  }
+};
 
 /// Options of the pinch scenes: 5 ms steps, self-contact on, no table, no air.
 inline SceneOptions pinch_options() {

@@ -18,15 +18,7 @@
 namespace gd::sim {
 namespace {
 
-/// A pad's pose over one step: from `from` (where it got to) to `to` (its target), linear.
-struct PadMotion {
-  double t0 = 0, t1 = 0;
-  Vec3 from = Vec3::Zero(), to = Vec3::Zero();
-  Eigen::Isometry3d at(double t) const {
-    const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
-    return Eigen::Isometry3d(Eigen::Translation3d((1 - u) * from + u * to));
-  }
-};
+using testing_layers::PadMotion;
 
 struct SqueezeRun {
   int found = 0, untangled = 0, stopped = 0, newton = 0;
