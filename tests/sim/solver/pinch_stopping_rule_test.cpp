@@ -17,7 +17,6 @@
 namespace gd::sim {
 namespace {
 
-using testing_layers::PadMotion;
 
 struct LiftRun {
   double pad_rise = 0;    // m
@@ -49,33 +48,12 @@ LiftRun lift(bool rule, bool ballast, double friction, double speed, double seco
   const double half_opening = 0.5 * gap + 0.25 * dhat, z = 0.5 + L - 0.5 * grip;
   const double ramp = 0.05;
   auto rise = [=](double t) { return t < ramp ? 0.5 * speed * t * t / ramp : speed * (t - 0.5 * ramp); };
-  std::vector<std::shared_ptr<PadMotion>> motion;
-  std::vector<int> ids;
-  std::vector<Vec3> start;
-  for (const double side : {-1.0, 1.0}) {
-    auto m = std::make_shared<PadMotion>();
-    start.emplace_back(0.5 * W, side * (half_opening + thick), z);
-    m->from = m->to = start.back();
-    Collider pad = Collider::box(Vec3(W, thick, 0.5 * grip));
-    pad.set_pose([m](double t) { return m->at(t); });
-    pad.set_yielding(true);
-    pad.set_yield_group(0);
-    pad.set_friction(friction);
-    pad.set_stiffness_scale(20);
-    ids.push_back(scene->add_collider(pad));
-    motion.push_back(m);
-  }
+  const std::vector<Vec3> start = {Vec3(0.5 * W, -(half_opening + thick), z), Vec3(0.5 * W, half_opening + thick, z)};
+  testing_layers::Pads hand(*scene, start, Vec3(W, thick, 0.5 * grip), true, true, friction);
   const auto x0 = scene->positions();
   LiftRun r;
   while (scene->time() < seconds - 1e-9 && !scene->failed()) {
-    const std::vector<double> reached = scene->collider_reached(ids);
-    for (size_t k = 0; k < ids.size(); ++k) {
-      PadMotion& m = *motion[k];
-      m.from = m.at(m.t0 + reached[k] * (m.t1 - m.t0)).translation();
-      m.t0 = scene->time();
-      m.t1 = scene->time() + o.dt;
-      m.to = start[k] + Vec3(0, 0, rise(m.t1));
-    }
+    hand.advance(*scene, o.dt, [&](size_t k, double t1) -> Vec3 { return start[k] + Vec3(0, 0, rise(t1)); });
     scene->step();
     const StepStats& st = scene->last_stats();
     r.newton += st.newton_iters;
@@ -83,7 +61,7 @@ LiftRun lift(bool rule, bool ballast, double friction, double speed, double seco
     r.untangled += st.untangled;
   }
   r.failed = scene->failed();
-  r.pad_rise = motion[0]->at(scene->time()).translation().z() - z;
+  r.pad_rise = hand.motion[0]->at(scene->time()).translation().z() - z;
   const auto x = scene->positions();
   int pinched = 0;
   for (int i = 0; i < pinch_vertices; ++i) {

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <algorithm>
+#include <memory>
+#include <vector>
 
 #include "sim/mesh.h"
 #include "sim/scene.h"
@@ -17,6 +19,40 @@ struct PadMotion {
   Eigen::Isometry3d at(double t) const {
     const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
     return Eigen::Isometry3d(Eigen::Translation3d((1 - u) * from + u * to));
+  }
+};
+
+/// Box pads of half extents `half` at `at` (one per entry), moved by PadMotion: each step from
+/// where it got to (Scene::collider_reached) towards its target. `group`: one yield group (a hand).
+struct Pads {
+  std::vector<int> ids;
+  std::vector<std::shared_ptr<PadMotion>> motion;
+  Pads(Scene& scene, const std::vector<Vec3>& at, const Vec3& half, bool yielding, bool group, double friction) {
+    for (const Vec3& p : at) {
+      auto m = std::make_shared<PadMotion>();
+      m->from = m->to = p;
+      Collider pad = Collider::box(half);
+      pad.set_pose([m](double t) { return m->at(t); });
+      pad.set_yielding(yielding);
+      if (group) pad.set_yield_group(0);
+      pad.set_friction(friction);
+      pad.set_stiffness_scale(20);  // a squeeze of ~20 times the weight under a pad, as robot mode sets it
+      ids.push_back(scene.add_collider(pad));
+      motion.push_back(m);
+    }
+  }
+  /// Sets up the coming step: pad k from where it got to towards target(k, t1), a Vec3 (declare a
+  /// lambda's `-> Vec3`: an Eigen sum returned as auto refers to temporaries that are gone).
+  template <class Target>
+  void advance(const Scene& scene, double dt, Target target) {
+    const std::vector<double> reached = scene.collider_reached(ids);
+    for (size_t k = 0; k < ids.size(); ++k) {
+      PadMotion& m = *motion[k];
+      m.from = m.at(m.t0 + reached[k] * (m.t1 - m.t0)).translation();
+      m.t0 = scene.time();
+      m.t1 = scene.time() + dt;
+      m.to = target(k, m.t1);
+    }
   }
 };
 

@@ -156,34 +156,15 @@ CarryRun carry_sideways(bool yielding, double speed, double seconds,
   auto scene = Scene::create(mesh, cotton, o);
   const double half_opening = 0.5 * gap + 0.25 * dhat;
   const double z = 0.5 + L - 0.5 * grip;
-  std::vector<std::shared_ptr<PadMotion>> motion;
-  std::vector<int> ids;
-  std::vector<double> y0;
-  for (const double side : {-1.0, 1.0}) {
-    auto m = std::make_shared<PadMotion>();
-    y0.push_back(side * (half_opening + thick));
-    m->from = m->to = Vec3(0.5 * W, y0.back(), z);
-    Collider pad = Collider::box(Vec3(W, thick, 0.5 * grip));
-    pad.set_pose([m](double t) { return m->at(t); });
-    pad.set_yielding(yielding);
-    if (group) pad.set_yield_group(0);
-    pad.set_friction(friction);
-    pad.set_stiffness_scale(20);
-    ids.push_back(scene->add_collider(pad));
-    motion.push_back(m);
-  }
+  const std::vector<double> y0 = {-(half_opening + thick), half_opening + thick};
+  testing_layers::Pads pads(*scene, {Vec3(0.5 * W, y0[0], z), Vec3(0.5 * W, y0[1], z)}, Vec3(W, thick, 0.5 * grip),
+                            yielding, group, friction);
+  const std::vector<int>& ids = pads.ids;
+  const auto& motion = pads.motion;
   const auto x0 = scene->positions();
   CarryRun r;
   while (scene->time() < seconds - 1e-9 && !scene->failed()) {
-    const std::vector<double> reached = scene->collider_reached(ids);
-    for (size_t k = 0; k < ids.size(); ++k) {
-      PadMotion& m = *motion[k];
-      // Start from where the pad got to, towards its target at the step's end.
-      m.from = m.at(m.t0 + reached[k] * (m.t1 - m.t0)).translation();
-      m.t0 = scene->time();
-      m.t1 = scene->time() + o.dt;
-      m.to = Vec3(0.5 * W, y0[k] - speed * m.t1, z);
-    }
+    pads.advance(*scene, o.dt, [&](size_t k, double t1) { return Vec3(0.5 * W, y0[k] - speed * t1, z); });
     scene->step();
     const StepStats& st = scene->last_stats();
     r.found = std::max(r.found, st.intersecting_found);
