@@ -32,7 +32,7 @@ inline void quiet_logs() {
 }
 
 /// A scratch directory of this process under $TMPDIR, removed at a normal exit (scripts/fuzz
-/// points TMPDIR into its run directory, so what a crashing process leaves goes with it).
+/// points TMPDIR at a folder of its own in /dev/shm or its run directory and removes it at its end).
 inline const std::string& scratch_dir() {
   // Never destroyed: the exit handler below runs after static destructors would have.
   static const std::string* dir = [] {
