@@ -430,6 +430,8 @@ int main(int argc, char** argv) {
       if (run->count("--dt") > 0) r.job.dt = cfg.scene.dt;
       if (run->count("--time-scale") > 0) r.job.time_scale = cfg.task_params.time_scale;
       if (run->count("--settle") > 0) r.job.settle = cfg.settle_after;
+      if (run->count("--refine-grasp") > 0) r.job.refine_grasp_edge = cfg.refine_grasp_edge;
+      if (run->count("--refine-grasp-radius") > 0) r.job.refine_grasp_radius = cfg.refine_grasp_radius;
       if (no_self_contact) r.job.self_contact = false;
       r.trajectory_file = cfg.trajectory_file;
       r.out_dir = cfg.out_dir;

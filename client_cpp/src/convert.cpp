@@ -166,6 +166,8 @@ void to_proto(const JobSpec& in, pb::SubmitJobRequest* out) {
   out->mutable_task_params()->insert(in.task_params.begin(), in.task_params.end());
   out->mutable_material_params()->insert(in.material_params.begin(), in.material_params.end());
   if (!empty(in.robot)) to_proto(in.robot, out->mutable_robot());
+  if (in.refine_grasp_edge) out->set_refine_grasp_edge(*in.refine_grasp_edge);
+  if (in.refine_grasp_radius) out->set_refine_grasp_radius(*in.refine_grasp_radius);
 }
 
 SceneState from_proto(const pb::SceneState& in, const char* rpc) {

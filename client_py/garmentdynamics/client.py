@@ -598,7 +598,8 @@ class Client:
                    material_params: Optional[Dict[str, float]] = None,
                    urdf: Union[None, str, bytes, "os.PathLike[str]"] = None, grip_force: Optional[float] = None,
                    finger_friction: Optional[float] = None, lift_max_tilt_deg: Optional[float] = None,
-                   place_within_reach: Optional[bool] = None) -> str:
+                   place_within_reach: Optional[bool] = None, refine_grasp_edge: Optional[float] = None,
+                   refine_grasp_radius: Optional[float] = None) -> str:
         """Submits a whole rollout (garment + task) to run on the server; returns the job id.
 
         trajectory: a path to our trajectory CSV/JSON file (docs/tasks.md), or its text/bytes;
@@ -611,8 +612,11 @@ class Client:
         create_scenes; lift_max_tilt_deg: a generated grasp's lift (fling's height) left to its
         default is lowered until no hand tilts more than this from pointing down (default 30,
         `gd run --lift-max-tilt`); place_within_reach: a generated task's garment first moved along
-        the table to where the arms lift it highest (`gd run --place-within-reach`). The other
-        arguments mirror `gd run`.
+        the table to where the arms lift it highest (`gd run --place-within-reach`).
+        refine_grasp_edge: the mesh refined to this edge (m, at least 0.001) within
+        refine_grasp_radius (m, default 0.05) of the task's grasp points (`gd run --refine-grasp`;
+        robot mode's pads hold finer cloth better); the refined garment counts against the
+        server's vertex limit (RESOURCE_EXHAUSTED past it). The other arguments mirror `gd run`.
         """
         if (garment is None) == (mesh_id is None):
             raise ValueError("give exactly one of garment= and mesh_id=")
@@ -644,6 +648,9 @@ class Client:
                 setattr(req, name, float(value))
         if self_contact is not None:
             req.self_contact = bool(self_contact)
+        for name, value in (("refine_grasp_edge", refine_grasp_edge), ("refine_grasp_radius", refine_grasp_radius)):
+            if value is not None:
+                setattr(req, name, float(value))
         return self._stub.SubmitJob(req, timeout=self.timeout).job_id
 
     def watch_job(self, job: str, timeout: Optional[float] = None) -> Iterator[dict]:

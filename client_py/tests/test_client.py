@@ -238,6 +238,23 @@ def test_garment_params_size_scenes_and_jobs(client):
                 garment_params={"length": float("nan")})
 
 
+def test_a_job_refined_near_its_grasp_points(client):
+    # gd run --refine-grasp through the service: the towel refined to 1 cm edges within 5 cm of
+    # its grasped corners has more vertices than the same job unrefined; past the server's
+    # vertex limit the job is refused at submit.
+    args = dict(garment="towel", task="grasp", vertices=200, dt=0.02, time_scale=4.0, settle=0.1, self_contact=False)
+    plain = client.wait_report(client.submit_job(**args), progress=False)
+    fine = client.wait_report(client.submit_job(refine_grasp_edge=0.01, refine_grasp_radius=0.05, **args),
+                              progress=False)
+    assert fine["job"]["status"] == "SUCCEEDED", fine["job"]["message"]
+    assert fine["summary"]["refine_grasp"] == {"edge_m": 0.01, "radius_m": 0.05}
+    assert "refine_grasp" not in plain["summary"]
+    assert fine["summary"]["vertices"] >= plain["summary"]["vertices"] + 20
+    expect_code(grpc.StatusCode.RESOURCE_EXHAUSTED, client.submit_job, refine_grasp_edge=0.001,
+                refine_grasp_radius=2.0, **args)
+    expect_code(grpc.StatusCode.INVALID_ARGUMENT, client.submit_job, refine_grasp_edge=0.0005, **args)
+
+
 def test_task_params_change_a_jobs_task(client):
     seconds = []
     for params in ({}, {"hold_duration": 5.0}):

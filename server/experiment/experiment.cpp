@@ -344,8 +344,15 @@ garments::Garment make_experiment_garment(const ExperimentConfig& c) {
     region.centres = garments::grasp_landmarks(g.landmarks, tasks::task_kind_from_name(c.task) == tasks::TaskKind::kFold);
     region.radius = c.refine_grasp_radius;
     region.edge = c.refine_grasp_edge;
+    region.max_vertices = c.max_vertices;
     const size_t before = g.mesh.x.size();
-    const int added = garments::refine_near(g, region);
+    int added = 0;
+    try {
+      added = garments::refine_near(g, region);
+    } catch (const garments::TooManyVertices& e) {
+      if (c.max_vertices <= 0) throw;
+      throw garments::TooManyVertices(fmt::format("{} ({}: {} vertices)", e.what(), c.vertices_limit_name, c.max_vertices));
+    }
     gd::log().info("garment refined to {:.1f} mm edges within {:.1f} cm of its {} grasp points: {} -> {} vertices",
                    1e3 * region.edge, 1e2 * region.radius, region.centres.size(), before, before + added);
   }

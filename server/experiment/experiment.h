@@ -69,6 +69,11 @@ struct ExperimentConfig {
   /// puts one or two of each layer between them (docs/robot.md, "Finer cloth under the pads").
   double refine_grasp_edge = 0;
   double refine_grasp_radius = 0.05;  ///< m around each grasp point
+  /// The refined garment's most vertices (0: no limit but refine_near's own): past it
+  /// make_experiment_garment throws garments::TooManyVertices naming `vertices_limit_name`
+  /// (the service's --max-vertices).
+  long max_vertices = 0;
+  std::string vertices_limit_name = "max_vertices";
   /// Sizes of a generated garment by GarmentParams field name (e.g. {"hood_length", 0.25});
   /// absent ones take the type's defaults (docs/garments.md).
   std::map<std::string, double> garment_params;

@@ -35,9 +35,9 @@ class Refiner {
           refine(t);
           changed = true;
           if (static_cast<long>(m_.x.size()) - start > max_added)
-            throw sim::InputError(fmt::format("refining within {} m of the given points to {} m edges would add more than "
-                                              "{} vertices; use a larger edge or a smaller radius", r_.radius, r_.edge,
-                                              max_added));
+            throw TooManyVertices(fmt::format("refining within {} m of the given points to {} m edges would make more "
+                                              "than {} vertices (the garment had {}); use a larger edge or a smaller "
+                                              "radius", r_.radius, r_.edge, start + max_added, start));
         }
     }
     fix_edge_lists();
@@ -198,7 +198,11 @@ int refine_near(Garment& g, const RefineRegion& region) {
     throw sim::InputError(fmt::format("the refined edge must be at least 1 mm (got {} m)", region.edge));
   const int before = static_cast<int>(g.mesh.x.size());
   if (region.centres.empty()) return 0;
-  Refiner(g, region).run(200000);
+  const long budget = region.max_vertices > 0 ? region.max_vertices - before : 200000;
+  if (budget < 0)
+    throw TooManyVertices(fmt::format("the garment has {} vertices before refining, over the limit of {}", before,
+                                      region.max_vertices));
+  Refiner(g, region).run(budget);
   sim::validate_mesh(g.mesh);
   return static_cast<int>(g.mesh.x.size()) - before;
 }

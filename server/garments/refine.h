@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "garments/garment.h"
+#include "sim/demand.h"
 
 namespace gd::garments {
 
@@ -17,6 +18,16 @@ struct RefineRegion {
   std::vector<Vec3> centres;  ///< garment frame, m
   Real radius = 0.06;         ///< m: triangles with a corner or centroid within this of a centre
   Real edge = 0.006;          ///< m: refined until their longest edge is at most this
+  /// The refined garment's most vertices (0: up to 200000 added); refine_near throws
+  /// TooManyVertices as soon as it would make more.
+  long max_vertices = 0;
+};
+
+/// refine_near's vertex budget (RefineRegion::max_vertices) exceeded: an edge too small or a
+/// radius too large for it.
+class TooManyVertices : public sim::InputError {
+ public:
+  using sim::InputError::InputError;
 };
 
 /// Refines `g` by longest-edge bisection (Rivara's LEPP): every triangle near a centre whose
@@ -28,8 +39,8 @@ struct RefineRegion {
 /// vertices stay valid); a split seam edge puts its midpoint into the seam's vertex list, a split
 /// crease or elastic edge gives two with the same values, and each new triangle keeps its
 /// parent's panel. `g.spacing` stays the coarse mesh's spacing. Throws sim::InputError for a
-/// non-positive or non-finite radius or edge, or an edge below 1 mm; returns the number of
-/// vertices added.
+/// non-positive or non-finite radius or edge, or an edge below 1 mm, and TooManyVertices past
+/// the region's vertex budget (`g` is then partly refined); returns the number of vertices added.
 int refine_near(Garment& g, const RefineRegion& region);
 
 /// The points a task grasps, in the garment frame: both shoulders (grasp, fling), with `fold`

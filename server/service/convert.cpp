@@ -182,6 +182,8 @@ Status to_job_spec(const pb::SubmitJobRequest& r, JobSpec* out) {
   out->task_params.insert(r.task_params().begin(), r.task_params().end());
   out->material_params.insert(r.material_params().begin(), r.material_params().end());
   if (r.has_robot()) to_robot_spec(r.robot(), &out->robot);
+  if (r.has_refine_grasp_edge()) out->refine_grasp_edge = r.refine_grasp_edge();
+  if (r.has_refine_grasp_radius()) out->refine_grasp_radius = r.refine_grasp_radius();
   return Status::Ok();
 }
 

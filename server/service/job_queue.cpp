@@ -17,6 +17,7 @@
 #include "experiment/experiment.h"
 #include "garments/generator.h"
 #include "garments/mesher.h"
+#include "garments/refine.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
@@ -179,6 +180,10 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   if (!spec.garment_params.empty() && spec.garment.empty())
     return Status::InvalidArgument("garment_params size a generated garment; an uploaded mesh (mesh_id) takes none");
   cfg->garment_params = spec.garment_params;
+  if (spec.refine_grasp_edge) cfg->refine_grasp_edge = *spec.refine_grasp_edge;
+  if (spec.refine_grasp_radius) cfg->refine_grasp_radius = *spec.refine_grasp_radius;
+  cfg->max_vertices = options_.max_vertices;
+  cfg->vertices_limit_name = "this server's --max-vertices";
   if (spec.label.size() > 1024) return Status::InvalidArgument("label is longer than 1024 characters");
 
   std::optional<tasks::DualArmTrajectory> traj;
@@ -221,6 +226,15 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
   } catch (const InputError& e) {
     return Status::InvalidArgument(e.what());
   }
+  if (cfg->refine_grasp_edge > 0) {  // the refined garment must fit the vertex limit: built once now (milliseconds)
+    try {
+      (void)experiment::make_experiment_garment(*cfg);
+    } catch (const garments::TooManyVertices& e) {
+      return Status::ResourceExhausted(e.what());
+    } catch (const InputError& e) {
+      return Status::InvalidArgument(e.what());
+    }
+  }
 
   JobRecord rec;
   rec.job_id = id;
@@ -237,6 +251,7 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
                                     {"settle", cfg->settle_after}, {"self_contact", cfg->scene.self_contact},
                                     {"capture", spec.capture},    {"icp", cfg->icp},
                                     {"material_params", cfg->material_params},
+                                    {"refine_grasp", cfg->refine_grasp_edge > 0 ? nlohmann::json{{"edge_m", cfg->refine_grasp_edge}, {"radius_m", cfg->refine_grasp_radius}} : nlohmann::json()},
                                     {"robot", cfg->mode != "robot" ? nlohmann::json()
                                                                    : nlohmann::json{{"urdf", urdf_text.empty() ? cfg->robot.urdf : "sent"},
                                                                                     {"grip_force", cfg->robot.grip_force},

@@ -66,6 +66,9 @@ struct JobSpec {
   std::map<std::string, double> garment_params;  ///< sizes of a generated garment by name
   std::map<std::string, double> task_params;     ///< TaskParams by name
   std::map<std::string, double> material_params;  ///< material parameters replaced (sim::with_catalogue_params)
+  /// m: the mesh refined to this edge near the grasp points, within refine_grasp_radius m
+  /// (ExperimentConfig::refine_grasp_edge; unset: off, radius 0.05).
+  std::optional<double> refine_grasp_edge, refine_grasp_radius;
   std::string owner;                ///< the submitting caller's principal (JobRecord::owner)
 };
 

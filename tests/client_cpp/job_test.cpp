@@ -86,6 +86,38 @@ TEST_F(JobTest, BadJobIsRefusedAtSubmitWithTheServersMessage) {
   }
 }
 
+TEST_F(JobTest, AJobRefinedNearItsGraspPointsRunsOnTheFinerMesh) {
+  // gd run --refine-grasp through the service: the towel refined to 1 cm edges within 5 cm of
+  // its two grasped corners, against the same job unrefined.
+  JobSpec plain = short_grasp("unrefined");
+  JobSpec fine = short_grasp("refined");
+  fine.refine_grasp_edge = 0.01;
+  fine.refine_grasp_radius = 0.05;
+  std::vector<nlohmann::json> summaries;
+  for (const JobSpec& job : {plain, fine}) {
+    const std::string id = client_.submit_job(job);
+    const JobInfo last = client_.watch_job(id, [](const JobInfo&) {});
+    ASSERT_EQ(last.status, JobStatus::kSucceeded) << last.message;
+    summaries.push_back(nlohmann::json::parse(client_.get_report(id).summary_json));
+  }
+  EXPECT_FALSE(summaries[0].contains("refine_grasp"));
+  EXPECT_EQ(summaries[1].at("refine_grasp").at("edge_m").get<double>(), 0.01);
+  EXPECT_EQ(summaries[1].at("refine_grasp").at("radius_m").get<double>(), 0.05);
+  // Two quarter discs of 5 cm at 1 cm edges: some 40 vertices more (the towel's own edges are ~3 cm).
+  EXPECT_GE(summaries[1].at("vertices").get<int>(), summaries[0].at("vertices").get<int>() + 20);
+
+  JobSpec huge = short_grasp("refined past the limit");
+  huge.refine_grasp_edge = 0.001;  // 1 mm edges over the whole towel: millions of vertices
+  huge.refine_grasp_radius = 2.0;
+  try {
+    client_.submit_job(huge);
+    FAIL() << "expected ClientError";
+  } catch (const ClientError& e) {
+    EXPECT_EQ(e.code(), StatusCode::kResourceExhausted) << e.what();
+    EXPECT_NE(e.message().find("--max-vertices"), std::string::npos) << e.message();
+  }
+}
+
 // A viewer of a job in progress (gd view --job): the job's scene as it runs, every k-th step, the
 // scene's info first, until the job ends; a finished or unknown job is refused.
 TEST_F(JobTest, AJobsSceneStreamsAsItRunsUntilItEnds) {

@@ -136,5 +136,30 @@ TEST(RefineNear, RefusesARegionItCannotRefine) {
   EXPECT_EQ(refine_near(g, region), 0) << "no point, nothing refined";
 }
 
+TEST(RefineNear, StopsAtItsVertexBudget) {
+  const Garment coarse = make_garment("towel", 300);
+  const long n = static_cast<long>(coarse.mesh.x.size());
+  RefineRegion region;
+  region.centres = {coarse.landmarks.left_shoulder};
+  region.edge = 0.005;
+  Garment g = coarse;
+  const int added = refine_near(g, region);  // no budget
+  ASSERT_GT(added, 20);
+  region.max_vertices = n + added;  // exactly enough
+  g = coarse;
+  EXPECT_EQ(refine_near(g, region), added);
+  region.max_vertices = n + added - 1;  // one short: refused, and the message says how to fix it
+  g = coarse;
+  try {
+    refine_near(g, region);
+    FAIL() << "expected TooManyVertices";
+  } catch (const TooManyVertices& e) {
+    EXPECT_NE(std::string(e.what()).find("larger edge"), std::string::npos) << e.what();
+  }
+  region.max_vertices = n - 1;  // the garment alone is over it
+  g = coarse;
+  EXPECT_THROW(refine_near(g, region), TooManyVertices);
+}
+
 }  // namespace
 }  // namespace gd::garments

@@ -292,6 +292,11 @@ struct JobSpec {
   std::map<std::string, double> task_params;
   /// Parameters of the material replaced, in catalogue units (as SceneSpec::material_params).
   std::map<std::string, double> material_params;
+  /// m: the mesh refined to this edge (at least 0.001) within refine_grasp_radius m (default
+  /// 0.05) of the task's grasp points (`gd run --refine-grasp`); unset: off. The refined garment
+  /// counts against the server's vertex limit.
+  std::optional<double> refine_grasp_edge;
+  std::optional<double> refine_grasp_radius;
 };
 
 enum class JobStatus : int {

@@ -398,6 +398,28 @@ TEST_F(CliTest, GarmentParamSizesTheGarmentLocallyAndAsAJob) {
   EXPECT_NE(r.err.find("length"), std::string::npos) << r.err;
 }
 
+TEST_F(CliTest, RefineGraspRefinesLocallyAndAsAJob) {
+  // gd run --refine-grasp: the same refined mesh locally and on the server (the flag once went
+  // unsent with --server); past the server's vertex limit the job is refused (exit 3).
+  const auto dir = fresh_dir("cli_refine");
+  const std::string run = " run --garment towel --vertices 200 --task grasp --time-scale 0.3 --settle 0.1 "
+                          "--no-self-contact --quiet --refine-grasp 0.01 --refine-grasp-radius 0.04 --out ";
+  CliRun r = gd(run + (dir / "local").string() + " --no-plots --threads 1");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto local = nlohmann::json::parse(slurp(dir / "local" / "summary.json"));
+  r = gd(server_flag() + run + (dir / "remote").string());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto remote = nlohmann::json::parse(slurp(dir / "remote" / "summary.json"));
+  EXPECT_DOUBLE_EQ(remote.at("refine_grasp").at("edge_m").get<double>(), 0.01);
+  EXPECT_DOUBLE_EQ(remote.at("refine_grasp").at("radius_m").get<double>(), 0.04);
+  EXPECT_EQ(remote.at("vertices"), local.at("vertices"));
+  EXPECT_GT(local.at("vertices").get<int>(), 220);
+  r = gd(server_flag() + " run --garment towel --vertices 200 --task grasp --quiet --refine-grasp 0.001 "
+                         "--refine-grasp-radius 2 --out " + (dir / "huge").string());
+  EXPECT_EQ(r.rc, 3) << r.err;  // RESOURCE_EXHAUSTED: the server's limit, not a malformed request
+  EXPECT_NE(r.err.find("--max-vertices"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, MaterialParamReachesTheServersScenes) {
   CliRun r = gd(server_flag() + " create --garment towel --vertices 200 --no-self-contact --material-param "
                                 "stretch_g_s2=230000 --material-param areal_density_g_m2=220");
