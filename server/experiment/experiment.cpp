@@ -475,10 +475,10 @@ tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garment
   for (Vec3& p : settled->x) p += dx;
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   constexpr double kDeg = 180 / 3.14159265358979323846;
-  gd::log().info("robot mode: garment moved {:+.3f} m along x, away from the arms' bases (x {:.3f} -> {:.3f} m), "
+  gd::log().info("robot mode: garment moved {:.3f} m along x, {} the arms' bases (x {:.3f} -> {:.3f} m), "
                  "where {}the hands tilt at most {:.1f} deg ({} of {} placements within reach, {} inverse-kinematics "
                  "trials, {:.1f} s)",
-                 fit.shift, given.translation().x(), place->translation().x(),
+                 std::abs(fit.shift), fit.shift < 0 ? "towards" : "away from", given.translation().x(), place->translation().x(),
                  fit_height ? fmt::format("the {} height is {:.3f} m and ", config.task, fit.reach.height) : "",
                  fit.reach.tilt * kDeg, fit.reachable, fit.candidates, fit.trials, s);
   return fit;
