@@ -6,7 +6,7 @@ kinematics), then compares the final shapes with `gd metrics` (Chamfer and Hausd
 between the two final meshes) and prints a Markdown table; `--png` draws the final shapes of both
 modes from above and from the side.
 
-    python3 scripts/compare_modes.py --urdf ../shared/data/rgbench/piper_with_gripper.urdf \\
+    build/venv/bin/python scripts/compare_modes.py --urdf ../shared/data/rgbench/piper_with_gripper.urdf \\
         --garment tshirt --vertices 5000 --tasks grasp,fold --jobs 2 --out out/modes --png out/modes.png
 
 Each run is `gd run --threads 1` (two at a time with --jobs 2) plus the task parameters given
@@ -108,6 +108,12 @@ def main():
     p.add_argument("--png", help="draw the final shapes here")
     p.add_argument("--json", help="write the table's numbers here")
     args = p.parse_args()
+    if args.png:  # known before the runs, not after them
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            p.error("--png needs matplotlib: run this script with the project's venv (build/venv/bin/python, "
+                    "made by scripts/build) or pip install matplotlib")
     params = args.task_param if args.task_param is not None else ["lift_height=0.45", "fling_height=0.45"]
     out = Path(args.out)
     jobs = [(task, mode) for task in args.tasks.split(",") for mode in ("pseudo", "robot")]
