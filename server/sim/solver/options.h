@@ -88,6 +88,12 @@ struct SceneOptions {
   /// the pads (a dress lost both hands at 10 N; held with newton_rtol ten times tighter:
   /// docs/robot.md, "The pinch's own stopping test"). No effect without such a hand.
   bool pinch_stopping_rule = true;
+  /// Where CCD cuts the predictor's guess back and cloth is pinched between a hand's pads, the
+  /// pinched vertices go their carried way first and the rest of the cloth after, each leg cut
+  /// back on its own (Solver's guess_pinch_first): cut back as one motion, contacts anywhere in
+  /// the garment held the pinch back while the pads went on (docs/robot.md, "A guess that carries
+  /// the pinch first"). Needs pinch_stopping_rule (which finds the pinch); no effect without a hand.
+  bool pinch_first_guess = true;
   /// PCG iteration cap per Newton iteration; 0 (the default): max(50, sqrt(n) / 2.5) for n vertices
   /// (effective_pcg_max_iters). Block-Jacobi PCG (self-contact's default) reaches the cap in most
   /// Newton iterations after a step's first, and past ~50 iterations at 5-20k vertices its slow

@@ -110,7 +110,8 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     copy(x_t_, x_);
     const CcdBounds b = ccd_bounds(true, true, false);
     const double alpha = std::min(b.self, b.table);
-    axpy(alpha < 1.0 ? 0.9 * alpha : 1.0, dx_, x_);
+    if (!(alpha < 1.0 && pinch_mass_ > 0 && opt_.pinch_first_guess && guess_pinch_first()))
+      axpy(alpha < 1.0 ? 0.9 * alpha : 1.0, dx_, x_);
     // The scaled motion may stop short inside a collider, and a vertex squeezed between two may be
     // left inside one by the projection itself.
     if (n_col_ > 0 && (alpha < 1.0 || (Exec::download(host_x_, x_), inside_a_collider(host_x_)))) {
@@ -184,6 +185,89 @@ void Solver<Exec>::project_out_of_colliders(bool skip_clear) {
     if (colliders_->size() < 2 || !inside_a_collider(host_x_)) break;
   }
   Exec::upload(x_, host_x_);
+}
+
+/// The clearance each free vertex must keep from each yielding collider k over this step: half of
+/// what it had at the step's start (at most dhat/4, at least the floor). A pad pressing cloth that
+/// cannot get away closes the gap by at most half per step: the barrier's force rises step by step,
+/// and Newton never starts from cloth pressed onto a pad far closer than the last step left it.
+/// Empty rows for the other colliders. Reads host_xt_.
+template <class Exec>
+std::vector<std::vector<double>> Solver<Exec>::yielding_clearances() const {
+  const double floor = kClearanceFloor * P_.dhat;
+  std::vector<std::vector<double>> keep(n_col_);
+  for (int k = 0; k < n_col_; ++k) {
+    if (!(*colliders_)[k].yielding()) continue;
+    keep[k].assign(n_, 0.0);
+    const Eigen::Isometry3d start = (*colliders_)[k].checked_pose(col_t0_);
+    for (int i = 0; i < n_; ++i) {
+      const Vec3 p(host_xt_[3 * i], host_xt_[3 * i + 1], host_xt_[3 * i + 2]);
+      keep[k][i] = std::max(floor, 0.5 * std::min(0.5 * P_.dhat, (*colliders_)[k].query(p, start).distance));
+    }
+  }
+  return keep;
+}
+
+/// Whether the guess moved a fraction b of the way from x_t (host_xt_ to host_x_) keeps every free
+/// vertex its clearance (yielding_clearances) from collider k at `pose`.
+template <class Exec>
+bool Solver<Exec>::keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
+                               const std::vector<std::vector<double>>& keep) const {
+  for (int i = 0; i < n_; ++i) {
+    if (kin_fixed_host_[i]) continue;
+    Vec3 p;
+    for (int r = 0; r < 3; ++r) p[r] = host_xt_[3 * i + r] + b * (host_x_[3 * i + r] - host_xt_[3 * i + r]);
+    if ((*colliders_)[k].query(p, pose).distance < keep[k][i]) return false;
+  }
+  return true;
+}
+
+/// The predictor's guess in two legs where cloth is pinched and CCD cut the whole motion back
+/// (SceneOptions::pinch_first_guess): first the pinched vertices alone go their carried way
+/// (carry_pinched_cloth), then the rest of the cloth its own, each leg scaled back by CCD on its
+/// own. Cut back as one motion, the pinch was held back by contacts anywhere in the garment while
+/// the pads went on, and the pads stopped short on it step after step (docs/robot.md, "A guess that
+/// carries the pinch first"). Every point of each leg lies within the vertices' swept boxes from
+/// x_t to the carried guess, so the candidates found for that motion hold every pair that can come
+/// within dhat on the way. Kept only where the result keeps its clearance from every yielding
+/// collider at the end pose: stop_yielding_colliders goes back along a straight path, which only
+/// a one-leg guess is checked along. Returns whether x_ holds the two-leg guess (else x_ and dx_
+/// are as on entry: x_ = x_t, dx_ the whole motion).
+template <class Exec>
+bool Solver<Exec>::guess_pinch_first() {
+  std::vector<double> dx_all;
+  Exec::download(dx_all, dx_);
+  Exec::download(host_xt_, x_t_);
+  std::vector<double> leg(dx_all.size(), 0.0);
+  auto pinched = [&](int i) { return i < static_cast<int>(pinch_w_host_.size()) && pinch_w_host_[i] > 0; };
+  // First leg: the pinch alone.
+  for (int i = 0; i < n_; ++i)
+    if (pinched(i))
+      for (int r = 0; r < 3; ++r) leg[3 * i + r] = dx_all[3 * i + r];
+  Exec::upload(dx_, leg);
+  const CcdBounds b1 = ccd_bounds(true, true, false);
+  const double a1 = std::min(b1.self, b1.table);
+  axpy(a1 < 1.0 ? 0.9 * a1 : 1.0, dx_, x_);
+  // Second leg: the rest of the cloth from there.
+  std::fill(leg.begin(), leg.end(), 0.0);
+  for (int i = 0; i < n_; ++i)
+    if (!pinched(i))
+      for (int r = 0; r < 3; ++r) leg[3 * i + r] = dx_all[3 * i + r];
+  Exec::upload(dx_, leg);
+  const CcdBounds b2 = ccd_bounds(true, true, false);
+  const double a2 = std::min(b2.self, b2.table);
+  axpy(a2 < 1.0 ? 0.9 * a2 : 1.0, dx_, x_);
+  Exec::download(host_x_, x_);
+  const std::vector<std::vector<double>> keep = yielding_clearances();
+  bool ok = true;
+  for (int k = 0; k < n_col_ && ok; ++k)
+    if ((*colliders_)[k].yielding()) ok = keeps_clear(k, col_end_[k], 1.0, keep);
+  gd::log().debug("pinch first: the pinch's leg at {:.4f}, the rest's at {:.4f}: {}", a1 < 1.0 ? 0.9 * a1 : 1.0,
+                  a2 < 1.0 ? 0.9 * a2 : 1.0, ok ? "kept" : "clear of a pad only in one leg, not kept");
+  if (ok) return true;
+  Exec::upload(dx_, dx_all);
+  copy(x_t_, x_);
+  return false;
 }
 
 /// The guess for cloth pinched between the pads of one hand (a yield group of two colliders,
@@ -264,32 +348,9 @@ template <class Exec>
 void Solver<Exec>::stop_yielding_colliders() {
   Exec::download(host_x_, x_);
   Exec::download(host_xt_, x_t_);
-  const double floor = kClearanceFloor * P_.dhat;
   auto pose_at = [&](int k, double s) { return (*colliders_)[k].checked_pose(col_t0_ + s * (col_t1_ - col_t0_)); };
-  // The clearance each vertex must keep from yielding collider k: half of what it had at the step's
-  // start (at most dhat/2, at least the floor). A pad pressing cloth that cannot get away closes the
-  // gap by at most half per step: the barrier's force rises step by step, and Newton never starts
-  // from cloth pressed onto a pad far closer than the last step left it.
-  std::vector<std::vector<double>> keep(n_col_);
-  for (int k = 0; k < n_col_; ++k) {
-    if (!(*colliders_)[k].yielding()) continue;
-    keep[k].assign(n_, 0.0);
-    const Eigen::Isometry3d start = pose_at(k, 0.0);
-    for (int i = 0; i < n_; ++i) {
-      const Vec3 p(host_xt_[3 * i], host_xt_[3 * i + 1], host_xt_[3 * i + 2]);
-      keep[k][i] = std::max(floor, 0.5 * std::min(0.5 * P_.dhat, (*colliders_)[k].query(p, start).distance));
-    }
-  }
-  // Whether the guess moved a fraction b of the way from x_t keeps its clearance from collider k at `pose`.
-  auto clear = [&](int k, const Eigen::Isometry3d& pose, double b) {
-    for (int i = 0; i < n_; ++i) {
-      if (kin_fixed_host_[i]) continue;
-      Vec3 p;
-      for (int r = 0; r < 3; ++r) p[r] = host_xt_[3 * i + r] + b * (host_x_[3 * i + r] - host_xt_[3 * i + r]);
-      if ((*colliders_)[k].query(p, pose).distance < keep[k][i]) return false;
-    }
-    return true;
-  };
+  const std::vector<std::vector<double>> keep = yielding_clearances();
+  auto clear = [&](int k, const Eigen::Isometry3d& pose, double b) { return keeps_clear(k, pose, b, keep); };
   std::vector<int> stop;
   auto stops = [&](int k) { return std::find(stop.begin(), stop.end(), k) != stop.end(); };
   // A stopped collider's group (Collider::yield_group: the pads of one hand) stops with it.
@@ -365,6 +426,7 @@ void Solver<Exec>::stop_yielding_colliders() {
       for (const int j : stop)
         if ((*colliders_)[j].yield_group() == g) reach[j] = b;
   }
+  if (gd::log().should_log(spdlog::level::debug)) log_what_stops(stop, reach, b, keep);
   for (const int k : stop) {
     const double lo = reach[k];
     col_reached_[k] = lo;
@@ -379,6 +441,37 @@ void Solver<Exec>::stop_yielding_colliders() {
   if (b < 1.0) {
     for (size_t j = 0; j < host_x_.size(); ++j) host_x_[j] = host_xt_[j] + b * (host_x_[j] - host_xt_[j]);
     Exec::upload(x_, host_x_);
+  }
+}
+
+/// Debug log (stop_yielding_colliders): for each stopped collider, the free vertex that keeps it
+/// from going further (the closest to losing its clearance just past where it stopped): index,
+/// whether it is pinched (carry_pinched_cloth), its clearance kept and due, and where it lies in
+/// the collider's frame, so a pad stopped by its own pinch tells from one stopped by cloth round it.
+template <class Exec>
+void Solver<Exec>::log_what_stops(const std::vector<int>& stop, const std::vector<double>& reach, double b,
+                                  const std::vector<std::vector<double>>& keep) const {
+  for (const int k : stop) {
+    const Collider& c = (*colliders_)[k];
+    const double s = std::min(1.0, reach[k] + 1.0 / 4096);
+    const Eigen::Isometry3d pose = c.checked_pose(col_t0_ + s * (col_t1_ - col_t0_));
+    int worst = -1;
+    double worst_margin = INFINITY, worst_d = 0;
+    for (int i = 0; i < n_; ++i) {
+      if (kin_fixed_host_[i]) continue;
+      Vec3 p;
+      for (int r = 0; r < 3; ++r) p[r] = host_xt_[3 * i + r] + b * (host_x_[3 * i + r] - host_xt_[3 * i + r]);
+      const double d = c.query(p, pose).distance;
+      if (d - keep[k][i] < worst_margin) worst_margin = d - keep[k][i], worst = i, worst_d = d;
+    }
+    if (worst < 0) continue;
+    const Vec3 p(host_xt_[3 * worst], host_xt_[3 * worst + 1], host_xt_[3 * worst + 2]);
+    const Vec3 local = pose.inverse() * p;
+    const bool pinched = worst < static_cast<int>(pinch_w_host_.size()) && pinch_w_host_[worst] > 0;
+    gd::log().debug("collider {} held at {:.4f} by vertex {} ({}): clearance {:.3e} m past it, due {:.3e}; "
+                    "at the start in its frame ({:.4f}, {:.4f}, {:.4f}) m",
+                    k, reach[k], worst, pinched ? "pinched" : "not pinched", worst_d, keep[k][worst], local.x(),
+                    local.y(), local.z());
   }
 }
 

@@ -395,6 +395,12 @@ class Solver final : public SolverBase {
   void project_out_of_colliders(bool skip_clear);  ///< predictor.h
   void stop_yielding_colliders();                    ///< predictor.h
   void carry_pinched_cloth();                        ///< predictor.h
+  bool guess_pinch_first();                          ///< predictor.h
+  std::vector<std::vector<double>> yielding_clearances() const;  ///< predictor.h
+  bool keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
+                   const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
+  void log_what_stops(const std::vector<int>& stop, const std::vector<double>& reach, double b,
+                      const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
   double max_strain() override;
   size_t bytes() const override;
 
