@@ -8,7 +8,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
+#include <utility>
+#include <vector>
 
 #include "sim/mesh.h"
 #include "sim/scene.h"
