@@ -213,13 +213,23 @@ std::vector<std::vector<double>> Solver<Exec>::yielding_clearances() const {
 template <class Exec>
 bool Solver<Exec>::keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
                                const std::vector<std::vector<double>>& keep) const {
-  for (int i = 0; i < n_; ++i) {
-    if (kin_fixed_host_[i]) continue;
-    Vec3 p;
-    for (int r = 0; r < 3; ++r) p[r] = host_xt_[3 * i + r] + b * (host_x_[3 * i + r] - host_xt_[3 * i + r]);
-    if ((*colliders_)[k].query(p, pose).distance < keep[k][i]) return false;
-  }
+  for (int i = 0; i < n_; ++i)
+    if (!kin_fixed_host_[i] && (*colliders_)[k].query(guess_at(i, b), pose).distance < keep[k][i]) return false;
   return true;
+}
+
+/// Vertex i of the guess moved a fraction b of the way from x_t (host_xt_ to host_x_).
+template <class Exec>
+Vec3 Solver<Exec>::guess_at(int i, double b) const {
+  Vec3 p;
+  for (int r = 0; r < 3; ++r) p[r] = host_xt_[3 * i + r] + b * (host_x_[3 * i + r] - host_xt_[3 * i + r]);
+  return p;
+}
+
+/// Whether carry_pinched_cloth found vertex i pinched this step (only where it weighs the pinch).
+template <class Exec>
+bool Solver<Exec>::pinched(int i) const {
+  return pinch_mass_ > 0 && i < static_cast<int>(pinch_w_host_.size()) && pinch_w_host_[i] > 0;
 }
 
 /// The predictor's guess in two legs where cloth is pinched and CCD cut the whole motion back
@@ -238,32 +248,27 @@ bool Solver<Exec>::guess_pinch_first() {
   std::vector<double> dx_all;
   Exec::download(dx_all, dx_);
   Exec::download(host_xt_, x_t_);
-  std::vector<double> leg(dx_all.size(), 0.0);
-  auto pinched = [&](int i) { return i < static_cast<int>(pinch_w_host_.size()) && pinch_w_host_[i] > 0; };
-  // First leg: the pinch alone.
-  for (int i = 0; i < n_; ++i)
-    if (pinched(i))
-      for (int r = 0; r < 3; ++r) leg[3 * i + r] = dx_all[3 * i + r];
-  Exec::upload(dx_, leg);
-  const CcdBounds b1 = ccd_bounds(true, true, false);
-  const double a1 = std::min(b1.self, b1.table);
-  axpy(a1 < 1.0 ? 0.9 * a1 : 1.0, dx_, x_);
-  // Second leg: the rest of the cloth from there.
-  std::fill(leg.begin(), leg.end(), 0.0);
-  for (int i = 0; i < n_; ++i)
-    if (!pinched(i))
-      for (int r = 0; r < 3; ++r) leg[3 * i + r] = dx_all[3 * i + r];
-  Exec::upload(dx_, leg);
-  const CcdBounds b2 = ccd_bounds(true, true, false);
-  const double a2 = std::min(b2.self, b2.table);
-  axpy(a2 < 1.0 ? 0.9 * a2 : 1.0, dx_, x_);
+  // One leg: the motion of the pinched vertices (or of the others) alone, cut back by CCD from x_.
+  std::vector<double> leg(dx_all.size());
+  auto go = [&](bool pinch) {
+    for (int i = 0; i < n_; ++i)
+      for (int r = 0; r < 3; ++r) leg[3 * i + r] = pinched(i) == pinch ? dx_all[3 * i + r] : 0.0;
+    Exec::upload(dx_, leg);
+    const CcdBounds b = ccd_bounds(true, true, false);
+    const double a = std::min(b.self, b.table);
+    const double taken = a < 1.0 ? 0.9 * a : 1.0;
+    axpy(taken, dx_, x_);
+    return taken;
+  };
+  const double a1 = go(true);   // the pinch first
+  const double a2 = go(false);  // then the rest of the cloth from there
   Exec::download(host_x_, x_);
   const std::vector<std::vector<double>> keep = yielding_clearances();
   bool ok = true;
   for (int k = 0; k < n_col_ && ok; ++k)
     if ((*colliders_)[k].yielding()) ok = keeps_clear(k, col_end_[k], 1.0, keep);
-  gd::log().debug("pinch first: the pinch's leg at {:.4f}, the rest's at {:.4f}: {}", a1 < 1.0 ? 0.9 * a1 : 1.0,
-                  a2 < 1.0 ? 0.9 * a2 : 1.0, ok ? "kept" : "clear of a pad only in one leg, not kept");
+  gd::log().debug("pinch first: the pinch's leg at {:.4f}, the rest's at {:.4f}: {}", a1, a2,
+                  ok ? "kept" : "clear of a pad only in one leg, not kept");
   if (ok) return true;
   Exec::upload(dx_, dx_all);
   copy(x_t_, x_);
@@ -459,18 +464,15 @@ void Solver<Exec>::log_what_stops(const std::vector<int>& stop, const std::vecto
     double worst_margin = INFINITY, worst_d = 0;
     for (int i = 0; i < n_; ++i) {
       if (kin_fixed_host_[i]) continue;
-      Vec3 p;
-      for (int r = 0; r < 3; ++r) p[r] = host_xt_[3 * i + r] + b * (host_x_[3 * i + r] - host_xt_[3 * i + r]);
-      const double d = c.query(p, pose).distance;
+      const double d = c.query(guess_at(i, b), pose).distance;
       if (d - keep[k][i] < worst_margin) worst_margin = d - keep[k][i], worst = i, worst_d = d;
     }
     if (worst < 0) continue;
     const Vec3 p(host_xt_[3 * worst], host_xt_[3 * worst + 1], host_xt_[3 * worst + 2]);
     const Vec3 local = pose.inverse() * p;
-    const bool pinched = worst < static_cast<int>(pinch_w_host_.size()) && pinch_w_host_[worst] > 0;
     gd::log().debug("collider {} held at {:.4f} by vertex {} ({}): clearance {:.3e} m past it, due {:.3e}; "
                     "at the start in its frame ({:.4f}, {:.4f}, {:.4f}) m",
-                    k, reach[k], worst, pinched ? "pinched" : "not pinched", worst_d, keep[k][worst], local.x(),
+                    k, reach[k], worst, pinched(worst) ? "pinched" : "not pinched", worst_d, keep[k][worst], local.x(),
                     local.y(), local.z());
   }
 }

@@ -399,6 +399,8 @@ class Solver final : public SolverBase {
   std::vector<std::vector<double>> yielding_clearances() const;  ///< predictor.h
   bool keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
                    const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
+  Vec3 guess_at(int i, double b) const;              ///< predictor.h
+  bool pinched(int i) const;                         ///< predictor.h
   void log_what_stops(const std::vector<int>& stop, const std::vector<double>& reach, double b,
                       const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
   double max_strain() override;
