@@ -397,30 +397,52 @@ Settled settle_before_planning(const sim::Mesh& mesh, const sim::Material& mater
   return st;
 }
 
-/// The height of a generated task that robot mode fits to the arms' reach: the grasp's lift or
-/// the fling's height (none for the fold), fitted where left to its default (< 0), and the height
-/// wanted: pseudo mode's default (the garment's length plus 0.1 / 0.15 m) or the one given.
+/// The height of a generated task that robot mode fits to the arms' reach: the grasp's lift, the
+/// fling's height or the fold's page turn (TaskParams::fold_arc), fitted where left to its default
+/// (< 0), and the height wanted: pseudo mode's default (the garment's length plus 0.1 / 0.15 m;
+/// the fold's half circle about its fold line) or the one given.
 struct TaskHeight {
-  double tasks::TaskParams::*member = nullptr;  ///< &TaskParams::lift_height or fling_height; null: the fold
+  double tasks::TaskParams::*member = nullptr;  ///< &TaskParams::lift_height, fling_height or fold_arc
+  const char* param = "";                        ///< its name as --task-param takes it
+  const char* what = "";                         ///< what it is, for the log
   bool defaulted = false;                        ///< left to its default: fitted to the reach
   double wanted = 0.0;
+  /// m: the lowest fitted. The fold's turns are fitted from 1 cm up: fold_arc = 0 is another
+  /// path (the level translation), not the lowest turn.
+  double lowest = 0.0;
 };
 
 TaskHeight task_height(const ExperimentConfig& config, const garments::Garment& garment, const tasks::TaskParams& p) {
   TaskHeight h;
-  const bool grasp = config.task == "grasp";
-  if (!grasp && config.task != "fling") return h;
-  h.member = grasp ? &tasks::TaskParams::lift_height : &tasks::TaskParams::fling_height;
+  if (config.task == "grasp") {
+    h = {&tasks::TaskParams::lift_height, "lift_height", "grasp's lift"};
+  } else if (config.task == "fling") {
+    h = {&tasks::TaskParams::fling_height, "fling_height", "fling's height"};
+  } else if (config.task == "fold") {
+    h = {&tasks::TaskParams::fold_arc, "fold_arc", "fold's page turn"};
+  } else {
+    return h;
+  }
   h.defaulted = p.*h.member < 0;
-  h.wanted = h.defaulted ? garment.length + (grasp ? tasks::kLiftAboveLength : tasks::kFlingAboveLength) : p.*h.member;
+  if (!h.defaulted) {
+    h.wanted = p.*h.member;
+  } else if (config.task == "fold") {  // the chord, so the rise, is the same wherever the garment lies
+    constexpr double kLowestTurn = 0.01;
+    h.wanted = tasks::fold_page_rise(garment, Eigen::Isometry3d::Identity(), p);
+    h.lowest = kLowestTurn;
+    if (h.wanted <= kLowestTurn) h.defaulted = false;  // a turn that low is nothing to lower
+  } else {
+    h.wanted = garment.length + (config.task == "grasp" ? tasks::kLiftAboveLength : tasks::kFlingAboveLength);
+  }
   return h;
 }
 
-/// Robot mode: a generated grasp's lift or fling's height left to its default (pseudo mode's:
-/// the garment's length plus 0.1 / 0.15 m) lowered to the highest one the arms reach with their
-/// hands within RobotOptions::lift_max_tilt of pointing down (tasks/robot_reach.h), written into
-/// *planned. A height the user gave is kept as it is (an unreachable one is refused by the
-/// controller, naming the pose). Nothing for the fold.
+/// Robot mode: a generated grasp's lift, fling's height or fold's page turn left to its default
+/// (pseudo mode's: the garment's length plus 0.1 / 0.15 m, a half circle about the fold line)
+/// lowered to the highest one the arms reach with their hands within RobotOptions::lift_max_tilt
+/// of pointing down, or than the task needs at height 0 where that is more (tasks/robot_reach.h),
+/// written into *planned. A height the user gave is kept as it is (an unreachable one is refused
+/// by the controller, naming the pose).
 std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
                                             const Eigen::Isometry3d& place,
                                             const std::shared_ptr<const robot::ArmModel>& arms,
@@ -428,28 +450,34 @@ std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, cons
   const TaskHeight height = task_height(config, garment, *planned);
   if (!height.member || !height.defaulted) return std::nullopt;
   const auto t0 = std::chrono::steady_clock::now();
-  const tasks::ReachFit fit = tasks::fit_height_to_reach(
-      [&](double h) {
-        tasks::TaskParams p = *planned;
-        p.*height.member = h;
-        return tasks::make_task(config.task, garment, place, p);
-      },
-      height.wanted, config.robot, arms, config.robot.lift_max_tilt);
+  tasks::ReachFit fit;
+  try {
+    fit = tasks::fit_height_to_reach(
+        [&](double h) {
+          tasks::TaskParams p = *planned;
+          p.*height.member = h;
+          return tasks::make_task(config.task, garment, place, p);
+        },
+        height.wanted, config.robot, arms, config.robot.lift_max_tilt, 0.01, 8, height.lowest);
+  } catch (const InputError&) {
+    if (config.task != "fold") throw;
+    return std::nullopt;  // no low turn within reach: the run takes pseudo mode's (or refuses it, naming the pose)
+  }
   planned->*height.member = fit.height;
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   constexpr double kDeg = 180 / 3.14159265358979323846;
   if (fit.lowered())
-    gd::log().warn("robot mode: the {} height lowered from {:.3f} m (pseudo mode's) to {:.3f} m, the highest at which "
+    gd::log().warn("robot mode: the {} lowered from {:.3f} m (pseudo mode's) to {:.3f} m, the highest at which "
                    "the arms keep their hands within {:.0f} deg of pointing down ({:.1f} deg; {} inverse-kinematics "
                    "trials, {:.1f} s); give --task-param {}=H to choose",
-                   config.task, fit.wanted, fit.height, fit.bound * kDeg, fit.tilt * kDeg, fit.trials, s,
-                   config.task == "grasp" ? "lift_height" : "fling_height");
+                   height.what, fit.wanted, fit.height, fit.bound * kDeg, fit.tilt * kDeg, fit.trials, s, height.param);
   return fit;
 }
 
 /// Robot mode with ExperimentConfig::place_within_reach: the garment moved along x to where the
-/// arms follow the generated task best (tasks::place_within_reach), a default lift or fling
-/// height fitted there as fit_to_reach does. Moves *place, the world-frame mesh and the settled
+/// arms follow the generated task best (tasks::place_within_reach), a default lift, fling height
+/// or fold's page turn fitted there as fit_to_reach does (the fold placed where its lowest turn
+/// tilts the hands least, or, where no low turn is within reach, where pseudo mode's does). Moves *place, the world-frame mesh and the settled
 /// state by the shift found (the table is a plane: the settled shape is the same anywhere on it)
 /// and writes a fitted height into *planned.
 tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
@@ -459,16 +487,35 @@ tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garment
   const bool fit_height = height.member && height.defaulted;
   const auto t0 = std::chrono::steady_clock::now();
   const Eigen::Isometry3d given = *place;
-  const tasks::PlacementFit fit = tasks::place_within_reach(
-      [&](double shift, double h) {
-        tasks::TaskParams p = *planned;
-        if (height.member) p.*height.member = h;
-        Eigen::Isometry3d moved = given;
-        moved.translation().x() += shift;
-        return tasks::make_task(config.task, garment, moved, p);
-      },
-      height.wanted, fit_height, tasks::default_placement_shifts(), config.robot, arms, config.robot.lift_max_tilt);
-  if (fit_height) planned->*height.member = fit.reach.height;
+  auto make = [&](double shift, double h) {
+    tasks::TaskParams p = *planned;
+    if (height.member) p.*height.member = h;
+    Eigen::Isometry3d moved = given;
+    moved.translation().x() += shift;
+    return tasks::make_task(config.task, garment, moved, p);
+  };
+  // A fold's turn is fitted where the hands tilt least along its lowest turn: its ends, which no
+  // turn moves, set the tilt, and the highest turn would take the first place reaching it.
+  const bool fold_turn = fit_height && config.task == "fold";
+  auto place_at = [&](double h, bool fit_h) {
+    return tasks::place_within_reach(make, h, fit_h, tasks::default_placement_shifts(), config.robot, arms,
+                                     config.robot.lift_max_tilt, 0.01, 8, height.lowest);
+  };
+  tasks::PlacementFit fit;
+  if (!fold_turn) {
+    fit = place_at(height.wanted, fit_height);
+  } else {
+    try {
+      fit = place_at(height.lowest, false);
+      fit.reach = tasks::fit_height_to_reach([&](double h) { return make(fit.shift, h); }, height.wanted, config.robot,
+                                             arms, config.robot.lift_max_tilt, 0.01, 8, height.lowest);
+      fit.trials += fit.reach.trials;
+      fit.height_fitted = true;
+    } catch (const InputError&) {  // no low turn within reach anywhere: pseudo mode's, where it tilts least
+      fit = place_at(height.wanted, false);
+    }
+  }
+  if (fit.height_fitted) planned->*height.member = fit.reach.height;
   const Vec3 dx(fit.shift, 0, 0);
   place->translation() += dx;
   for (Vec3& p : mesh->x) p += dx;
@@ -479,7 +526,7 @@ tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garment
                  "where {}the hands tilt at most {:.1f} deg ({} of {} placements within reach, {} inverse-kinematics "
                  "trials, {:.1f} s)",
                  std::abs(fit.shift), fit.shift < 0 ? "towards" : "away from", given.translation().x(), place->translation().x(),
-                 fit_height ? fmt::format("the {} height is {:.3f} m and ", config.task, fit.reach.height) : "",
+                 fit_height ? fmt::format("the {} is {:.3f} m and ", height.what, fit.reach.height) : "",
                  fit.reach.tilt * kDeg, fit.reachable, fit.candidates, fit.trials, s);
   return fit;
 }
@@ -854,8 +901,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                  {"placements_tried", placement->candidates},
                                  {"placements_within_reach", placement->reachable},
                                  {"trials", placement->trials}};
-    if (reach)  // a generated grasp's or fling's default height fitted to the arms' reach (absent: none fitted)
-      s["robot"]["height_fitted"] = {{"wanted_m", reach->wanted},
+    if (reach)  // a generated task's default lift, fling height or page turn fitted to the arms' reach (absent: none)
+      s["robot"]["height_fitted"] = {{"task_param", config.task == "grasp" ? "lift_height"
+                                                    : config.task == "fling" ? "fling_height" : "fold_arc"},
+                                     {"wanted_m", reach->wanted},
                                      {"height_m", reach->height},
                                      {"tilt_deg", reach->tilt * 180 / 3.14159265358979323846},
                                      {"tilt_bound_deg", reach->bound * 180 / 3.14159265358979323846},

@@ -301,6 +301,15 @@ std::array<Vec3, 2> put_down_at(const Setup& s, const std::array<Vec3, 2>& from,
   return over;
 }
 
+/// The page turn's height from `from` to `over`: TaskParams::fold_arc (0: the level translation),
+/// or where that is automatic (< 0) a circle about the fold line at grasp height (the chord's midpoint is
+/// (fold_lift + place_height) / 2 above it).
+double page_rise(const std::array<Vec3, 2>& from, const std::array<Vec3, 2>& over, const TaskParams& p) {
+  if (p.fold_arc >= 0) return p.fold_arc;
+  const double half = 0.5 * (over[0] - from[0]).norm();
+  return std::max(0.0, half - 0.5 * (p.fold_lift + p.place_height));
+}
+
 /// The page turn shared by the hood and the body: lift by fold_lift, turn over to `over` (see
 /// TaskParams::fold_arc) in `duration` (unscaled), pause, open, retreat upwards.
 void turn_over_and_let_go(Builder& b, const std::array<Vec3, 2>& from, const std::array<Vec3, 2>& over,
@@ -313,11 +322,7 @@ void turn_over_and_let_go(Builder& b, const std::array<Vec3, 2>& from, const std
   } else {
     // Turn the flap over like a page about the fold line (midway between the grasp points and
     // where they are put down), ending just above the table; then a pause before opening.
-    // Auto: a circle about the fold line at grasp height (the chord's midpoint is
-    // (fold_lift + place_height) / 2 above it).
-    const double half = 0.5 * (over[0] - from[0]).norm();
-    const double rise = p.fold_arc > 0 ? p.fold_arc : std::max(0.0, half - 0.5 * (p.fold_lift + p.place_height));
-    b.turn_page(at(raised(over, p.place_height), 0.0), rise, duration * k);
+    b.turn_page(at(raised(over, p.place_height), 0.0), page_rise(from, over, p), duration * k);
     b.hold(p.lower_duration * k);
   }
   b.gripper(kGripperOpen, p.close_duration * k);
@@ -363,6 +368,22 @@ DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d
 
 namespace {
 
+/// Where the fold's body turn takes the flap (`from`) and puts it down (`over`): the shoulders to
+/// the hem minus the margin, or for a hooded garment folded as people fold one (fold_hooded) the
+/// hem grasp points to the shoulders' grasp x plus the margin.
+struct Turn {
+  std::array<Vec3, 2> from, over;
+};
+Turn body_turn(const Setup& s, const TaskParams& p) {
+  if (s.hood && p.tuck_hood == 1) {
+    std::array<double, 2> to;
+    for (int a = 0; a < 2; ++a) to[a] = s.grasp_local[a].x() + p.fold_margin;
+    return {s.hem_grasp, put_down_at(s, s.hem_grasp, s.hem_local, to, p.fold_margin, "hem", -1)};
+  }
+  const double hem_put = s.hem_x - p.fold_margin;
+  return {s.grasp, put_down_at(s, s.grasp, s.grasp_local, {hem_put, hem_put}, p.fold_margin, "body")};
+}
+
 /// A hooded garment (TaskParams::tuck_hood), as people fold a hoodie: the hood is laid over onto
 /// the back first, then the hem is brought up to the shoulders. The hood ends between the two
 /// halves and never rides on a moving flap: carried on the shoulders' flap, it hangs off once the
@@ -371,9 +392,7 @@ DualArmTrajectory fold_hooded(const Setup& s, const TaskParams& p) {
   const double k = p.time_scale;
   // The body: the hem grasp points go to the shoulders' grasp x plus the margin, the mirror of
   // the shoulders-to-hem fold.
-  std::array<double, 2> body_to;
-  for (int a = 0; a < 2; ++a) body_to[a] = s.grasp_local[a].x() + p.fold_margin;
-  const std::array<Vec3, 2> body_over = put_down_at(s, s.hem_grasp, s.hem_local, body_to, p.fold_margin, "hem", -1);
+  const std::array<Vec3, 2> body_over = body_turn(s, p).over;
   const double body_chord = (body_over[0] - s.hem_grasp[0]).norm();
   // The hood: its face corners go to their mirror image about the neck line, the margin short of
   // it, at the body turn's pace (the duration scales with the chord).
@@ -399,13 +418,16 @@ DualArmTrajectory fold_hooded(const Setup& s, const TaskParams& p) {
 DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
   const Setup s = setup(g, T, p);
   if (s.hood && p.tuck_hood == 1) return fold_hooded(s, p);
-  // The shoulders go to the hem minus the margin.
-  const double hem_put = s.hem_x - p.fold_margin;
-  const std::array<Vec3, 2> over = put_down_at(s, s.grasp, s.grasp_local, {hem_put, hem_put}, p.fold_margin, "body");
+  const Turn turn = body_turn(s, p);  // the shoulders to the hem minus the margin
   Builder b = approach_and_close(s, p);
-  turn_over_and_let_go(b, s.grasp, over, p.fold_duration, p);
+  turn_over_and_let_go(b, turn.from, turn.over, p.fold_duration, p);
   b.hold(p.settle_duration * p.time_scale);
   return b.finish();
+}
+
+double fold_page_rise(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskParams& p) {
+  const Turn turn = body_turn(setup(g, T, p), p);
+  return page_rise(turn.from, turn.over, p);
 }
 
 DualArmTrajectory make_task(const std::string& name, const garments::Garment& g, const Eigen::Isometry3d& T,

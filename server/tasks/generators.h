@@ -125,6 +125,11 @@ DualArmTrajectory make_fling(const garments::Garment& g, const Eigen::Isometry3d
 /// shoulders' grasp points, open, retreat, settle.
 DualArmTrajectory make_fold(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world,
                             const TaskParams& p = {});
+/// m: the height of the fold's page turn (its body turn's, the longest) as make_fold draws it:
+/// TaskParams::fold_arc where > 0, else, automatic, a half circle about the fold line (0 where
+/// fold_arc == 0, the level translation). Robot mode lowers an automatic one to the arms' reach
+/// (docs/robot.md, "Within reach").
+double fold_page_rise(const garments::Garment& g, const Eigen::Isometry3d& garment_to_world, const TaskParams& p = {});
 /// "grasp" | "fold" | "fling"; InputError otherwise.
 DualArmTrajectory make_task(const std::string& name, const garments::Garment& g,
                             const Eigen::Isometry3d& garment_to_world, const TaskParams& p = {});

@@ -42,7 +42,7 @@ DualArmTrajectory thin_trajectory(const DualArmTrajectory& traj, int stride) {
 
 ReachFit fit_height_to_reach(const std::function<DualArmTrajectory(double)>& make, double wanted,
                              const RobotOptions& options, const std::shared_ptr<const robot::ArmModel>& model,
-                             double max_tilt, double resolution, int stride) {
+                             double max_tilt, double resolution, int stride, double lowest) {
   if (stride < 1) throw sim::InputError(fmt::format("the reach fit's stride must be >= 1 (got {})", stride));
   GD_DEMAND(model != nullptr, "fit_height_to_reach needs an arm model");
   if (!std::isfinite(wanted) || wanted < 0)
@@ -51,6 +51,8 @@ ReachFit fit_height_to_reach(const std::function<DualArmTrajectory(double)>& mak
   if (!std::isfinite(max_tilt) || max_tilt < 0)
     throw sim::InputError(fmt::format("the hands' tilt bound must be finite and >= 0 rad (got {})", max_tilt));
   if (!(resolution > 0)) throw sim::InputError("the reach fit's resolution must be > 0 m");
+  if (!std::isfinite(lowest) || lowest < 0 || lowest > wanted)
+    throw sim::InputError(fmt::format("the lowest height to fit must lie in [0, {}] m (got {})", wanted, lowest));
   ReachFit fit;
   fit.wanted = wanted;
   // The tilt the arms need at h; < 0 where some pose is out of reach (the controller refuses it).
@@ -58,15 +60,16 @@ ReachFit fit_height_to_reach(const std::function<DualArmTrajectory(double)>& mak
     ++fit.trials;
     return tilt_needed(make(h), options, model, stride, refusal_throws);
   };
-  const double floor_tilt = tilt_at(0.0, true);  // the task without its lift: must be within reach
-  fit.bound = std::max(max_tilt, floor_tilt);
+  const double floor_tilt = tilt_at(lowest, true);  // the task at its lowest: must be within reach
+  constexpr double kDegree = 3.14159265358979323846 / 180;
+  fit.bound = floor_tilt > max_tilt ? floor_tilt + kDegree : max_tilt;
   auto fits = [&](double t) { return t >= 0 && t <= fit.bound; };
-  const double at_wanted = wanted > 0 ? tilt_at(wanted, false) : floor_tilt;
+  const double at_wanted = wanted > lowest ? tilt_at(wanted, false) : floor_tilt;
   if (fits(at_wanted)) {
     fit.height = wanted, fit.tilt = at_wanted;
     return fit;
   }
-  double lo = 0, hi = wanted, lo_tilt = floor_tilt;  // lo fits, hi does not
+  double lo = lowest, hi = wanted, lo_tilt = floor_tilt;  // lo fits, hi does not
   while (hi - lo > resolution) {
     const double mid = 0.5 * (lo + hi);
     const double t = tilt_at(mid, false);
@@ -93,7 +96,7 @@ std::vector<double> default_placement_shifts() {
 PlacementFit place_within_reach(const std::function<DualArmTrajectory(double, double)>& make, double wanted,
                                 bool fit_height, const std::vector<double>& shifts, const RobotOptions& options,
                                 const std::shared_ptr<const robot::ArmModel>& model, double max_tilt,
-                                double resolution, int stride) {
+                                double resolution, int stride, double lowest) {
   if (shifts.empty()) throw sim::InputError("automatic placement needs at least one shift to try");
   for (double s : shifts)
     if (!std::isfinite(s)) throw sim::InputError(fmt::format("automatic placement: a shift is not finite ({})", s));
@@ -126,7 +129,7 @@ PlacementFit place_within_reach(const std::function<DualArmTrajectory(double, do
       }
       try {
         here = fit_height_to_reach([&](double h) { return make(shift, h); }, wanted, options, model, max_tilt,
-                                   resolution, screen);
+                                   resolution, screen, lowest);
         best.trials += here.trials;
       } catch (const sim::InputError&) {  // out of reach even without the lift
         best.trials += 1;
@@ -158,7 +161,7 @@ PlacementFit place_within_reach(const std::function<DualArmTrajectory(double, do
   }
   if (fit_height && screen != stride) {  // the winner's height on the fit's own samples
     const ReachFit fine = fit_height_to_reach([&](double h) { return make(best.shift, h); }, wanted, options, model,
-                                              max_tilt, resolution, stride);
+                                              max_tilt, resolution, stride, lowest);
     best.trials += fine.trials;
     best.reach = fine;
   }

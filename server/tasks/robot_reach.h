@@ -26,16 +26,18 @@ struct ReachFit {
   bool lowered() const { return height < wanted; }
 };
 
-/// The highest height h in [0, wanted], to within `resolution` m, at which the arms follow
-/// make(h) with inverse kinematics tilting no hand more than `max_tilt` rad from its pose (or
-/// than the tilt make(0) needs, where that is larger): `wanted` itself when it is within reach.
+/// The highest height h in [lowest, wanted], to within `resolution` m, at which the arms follow
+/// make(h) with inverse kinematics tilting no hand more than `max_tilt` rad from its pose (or,
+/// where make(lowest) needs more, than that plus a degree: a fold's ends, which no height moves,
+/// set it, and inverse kinematics solved along another path lands a fraction of a degree apart
+/// there): `wanted` itself when it is within reach.
 /// Each trial builds a RobotController (options and model as the run's) on every `stride`-th
 /// sample of make(h) and each arm's last one: the poses the run will solve, a few centimetres
 /// apart (a generated task samples every 10 ms), so its tilt is the run's to within what lies
-/// between them. Throws the controller's InputError when make(0) is already out of reach.
+/// between them. Throws the controller's InputError when make(lowest) is already out of reach.
 ReachFit fit_height_to_reach(const std::function<DualArmTrajectory(double)>& make, double wanted,
                              const RobotOptions& options, const std::shared_ptr<const robot::ArmModel>& model,
-                             double max_tilt, double resolution = 0.01, int stride = 8);
+                             double max_tilt, double resolution = 0.01, int stride = 8, double lowest = 0);
 
 /// What place_within_reach found.
 struct PlacementFit {
@@ -51,11 +53,11 @@ struct PlacementFit {
 /// x (away from the arms' bases for shift > 0) at which the arms follow the task best. make(s, h)
 /// builds the task with the garment moved by s and its lift (or fling height) at h.
 /// - `fit_height`: at each shift the height is fitted as fit_height_to_reach does (the highest in
-///   [0, wanted] within `max_tilt`, to `resolution`), and the highest wins. A shift is first tried
+///   [lowest, wanted] within `max_tilt`, to `resolution`), and the highest wins. A shift is first tried
 ///   at the best height so far plus `resolution` (one trial); only one that reaches it is fitted.
 ///   Shifts are compared on every 4 x `stride`-th sample; the winner's height is then fitted again
 ///   on every `stride`-th (what `reach` holds).
-/// - otherwise (a height the user gave, or the fold, which has none): every shift is tried at
+/// - otherwise (a height the user gave): every shift is tried at
 ///   `wanted` and the one whose hands tilt least wins.
 /// Shifts are tried in order and a later one wins only by more than `resolution` in height or by
 /// more than a degree of tilt, so the given placement (shift 0, put first) is kept on a tie; once
@@ -65,7 +67,7 @@ struct PlacementFit {
 PlacementFit place_within_reach(const std::function<DualArmTrajectory(double, double)>& make, double wanted,
                                 bool fit_height, const std::vector<double>& shifts, const RobotOptions& options,
                                 const std::shared_ptr<const robot::ArmModel>& model, double max_tilt,
-                                double resolution = 0.01, int stride = 8);
+                                double resolution = 0.01, int stride = 8, double lowest = 0);
 
 /// The shifts automatic placement tries, nearest first: 0 (the given placement), then 2.5 cm
 /// steps up to 30 cm away from the bases (the Piper reaches top-down highest some 25-45 cm in

@@ -83,6 +83,29 @@ TEST(RobotReach, AReachableLiftIsKeptAndATaskOutOfReachFromTheStartIsRefused) {
   EXPECT_THROW(fit_height_to_reach(make, 0.3, ro, arms, 30 * kReachDeg, 0.01, 0), sim::InputError);
 }
 
+// A fit from a lowest height (a fold's turns are fitted from 1 cm up, fold_arc = 0 being another
+// path) stays at or above it; where the task already tilts a hand beyond the bound there, the bound
+// is that tilt plus a degree, and the fit the highest within it.
+TEST(RobotReach, AFitFromALowestHeightStaysAboveItWithinADegreeOfItsTilt) {
+  if (testing::piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  RobotOptions ro;
+  ro.urdf = testing::piper_urdf();
+  const auto arms = std::make_shared<const robot::ArmModel>(robot::ArmModel::load(ro.urdf, ro.arm));
+  auto make = [](double h) { return lift_by(h); };
+  const double lowest = 0.3, resolution = 0.01;
+  const double at_lowest = RobotController(lift_by(lowest), ro, arms).ik_max_tilt();
+  ASSERT_GT(at_lowest, 30 * kReachDeg);  // 30 cm up the Piper no longer points down within 30 degrees
+  const ReachFit fit = fit_height_to_reach(make, 0.8, ro, arms, 30 * kReachDeg, resolution, 8, lowest);
+  EXPECT_TRUE(fit.lowered());
+  EXPECT_GE(fit.height, lowest);
+  EXPECT_NEAR(fit.bound, at_lowest + 1 * kReachDeg, 0.1 * kReachDeg);  // every 8th sample: within a tenth
+  EXPECT_LE(fit.tilt, fit.bound);
+  const RobotController above(lift_by(fit.height + 2 * resolution), ro, arms);
+  EXPECT_GT(above.ik_max_tilt(), fit.bound);
+  EXPECT_THROW(fit_height_to_reach(make, 0.2, ro, arms, 30 * kReachDeg, resolution, 8, lowest), sim::InputError);
+  EXPECT_THROW(fit_height_to_reach(make, 0.8, ro, arms, 30 * kReachDeg, resolution, 8, -0.1), sim::InputError);
+}
+
 TEST(RobotReach, ThinningKeepsEveryStridethSampleAndEachArmsLast) {
   const DualArmTrajectory all = lift_by(0.2);  // 101 samples per arm
   const DualArmTrajectory thin = thin_trajectory(all, 8);

@@ -1,0 +1,85 @@
+// A generated fold in robot mode (docs/robot.md, "Within reach"): pseudo mode turns the flap over
+// on a half circle about the fold line, which for a T-shirt rises some 30 cm above the table midway
+// and takes the Piper's hands out of reach; robot mode lowers the turn to the highest the arms
+// follow, says so in the summary, and keeps a page turn the user gave as given.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "experiment/experiment.h"
+#include "experiment/temp_dir.h"
+#include "garments/generator.h"
+#include "sim/demand.h"
+#include "tasks/generators.h"
+#include "tasks/task_test_util.h"
+
+namespace gd::experiment {
+namespace {
+
+/// The generated T-shirt's fold, its shoulders on the bases' line (x = 0): the one place along x
+/// where the Piper reaches both ends of the stroke (docs/robot.md, "Placed within reach").
+ExperimentConfig robot_tshirt_fold(const std::string& out) {
+  ExperimentConfig c;
+  c.garment = "tshirt";
+  c.task = "fold";
+  c.mode = "robot";
+  c.robot.urdf = tasks::testing::piper_urdf();
+  c.vertices = 500;
+  c.garment_position = sim::Vec3(0.0, 0.0, 0.01);
+  c.scene.dt = 0.02;
+  c.scene.self_contact = false;  // the reach is under test, not the grip
+  c.task_params.time_scale = 0.25;
+  c.task_params.start_delay = 0.1;
+  c.task_params.settle_duration = 0.1;
+  c.settle_after = 0;
+  c.plots = false;
+  c.out_dir = out;
+  return c;
+}
+
+TEST(RobotFoldReach, ThePageTurnIsLoweredToTheHighestTheArmsFollow) {
+  if (tasks::testing::piper_urdf().empty()) GTEST_SKIP() << "RGBench's Piper URDF not present (GD_SHARED_DIR)";
+  const testing::TempDir dir("fold_reach");
+  const ExperimentConfig c = robot_tshirt_fold(dir.str());
+  const ExperimentResult r = run_experiment(c);
+  ASSERT_FALSE(r.summary["failed"].get<bool>()) << r.summary["failure"];
+  const auto& fit = r.summary["robot"]["height_fitted"];
+  EXPECT_EQ(fit["task_param"].get<std::string>(), "fold_arc");
+  EXPECT_TRUE(fit["lowered"].get<bool>());
+  // Pseudo mode's half circle: half the shoulders-to-hem chord, some 30 cm for this T-shirt.
+  const garments::Garment g = garments::make_garment("tshirt", c.vertices);
+  const double wanted = tasks::fold_page_rise(g, Eigen::Isometry3d::Identity(), c.task_params);
+  EXPECT_GT(wanted, 0.25);
+  EXPECT_NEAR(fit["wanted_m"].get<double>(), wanted, 1e-4);  // the run's: the garment settled first
+  // Lowered, still a turn (not the level translation), and what the run took.
+  const double height = fit["height_m"];
+  EXPECT_GT(height, 0.05);
+  EXPECT_LT(height, wanted - 0.05);
+  EXPECT_EQ(r.summary["task_params"]["fold_arc"].get<double>(), height);
+  EXPECT_LE(fit["tilt_deg"].get<double>(), fit["tilt_bound_deg"].get<double>());
+
+  // The half circle itself is refused, naming the arm (the fit's bisection is tests/tasks/robot_reach_test.cpp's).
+  const testing::TempDir refused_dir("fold_reach_given");
+  ExperimentConfig given = robot_tshirt_fold(refused_dir.str());
+  given.task_params.fold_arc = wanted;
+  try {
+    run_experiment(given);
+    ADD_FAILURE() << "the half-circle page turn was within the Piper's reach";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot reach its pose"), std::string::npos) << e.what();
+  }
+}
+
+TEST(RobotFoldReach, APageTurnGivenIsTakenAsGiven) {
+  if (tasks::testing::piper_urdf().empty()) GTEST_SKIP() << "RGBench's Piper URDF not present (GD_SHARED_DIR)";
+  const testing::TempDir dir("fold_reach_kept");
+  ExperimentConfig c = robot_tshirt_fold(dir.str());
+  c.task_params.fold_arc = 0.1;
+  const ExperimentResult r = run_experiment(c);
+  ASSERT_FALSE(r.summary["failed"].get<bool>()) << r.summary["failure"];
+  EXPECT_FALSE(r.summary["robot"].contains("height_fitted"));
+  EXPECT_EQ(r.summary["task_params"]["fold_arc"].get<double>(), 0.1);
+}
+
+}  // namespace
+}  // namespace gd::experiment
