@@ -410,6 +410,10 @@ struct TaskHeight {
   /// m: the lowest fitted. The fold's turns are fitted from 1 cm up: fold_arc = 0 is another
   /// path (the level translation), not the lowest turn.
   double lowest = 0.0;
+  /// rad: the hands' tilt allowed. A lift's: RobotOptions::lift_max_tilt. The fold's turn is
+  /// lowered only where the arms cannot follow it at all (RobotOptions::max_tilt): a lower turn
+  /// leaves the flap slack and the garment slides (docs/validation.md).
+  double max_tilt = 0.0;
 };
 
 TaskHeight task_height(const ExperimentConfig& config, const garments::Garment& garment, const tasks::TaskParams& p) {
@@ -430,18 +434,30 @@ TaskHeight task_height(const ExperimentConfig& config, const garments::Garment& 
     constexpr double kLowestTurn = 0.01;
     h.wanted = tasks::fold_page_rise(garment, Eigen::Isometry3d::Identity(), p);
     h.lowest = kLowestTurn;
+    h.max_tilt = config.robot.max_tilt;
     if (h.wanted <= kLowestTurn) h.defaulted = false;  // a turn that low is nothing to lower
+    return h;
   } else {
     h.wanted = garment.length + (config.task == "grasp" ? tasks::kLiftAboveLength : tasks::kFlingAboveLength);
   }
+  h.max_tilt = config.robot.lift_max_tilt;
   return h;
+}
+
+/// Says what a fold's lowered page turn costs, where it was lowered.
+void warn_slack_turn(const tasks::ReachFit& fit) {
+  if (fit.lowered())
+    gd::log().warn("robot mode: the fold's page turn is {:.0f}% of pseudo mode's half circle: the flap is slack on "
+                   "the way over, and a T-shirt may slide along the table rather than fold (docs/robot.md, \"The fold "
+                   "within reach\")",
+                   100 * fit.height / fit.wanted);
 }
 
 /// Robot mode: a generated grasp's lift, fling's height or fold's page turn left to its default
 /// (pseudo mode's: the garment's length plus 0.1 / 0.15 m, a half circle about the fold line)
-/// lowered to the highest one the arms reach with their hands within RobotOptions::lift_max_tilt
-/// of pointing down, or than the task needs at height 0 where that is more (tasks/robot_reach.h),
-/// written into *planned. A height the user gave is kept as it is (an unreachable one is refused
+/// lowered to the highest one the arms reach with their hands within TaskHeight::max_tilt of
+/// pointing down, or a degree beyond what the task needs at its lowest where that is more
+/// (tasks/robot_reach.h), written into *planned. A height the user gave is kept as it is (an unreachable one is refused
 /// by the controller, naming the pose).
 std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
                                             const Eigen::Isometry3d& place,
@@ -458,7 +474,7 @@ std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, cons
           p.*height.member = h;
           return tasks::make_task(config.task, garment, place, p);
         },
-        height.wanted, config.robot, arms, config.robot.lift_max_tilt, 0.01, 8, height.lowest);
+        height.wanted, config.robot, arms, height.max_tilt, 0.01, 8, height.lowest);
   } catch (const InputError&) {
     if (config.task != "fold") throw;
     return std::nullopt;  // no low turn within reach: the run takes pseudo mode's (or refuses it, naming the pose)
@@ -471,13 +487,14 @@ std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, cons
                    "the arms keep their hands within {:.0f} deg of pointing down ({:.1f} deg; {} inverse-kinematics "
                    "trials, {:.1f} s); give --task-param {}=H to choose",
                    height.what, fit.wanted, fit.height, fit.bound * kDeg, fit.tilt * kDeg, fit.trials, s, height.param);
+  if (config.task == "fold") warn_slack_turn(fit);
   return fit;
 }
 
 /// Robot mode with ExperimentConfig::place_within_reach: the garment moved along x to where the
 /// arms follow the generated task best (tasks::place_within_reach), a default lift, fling height
-/// or fold's page turn fitted there as fit_to_reach does (the fold placed where its lowest turn
-/// tilts the hands least, or, where no low turn is within reach, where pseudo mode's does). Moves *place, the world-frame mesh and the settled
+/// or fold's page turn fitted there as fit_to_reach does (a fold whose turn is out of reach
+/// everywhere is placed where its lowest turn tilts the hands least, and its turn lowered). Moves *place, the world-frame mesh and the settled
 /// state by the shift found (the table is a plane: the settled shape is the same anywhere on it)
 /// and writes a fitted height into *planned.
 tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
@@ -494,8 +511,9 @@ tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garment
     moved.translation().x() += shift;
     return tasks::make_task(config.task, garment, moved, p);
   };
-  // A fold's turn is fitted where the hands tilt least along its lowest turn: its ends, which no
-  // turn moves, set the tilt, and the highest turn would take the first place reaching it.
+  // A fold keeps pseudo mode's turn where the arms follow it anywhere (placed where the hands tilt
+  // least); where they follow it nowhere, it is placed where its lowest turn tilts the hands least
+  // (its ends, which no turn moves, set that) and its turn lowered there.
   const bool fold_turn = fit_height && config.task == "fold";
   auto place_at = [&](double h, bool fit_h) {
     return tasks::place_within_reach(make, h, fit_h, tasks::default_placement_shifts(), config.robot, arms,
@@ -506,13 +524,14 @@ tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garment
     fit = place_at(height.wanted, fit_height);
   } else {
     try {
-      fit = place_at(height.lowest, false);
-      fit.reach = tasks::fit_height_to_reach([&](double h) { return make(fit.shift, h); }, height.wanted, config.robot,
-                                             arms, config.robot.lift_max_tilt, 0.01, 8, height.lowest);
-      fit.trials += fit.reach.trials;
-      fit.height_fitted = true;
-    } catch (const InputError&) {  // no low turn within reach anywhere: pseudo mode's, where it tilts least
       fit = place_at(height.wanted, false);
+    } catch (const InputError&) {
+      fit = place_at(height.lowest, false);
+      const int trials = fit.trials;
+      fit.reach = tasks::fit_height_to_reach([&](double h) { return make(fit.shift, h); }, height.wanted, config.robot,
+                                             arms, height.max_tilt, 0.01, 8, height.lowest);
+      fit.trials = trials + fit.reach.trials;
+      fit.height_fitted = true;
     }
   }
   if (fit.height_fitted) planned->*height.member = fit.reach.height;
@@ -528,6 +547,7 @@ tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garment
                  std::abs(fit.shift), fit.shift < 0 ? "towards" : "away from", given.translation().x(), place->translation().x(),
                  fit_height ? fmt::format("the {} is {:.3f} m and ", height.what, fit.reach.height) : "",
                  fit.reach.tilt * kDeg, fit.reachable, fit.candidates, fit.trials, s);
+  if (fold_turn && fit.height_fitted) warn_slack_turn(fit.reach);
   return fit;
 }
 
