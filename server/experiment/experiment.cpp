@@ -457,8 +457,8 @@ void warn_slack_turn(const tasks::ReachFit& fit) {
 /// (pseudo mode's: the garment's length plus 0.1 / 0.15 m, a half circle about the fold line)
 /// lowered to the highest one the arms reach with their hands within TaskHeight::max_tilt of
 /// pointing down, or a degree beyond what the task needs at its lowest where that is more
-/// (tasks/robot_reach.h), written into *planned. A height the user gave is kept as it is (an unreachable one is refused
-/// by the controller, naming the pose).
+/// (tasks/robot_reach.h), written into *planned. A height the user gave is kept as it is (an
+/// unreachable one is refused by the controller, naming the pose).
 std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
                                             const Eigen::Isometry3d& place,
                                             const std::shared_ptr<const robot::ArmModel>& arms,
@@ -494,9 +494,9 @@ std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, cons
 /// Robot mode with ExperimentConfig::place_within_reach: the garment moved along x to where the
 /// arms follow the generated task best (tasks::place_within_reach), a default lift, fling height
 /// or fold's page turn fitted there as fit_to_reach does (a fold whose turn is out of reach
-/// everywhere is placed where its lowest turn tilts the hands least, and its turn lowered). Moves *place, the world-frame mesh and the settled
-/// state by the shift found (the table is a plane: the settled shape is the same anywhere on it)
-/// and writes a fitted height into *planned.
+/// everywhere is placed where its lowest turn tilts the hands least, and its turn lowered). Moves
+/// *place, the world-frame mesh and the settled state by the shift found (the table is a plane:
+/// the settled shape is the same anywhere on it) and writes a fitted height into *planned.
 tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
                                    const std::shared_ptr<const robot::ArmModel>& arms, Eigen::Isometry3d* place,
                                    sim::Mesh* mesh, Settled* settled, tasks::TaskParams* planned) {
