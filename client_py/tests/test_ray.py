@@ -95,9 +95,11 @@ def test_killed_server_cuts_exactly_its_episodes_and_the_rollout_goes_on(two_ser
         steps = info["steps"]
         assert (steps[on_zero] == 1).all() and (np.delete(steps, on_zero) == 5).all()
         # The actor restarted its server (a new process on a new port), which serves again ...
+        # (whether the env has seen it back yet depends on whether the restart beat the cut scenes'
+        # new home: the env asks lost servers' health only when scenes need one)
         h = wait_serving(servers[0])
         assert h["serving"] and h["restarts"] == 1
-        assert env.servers_alive == [False, True]
+        assert env.servers_alive[1]
         # ... and takes every scene when server 1 is lost in turn.
         ray.get(servers[1].kill_server.remote())
         obs, *_, info = env.step(hover_actions(6, 0.05))
