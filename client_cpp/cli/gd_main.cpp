@@ -241,8 +241,9 @@ int main(int argc, char** argv) {
   run->add_flag("--place-within-reach", cfg.place_within_reach,
                 "robot mode, generated tasks: move the garment up to 30 cm farther from the arms' bases or 10 cm "
                 "nearer, to where "
-                "they lift it highest within --lift-max-tilt (the fold, or a given height: where the hands tilt "
-                "least); docs/robot.md, \"Placed within reach\"");
+                "they lift it highest within --lift-max-tilt (a given height, or a fold they follow there: where "
+                "the hands tilt least; a fold they follow nowhere: where the narrowest put-down margin brings it "
+                "within reach); docs/robot.md, \"Placed within reach\"");
   run->add_option("--refine-grasp", cfg.refine_grasp_edge,
                   "EDGE: refine the mesh to EDGE m near the grasp points (shoulders; the fold's hem corners too), "
                   "e.g. 0.006 for robot mode's 2 x 4 cm pads (docs/robot.md, \"Finer cloth under the pads\"); 0: off")

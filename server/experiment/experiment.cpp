@@ -414,7 +414,21 @@ struct TaskHeight {
   /// lowered only where the arms cannot follow it at all (RobotOptions::max_tilt): a lower turn
   /// leaves the flap slack and the garment slides (docs/validation.md).
   double max_tilt = 0.0;
+  /// m, >= 0 for the fold's put-down margin (fold_margin_to_reach): the widest margin tried, and
+  /// the fitted "height" h is widest - margin (the highest h, the narrowest margin within reach).
+  /// < 0: the parameter is h itself.
+  double widest = -1.0;
+
+  /// The parameter's value at fitted height h.
+  double value(double h) const { return widest < 0 ? h : widest - h; }
+  /// Sets the parameter in *p to its value at fitted height h.
+  void set(tasks::TaskParams* p, double h) const { p->*member = value(h); }
 };
+
+/// The widest put-down margin robot mode gives a fold, as a fraction of the garment's length:
+/// the shoulders are then put down a quarter of the length short of the hem, still on the bottom
+/// half (docs/robot.md, "The fold within reach").
+constexpr double kWidestFoldMargin = 0.25;
 
 TaskHeight task_height(const ExperimentConfig& config, const garments::Garment& garment, const tasks::TaskParams& p) {
   TaskHeight h;
@@ -444,6 +458,24 @@ TaskHeight task_height(const ExperimentConfig& config, const garments::Garment& 
   return h;
 }
 
+/// A generated fold's put-down margin (TaskParams::fold_margin) as robot mode fits it where the
+/// arms cannot follow the fold's half circle: widened, up to kWidestFoldMargin of the garment's
+/// length, until they can. A shorter stroke keeps the half circle (so a taut flap) with its far
+/// end and its top nearer the arms' bases. Not fitted (`member` null) where the fold's page turn
+/// or its margin was given (a margin other than TaskParams' default).
+TaskHeight fold_margin_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
+                                const tasks::TaskParams& p) {
+  TaskHeight h;
+  if (config.task != "fold" || p.fold_arc >= 0 || p.fold_margin != tasks::TaskParams{}.fold_margin) return h;
+  h = {&tasks::TaskParams::fold_margin, "fold_margin", "fold's put-down margin"};
+  h.widest = std::max(p.fold_margin, kWidestFoldMargin * garment.length);
+  h.defaulted = h.widest > p.fold_margin;
+  h.wanted = h.widest - p.fold_margin;
+  h.lowest = 0;
+  h.max_tilt = config.robot.max_tilt;
+  return h;
+}
+
 /// Says what a fold's lowered page turn costs, where it was lowered.
 void warn_slack_turn(const tasks::ReachFit& fit) {
   if (fit.lowered())
@@ -453,89 +485,166 @@ void warn_slack_turn(const tasks::ReachFit& fit) {
                    100 * fit.height / fit.wanted);
 }
 
+/// A generated task's parameter robot mode fitted to the arms' reach (summary.json's
+/// robot.height_fitted): `reach` holds the parameter's own values (m), wanted and taken.
+struct FittedParam {
+  const char* param = "";  ///< its name as --task-param takes it
+  tasks::ReachFit reach;
+  bool lowered = false;    ///< a height taken lower than wanted (a margin is widened, not lowered)
+};
+
+/// `fit`, found for `v`'s fitted height h, in the parameter's own values.
+FittedParam fitted(const TaskHeight& v, tasks::ReachFit fit) {
+  FittedParam f;
+  f.param = v.param;
+  f.lowered = v.widest < 0 && fit.lowered();
+  fit.wanted = v.value(fit.wanted);
+  fit.height = v.value(fit.height);
+  f.reach = fit;
+  return f;
+}
+
+/// Logs what a fit changed: a lift, a fling's height or a page turn lowered, a margin widened.
+void log_fit(const TaskHeight& v, const FittedParam& f, double seconds) {
+  constexpr double kDeg = 180 / 3.14159265358979323846;
+  const tasks::ReachFit& r = f.reach;
+  if (r.height == r.wanted) return;
+  gd::log().warn("robot mode: the {} {} from {:.3f} m (pseudo mode's) to {:.3f} m, the {} at which the arms keep their "
+                 "hands within {:.0f} deg of pointing down ({:.1f} deg; {} inverse-kinematics trials, {:.1f} s); give "
+                 "--task-param {}=VALUE to choose",
+                 v.what, v.widest < 0 ? "lowered" : "widened", r.wanted, r.height,
+                 v.widest < 0 ? "highest" : "narrowest", r.bound * kDeg, r.tilt * kDeg, r.trials, seconds, v.param);
+}
+
 /// Robot mode: a generated grasp's lift, fling's height or fold's page turn left to its default
 /// (pseudo mode's: the garment's length plus 0.1 / 0.15 m, a half circle about the fold line)
-/// lowered to the highest one the arms reach with their hands within TaskHeight::max_tilt of
-/// pointing down, or a degree beyond what the task needs at its lowest where that is more
-/// (tasks/robot_reach.h), written into *planned. A height the user gave is kept as it is (an
-/// unreachable one is refused by the controller, naming the pose).
-std::optional<tasks::ReachFit> fit_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
-                                            const Eigen::Isometry3d& place,
-                                            const std::shared_ptr<const robot::ArmModel>& arms,
-                                            tasks::TaskParams* planned) {
+/// fitted to the arms' reach and written into *planned: a lift or a fling's height lowered to the
+/// highest one the arms reach with their hands within TaskHeight::max_tilt of pointing down, or a
+/// degree beyond what the task needs at its lowest where that is more (tasks/robot_reach.h). A fold
+/// whose half circle they cannot follow first has its put-down margin widened (fold_margin_to_reach:
+/// the flap stays taut), and only where no margin up to the widest brings it within reach its turn
+/// lowered. A height the user gave is kept as it is (an unreachable one is refused by the
+/// controller, naming the pose).
+std::optional<FittedParam> fit_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
+                                        const Eigen::Isometry3d& place,
+                                        const std::shared_ptr<const robot::ArmModel>& arms,
+                                        tasks::TaskParams* planned) {
+  auto fit = [&](const TaskHeight& v) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const FittedParam f = fitted(
+        v, tasks::fit_height_to_reach(
+               [&](double h) {
+                 tasks::TaskParams p = *planned;
+                 v.set(&p, h);
+                 return tasks::make_task(config.task, garment, place, p);
+               },
+               v.wanted, config.robot, arms, v.max_tilt, 0.01, 8, v.lowest));
+    planned->*v.member = f.reach.height;
+    log_fit(v, f, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    return f;
+  };
   const TaskHeight height = task_height(config, garment, *planned);
   if (!height.member || !height.defaulted) return std::nullopt;
-  const auto t0 = std::chrono::steady_clock::now();
-  tasks::ReachFit fit;
+  if (config.task == "fold") {
+    TaskHeight half_circle = height;
+    half_circle.lowest = half_circle.wanted;  // one trial: the half circle as it is
+    try {
+      return fit(half_circle);
+    } catch (const InputError&) {
+      // out of reach: a wider margin, else a lower turn
+    }
+    const TaskHeight margin = fold_margin_to_reach(config, garment, *planned);
+    if (margin.member && margin.defaulted) {
+      try {
+        return fit(margin);
+      } catch (const InputError&) {
+        // out of reach even at the widest margin
+      }
+    }
+  }
   try {
-    fit = tasks::fit_height_to_reach(
-        [&](double h) {
-          tasks::TaskParams p = *planned;
-          p.*height.member = h;
-          return tasks::make_task(config.task, garment, place, p);
-        },
-        height.wanted, config.robot, arms, height.max_tilt, 0.01, 8, height.lowest);
+    const FittedParam f = fit(height);
+    if (config.task == "fold") warn_slack_turn(f.reach);
+    return f;
   } catch (const InputError&) {
     if (config.task != "fold") throw;
     return std::nullopt;  // no low turn within reach: the run takes pseudo mode's (or refuses it, naming the pose)
   }
-  planned->*height.member = fit.height;
-  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  constexpr double kDeg = 180 / 3.14159265358979323846;
-  if (fit.lowered())
-    gd::log().warn("robot mode: the {} lowered from {:.3f} m (pseudo mode's) to {:.3f} m, the highest at which "
-                   "the arms keep their hands within {:.0f} deg of pointing down ({:.1f} deg; {} inverse-kinematics "
-                   "trials, {:.1f} s); give --task-param {}=H to choose",
-                   height.what, fit.wanted, fit.height, fit.bound * kDeg, fit.tilt * kDeg, fit.trials, s, height.param);
-  if (config.task == "fold") warn_slack_turn(fit);
-  return fit;
 }
 
+/// What place_to_reach found: where, and the parameter fitted there (absent: none was).
+struct Placed {
+  tasks::PlacementFit fit;  ///< reach.height / wanted in the fitted parameter's values where one was
+  std::optional<FittedParam> param;
+};
+
 /// Robot mode with ExperimentConfig::place_within_reach: the garment moved along x to where the
-/// arms follow the generated task best (tasks::place_within_reach), a default lift, fling height
-/// or fold's page turn fitted there as fit_to_reach does (a fold whose turn is out of reach
-/// everywhere is placed where its lowest turn tilts the hands least, and its turn lowered). Moves
-/// *place, the world-frame mesh and the settled state by the shift found (the table is a plane:
-/// the settled shape is the same anywhere on it) and writes a fitted height into *planned.
-tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
-                                   const std::shared_ptr<const robot::ArmModel>& arms, Eigen::Isometry3d* place,
-                                   sim::Mesh* mesh, Settled* settled, tasks::TaskParams* planned) {
+/// arms follow the generated task best (tasks::place_within_reach), a default lift or fling height
+/// fitted there as fit_to_reach does. A fold keeps pseudo mode's half circle where the arms follow
+/// it at some place (placed where the hands tilt least); else it is placed where the narrowest
+/// put-down margin brings the half circle within reach (fold_margin_to_reach), and where none
+/// does, where its lowest turn tilts the hands least (its ends, which no turn moves, set that),
+/// its turn lowered there. Moves *place, the world-frame mesh and the settled state by the shift
+/// found (the table is a plane: the settled shape is the same anywhere on it) and writes a fitted
+/// parameter into *planned.
+Placed place_to_reach(const ExperimentConfig& config, const garments::Garment& garment,
+                      const std::shared_ptr<const robot::ArmModel>& arms, Eigen::Isometry3d* place, sim::Mesh* mesh,
+                      Settled* settled, tasks::TaskParams* planned) {
   const TaskHeight height = task_height(config, garment, *planned);
+  const TaskHeight margin = fold_margin_to_reach(config, garment, *planned);
   const bool fit_height = height.member && height.defaulted;
   const auto t0 = std::chrono::steady_clock::now();
   const Eigen::Isometry3d given = *place;
-  auto make = [&](double shift, double h) {
-    tasks::TaskParams p = *planned;
-    if (height.member) p.*height.member = h;
-    Eigen::Isometry3d moved = given;
-    moved.translation().x() += shift;
-    return tasks::make_task(config.task, garment, moved, p);
+  auto make_with = [&](const TaskHeight& v) {
+    return [&](double shift, double h) {
+      tasks::TaskParams p = *planned;
+      if (v.member) v.set(&p, h);
+      Eigen::Isometry3d moved = given;
+      moved.translation().x() += shift;
+      return tasks::make_task(config.task, garment, moved, p);
+    };
   };
-  // A fold keeps pseudo mode's turn where the arms follow it anywhere (placed where the hands tilt
-  // least); where they follow it nowhere, it is placed where its lowest turn tilts the hands least
-  // (its ends, which no turn moves, set that) and its turn lowered there.
-  const bool fold_turn = fit_height && config.task == "fold";
-  auto place_at = [&](double h, bool fit_h) {
-    return tasks::place_within_reach(make, h, fit_h, tasks::default_placement_shifts(), config.robot, arms,
-                                     config.robot.lift_max_tilt, 0.01, 8, height.lowest);
+  auto place_at = [&](const TaskHeight& v, double h, bool fit_h, double max_tilt) {
+    return tasks::place_within_reach(make_with(v), h, fit_h, tasks::default_placement_shifts(), config.robot, arms,
+                                     max_tilt, 0.01, 8, v.lowest);
   };
-  tasks::PlacementFit fit;
-  if (!fold_turn) {
-    fit = place_at(height.wanted, fit_height);
+  Placed placed;
+  const TaskHeight* fitted_by = nullptr;  // the parameter fitted, where one was
+  if (!fit_height || config.task != "fold") {
+    placed.fit = place_at(height, height.wanted, fit_height, config.robot.lift_max_tilt);
+    if (fit_height) fitted_by = &height;
   } else {
     try {
-      fit = place_at(height.wanted, false);
+      placed.fit = place_at(height, height.wanted, false, config.robot.lift_max_tilt);
     } catch (const InputError&) {
-      fit = place_at(height.lowest, false);
-      const int trials = fit.trials;
-      fit.reach = tasks::fit_height_to_reach([&](double h) { return make(fit.shift, h); }, height.wanted, config.robot,
-                                             arms, height.max_tilt, 0.01, 8, height.lowest);
-      fit.trials = trials + fit.reach.trials;
-      fit.height_fitted = true;
+      bool widened = false;
+      if (margin.member && margin.defaulted) {
+        try {
+          placed.fit = place_at(margin, margin.wanted, true, margin.max_tilt);
+          fitted_by = &margin;
+          widened = true;
+        } catch (const InputError&) {
+          // no margin up to the widest brings the half circle within reach anywhere
+        }
+      }
+      if (!widened) {
+        placed.fit = place_at(height, height.lowest, false, config.robot.lift_max_tilt);
+        const int trials = placed.fit.trials;
+        placed.fit.reach = tasks::fit_height_to_reach([&](double h) { return make_with(height)(placed.fit.shift, h); },
+                                                      height.wanted, config.robot, arms, height.max_tilt, 0.01, 8,
+                                                      height.lowest);
+        placed.fit.trials = trials + placed.fit.reach.trials;
+        placed.fit.height_fitted = true;
+        fitted_by = &height;
+      }
     }
   }
-  if (fit.height_fitted) planned->*height.member = fit.reach.height;
-  const Vec3 dx(fit.shift, 0, 0);
+  if (fitted_by) {
+    placed.param = fitted(*fitted_by, placed.fit.reach);
+    placed.fit.reach = placed.param->reach;
+    planned->*fitted_by->member = placed.param->reach.height;
+  }
+  const Vec3 dx(placed.fit.shift, 0, 0);
   place->translation() += dx;
   for (Vec3& p : mesh->x) p += dx;
   for (Vec3& p : settled->x) p += dx;
@@ -544,11 +653,12 @@ tasks::PlacementFit place_to_reach(const ExperimentConfig& config, const garment
   gd::log().info("robot mode: garment moved {:.3f} m along x, {} the arms' bases (x {:.3f} -> {:.3f} m), "
                  "where {}the hands tilt at most {:.1f} deg ({} of {} placements within reach, {} inverse-kinematics "
                  "trials, {:.1f} s)",
-                 std::abs(fit.shift), fit.shift < 0 ? "towards" : "away from", given.translation().x(), place->translation().x(),
-                 fit_height ? fmt::format("the {} is {:.3f} m and ", height.what, fit.reach.height) : "",
-                 fit.reach.tilt * kDeg, fit.reachable, fit.candidates, fit.trials, s);
-  if (fold_turn && fit.height_fitted) warn_slack_turn(fit.reach);
-  return fit;
+                 std::abs(placed.fit.shift), placed.fit.shift < 0 ? "towards" : "away from", given.translation().x(),
+                 place->translation().x(),
+                 fitted_by ? fmt::format("the {} is {:.3f} m and ", fitted_by->what, placed.fit.reach.height) : "",
+                 placed.fit.reach.tilt * kDeg, placed.fit.reachable, placed.fit.candidates, placed.fit.trials, s);
+  if (fitted_by == &height && config.task == "fold") warn_slack_turn(placed.fit.reach);
+  return placed;
 }
 
 /// Runs argv[0] (looked up in PATH) with its stdout sent to our stderr (or to /dev/null when
@@ -643,7 +753,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     }
     return loaded_arms;
   };
-  std::optional<tasks::ReachFit> reach;  // robot mode: a generated lift or fling fitted to the arms' reach
+  std::optional<FittedParam> reach;  // robot mode: a generated task's lift, height, turn or margin fitted to the arms' reach
   std::optional<tasks::PlacementFit> placement;  // robot mode: the garment placed within the arms' reach
   if (!config.trajectory_file.empty()) {
     traj = tasks::read_trajectory(config.trajectory_file);
@@ -658,8 +768,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   } else {
     settled = settle_before_planning(mesh, material, config.scene, config.task_params.start_delay, place, &garment);
     if (config.mode == "robot" && config.place_within_reach) {
-      placement = place_to_reach(config, garment, arm_model(), &place, &mesh, &*settled, &planned);
-      if (placement->height_fitted) reach = placement->reach;  // summary.json's robot.height_fitted, as without placement
+      Placed placed = place_to_reach(config, garment, arm_model(), &place, &mesh, &*settled, &planned);
+      placement = placed.fit;
+      reach = placed.param;  // summary.json's robot.height_fitted, as without placement
     } else if (config.mode == "robot") {
       reach = fit_to_reach(config, garment, place, arm_model(), &planned);
     }
@@ -921,14 +1032,13 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                  {"placements_tried", placement->candidates},
                                  {"placements_within_reach", placement->reachable},
                                  {"trials", placement->trials}};
-    if (reach)  // a generated task's default lift, fling height or page turn fitted to the arms' reach (absent: none)
-      s["robot"]["height_fitted"] = {{"task_param", config.task == "grasp" ? "lift_height"
-                                                    : config.task == "fling" ? "fling_height" : "fold_arc"},
-                                     {"wanted_m", reach->wanted},
-                                     {"height_m", reach->height},
-                                     {"tilt_deg", reach->tilt * 180 / 3.14159265358979323846},
-                                     {"tilt_bound_deg", reach->bound * 180 / 3.14159265358979323846},
-                                     {"lowered", reach->lowered()}};
+    if (reach)  // a generated task's default lift, fling height, page turn or fold margin fitted to the arms' reach (absent: none)
+      s["robot"]["height_fitted"] = {{"task_param", reach->param},
+                                     {"wanted_m", reach->reach.wanted},
+                                     {"height_m", reach->reach.height},
+                                     {"tilt_deg", reach->reach.tilt * 180 / 3.14159265358979323846},
+                                     {"tilt_bound_deg", reach->reach.bound * 180 / 3.14159265358979323846},
+                                     {"lowered", reach->lowered}};
   }
   {
     std::ofstream f(out + "/summary.json");

@@ -58,8 +58,10 @@ struct ExperimentConfig {
   sim::Vec3 garment_position = tasks::default_garment_position();
   /// Robot mode, generated tasks: move the garment along x, from garment_position up to 30 cm
   /// farther from the arms' bases or 10 cm nearer (tasks::default_placement_shifts), to where the arms lift it highest with their hands within
-  /// RobotOptions::lift_max_tilt of pointing down (or, for the fold and a given height, where they
-  /// tilt least): tasks::place_within_reach, docs/robot.md "Placed within reach". The garment
+  /// RobotOptions::lift_max_tilt of pointing down (or, for a given height and a fold whose half
+  /// circle they follow somewhere, where they tilt least; a fold whose half circle they follow
+  /// nowhere: where the narrowest put-down margin brings it within reach, docs/robot.md "A shorter
+  /// stroke instead of a lower turn"): tasks::place_within_reach, docs/robot.md "Placed within reach". The garment
   /// settles before the search; the table is a plane, so moving the settled garment along it
   /// changes nothing of its shape.
   bool place_within_reach = false;

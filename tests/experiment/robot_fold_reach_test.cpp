@@ -1,8 +1,10 @@
 // A generated fold in robot mode (docs/robot.md, "The fold within reach"): pseudo mode turns the
 // flap over on a half circle about the fold line, which for a T-shirt rises some 30 cm above the
-// table midway and takes the Piper's hands out of reach; robot mode lowers such a turn to the
-// highest the arms follow and says so in the summary, keeps one within reach, and keeps a page
-// turn the user gave as given.
+// table midway and takes the Piper's hands out of reach. Robot mode keeps a half circle within
+// reach; else it puts the shoulders down farther short of the hem (a wider fold_margin: a shorter
+// stroke, its half circle smaller and nearer the bases) where that brings it within reach; else it
+// lowers the turn to the highest the arms follow. It says so in the summary, and keeps a page turn
+// the user gave as given.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -38,6 +40,8 @@ ExperimentConfig robot_tshirt_fold(const std::string& out) {
   return c;
 }
 
+// On the bases' line no margin up to a quarter of the length helps (the half circle climbs steeply
+// beside the bases): the turn is lowered.
 TEST(RobotFoldReach, ThePageTurnIsLoweredToTheHighestTheArmsFollow) {
   if (tasks::testing::piper_urdf().empty()) GTEST_SKIP() << "RGBench's Piper URDF not present (GD_SHARED_DIR)";
   const testing::TempDir dir("fold_reach");
@@ -66,6 +70,42 @@ TEST(RobotFoldReach, ThePageTurnIsLoweredToTheHighestTheArmsFollow) {
   try {
     run_experiment(given);
     ADD_FAILURE() << "the half-circle page turn was within the Piper's reach";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot reach its pose"), std::string::npos) << e.what();
+  }
+}
+
+// With its shoulders 10 cm in front of the bases (the default placement) the T-shirt's half circle
+// comes down 0.76 m out and 0.2 m up, out of the Piper's reach; put down some 10 cm short of the hem
+// instead of 3 its half circle is within reach, and the flap stays taut.
+TEST(RobotFoldReach, TheMarginWidensToTheNarrowestThatBringsTheHalfCircleWithinReach) {
+  if (tasks::testing::piper_urdf().empty()) GTEST_SKIP() << "RGBench's Piper URDF not present (GD_SHARED_DIR)";
+  const testing::TempDir dir("fold_reach_margin");
+  ExperimentConfig c = robot_tshirt_fold(dir.str());
+  c.garment_position = sim::Vec3(0.1, 0.0, 0.01);
+  const ExperimentResult r = run_experiment(c);
+  ASSERT_FALSE(r.summary["failed"].get<bool>()) << r.summary["failure"];
+  const auto& fit = r.summary["robot"]["height_fitted"];
+  EXPECT_EQ(fit["task_param"].get<std::string>(), "fold_margin");
+  EXPECT_FALSE(fit["lowered"].get<bool>());
+  EXPECT_EQ(fit["wanted_m"].get<double>(), tasks::TaskParams{}.fold_margin);
+  const double margin = fit["height_m"];
+  const garments::Garment g = garments::make_garment("tshirt", c.vertices);
+  EXPECT_GT(margin, 0.05);
+  EXPECT_LE(margin, 0.25 * r.summary["garment_length"].get<double>() + 1e-12);  // still on the bottom half
+  EXPECT_EQ(r.summary["task_params"]["fold_margin"].get<double>(), margin);
+  EXPECT_EQ(r.summary["task_params"]["fold_arc"].get<double>(), -1.0);  // the half circle
+  EXPECT_LE(fit["tilt_deg"].get<double>(), fit["tilt_bound_deg"].get<double>());
+
+  // A margin 1.5 cm narrower (beyond the fit's 1 cm resolution) with its own half circle is refused.
+  const testing::TempDir refused_dir("fold_reach_margin_given");
+  ExperimentConfig given = robot_tshirt_fold(refused_dir.str());
+  given.garment_position = c.garment_position;
+  given.task_params.fold_margin = margin - 0.015;
+  given.task_params.fold_arc = tasks::fold_page_rise(g, Eigen::Isometry3d::Identity(), given.task_params);
+  try {
+    run_experiment(given);
+    ADD_FAILURE() << "the half circle with a " << given.task_params.fold_margin << " m margin was within reach";
   } catch (const sim::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("cannot reach its pose"), std::string::npos) << e.what();
   }
