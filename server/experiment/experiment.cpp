@@ -427,7 +427,7 @@ struct TaskHeight {
 
 /// The widest put-down margin robot mode gives a fold, as a fraction of the garment's length:
 /// the shoulders are then put down a quarter of the length short of the hem, still on the bottom
-/// half (docs/robot.md, "The fold within reach").
+/// half (docs/robot.md, "A shorter stroke instead of a lower turn").
 constexpr double kWidestFoldMargin = 0.25;
 
 TaskHeight task_height(const ExperimentConfig& config, const garments::Garment& garment, const tasks::TaskParams& p) {
