@@ -269,7 +269,8 @@ ArmSample RobotController::resolve(Arm a, ArmSample s, const std::vector<double>
   if (!r.ok)
     throw InputError(fmt::format("robot mode: the {} arm cannot reach its pose at t={:.3f} s (world position "
                                  "{:.3f}, {:.3f}, {:.3f}): {:.1f} mm and {:.2f} deg away at best; move the task "
-                                 "within reach (a lower lift or fling height, or the garment nearer the arms' bases)",
+                                 "within reach (a lower lift or fling height, a fold's wider fold_margin or lower "
+                                 "fold_arc, or the garment nearer the arms' bases)",
                                  arm_name(a), s.t, s.position.x(), s.position.y(), s.position.z(),
                                  1e3 * r.position_error, r.rotation_error * 180 / 3.14159265358979323846));
   s.joints.assign(r.q.data(), r.q.data() + dofs);
