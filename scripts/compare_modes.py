@@ -25,7 +25,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def run(gd, out: Path, garment, vertices, task, mode, urdf, params, threads, garment_params=(), position=None,
-        grip_force=None):
+        grip_force=None, refine_grasp=None):
     cmd = [gd, "run", "--garment", garment, "--task", task, "--mode", mode, "--threads", str(threads), "--quiet",
            "--no-plots", "--out", str(out)]
     if not garment.endswith(".obj"):
@@ -40,6 +40,8 @@ def run(gd, out: Path, garment, vertices, task, mode, urdf, params, threads, gar
         cmd += ["--garment-param", kv]
     if position:
         cmd += ["--garment-position", *[str(v) for v in position]]
+    if refine_grasp:  # both modes on the same mesh
+        cmd += ["--refine-grasp", str(refine_grasp)]
     t0 = time.time()
     proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seconds = time.time() - t0
@@ -103,6 +105,8 @@ def main():
     p.add_argument("--garment-position", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="where the garment goes (gd run --garment-position), m")
     p.add_argument("--grip-force", type=float, help="robot mode: the fingers' squeeze, N (default: the URDF's)")
+    p.add_argument("--refine-grasp", type=float,
+                   help="m: both modes' mesh refined to this edge near the grasp points (gd run --refine-grasp)")
     p.add_argument("--jobs", type=int, default=2, help="runs at once (each on one thread)")
     p.add_argument("--out", default="out/modes")
     p.add_argument("--png", help="draw the final shapes here")
@@ -120,7 +124,7 @@ def main():
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(lambda tm: run(args.gd, out / f"{tm[0]}_{tm[1]}", args.garment, args.vertices, tm[0],
                                             tm[1], args.urdf, params, 1, args.garment_param, args.garment_position,
-                                            args.grip_force), jobs))
+                                            args.grip_force, args.refine_grasp), jobs))
     print("| task | mode | ms/step | final max z (cm) | mean z (cm) | extent x, y (cm) | intersecting pairs (max) "
           "| untangling runs | held at the end (left, right squeeze N) | CD L1 robot->pseudo / pseudo->robot (cm) "
           "| HD (cm) |")

@@ -7,6 +7,8 @@
 # matched without the ' # GetParam() = ...' that gtest_discover_tests appends; one that no longer
 # exists is ignored. Refresh from a full run: the "Test #N: name ... Passed S sec" lines of ctest.
 set(_gd_costs
+  "DrapeReference.SimulatedCoefficientsOrderTheFabricsAsMeasured" 480
+  "Drape.CoefficientConvergesWithTheMesh" 360
   "Folds/GarmentFold.LiesFoldedOnTheTable/tshirt_vertices_x2" 282
   "Folds/GarmentFold.LiesFoldedOnTheTable/hoodie_nominal" 186
   "Folds/GarmentFold.LiesFoldedOnTheTable/pleat_skirt_vertices_x2" 152
@@ -15,7 +17,6 @@ set(_gd_costs
   "Folds/GarmentFold.LiesFoldedOnTheTable/long_sleeve_nominal" 98
   "Folds/GarmentFold.LiesFoldedOnTheTable/dress_nominal" 85
   "Folds/GarmentFold.LiesFoldedOnTheTable/cake_skirt_inset_m5mm" 85
-  "Drape.CoefficientConvergesWithTheMesh" 83
   "Folds/GarmentFold.LiesFoldedOnTheTable/cake_skirt_inset_p5mm" 76
   "Folds/GarmentFold.LiesFoldedOnTheTable/cake_skirt_speed_m5pct" 68
   "Folds/GarmentFold.LiesFoldedOnTheTable/cake_skirt_nominal" 68
