@@ -73,7 +73,7 @@ struct DrapeMeasurement {
 struct DrapeSetup {
   int waves = 7;  ///< periods of the seeding ripple round the rim
   /// s over which gravity grows from 0 to full (an upward force on every vertex, falling
-  /// linearly), before the 3 s of settling; 0: dropped under full gravity at once.
+  /// linearly), before the settling; 0: dropped under full gravity at once.
   double gravity_ramp = 2.0;
   double settle = 3.0;  ///< s of settling under full gravity after the ramp, before the relaxation
 };
