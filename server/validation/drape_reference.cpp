@@ -47,8 +47,8 @@ std::vector<DrapeReference> load_drape_references(const std::string& path) {
   return out;
 }
 
-DrapeMeasurement measure_reference_drape(const DrapeReference& r, bool self_contact) {
-  return measure_drape(r.material, kReferenceDrapeSpacing, self_contact, DrapeSetup{});
+DrapeMeasurement measure_reference_drape(const DrapeReference& r, bool self_contact, const DrapeSetup& setup) {
+  return measure_drape(r.material, kReferenceDrapeSpacing, self_contact, setup);
 }
 
 namespace {

@@ -33,8 +33,9 @@ std::vector<DrapeReference> load_drape_references(const std::string& path);
 /// default DrapeSetup (lowered over 2 s).
 constexpr double kReferenceDrapeSpacing = 0.005;
 
-/// The drape of one reference fabric (measure_drape at kReferenceDrapeSpacing).
-DrapeMeasurement measure_reference_drape(const DrapeReference& r, bool self_contact);
+/// The drape of one reference fabric (measure_drape at kReferenceDrapeSpacing); `setup` other
+/// than the default only for studies of the protocol (gd-validate --drape-waves ...).
+DrapeMeasurement measure_reference_drape(const DrapeReference& r, bool self_contact, const DrapeSetup& setup = {});
 
 /// Spearman's rank correlation of two equally long series (ties get their mean rank); NaN for
 /// fewer than two values or a constant series.

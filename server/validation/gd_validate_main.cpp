@@ -84,7 +84,8 @@ int drape_study(const gd::sim::Material& m, const std::vector<std::string>& spac
 
 /// Each fabric of a drape reference file draped as it was measured; the simulated coefficient
 /// beside the measured one and the peer's.
-int drape_reference_study(const std::string& path, bool self_contact, bool json) {
+int drape_reference_study(const std::string& path, bool self_contact, const gd::validation::DrapeSetup& setup,
+                          bool json) {
   const auto refs = gd::validation::load_drape_references(path);
   nlohmann::json arr = nlohmann::json::array();
   if (!json)
@@ -97,7 +98,7 @@ int drape_reference_study(const std::string& path, bool self_contact, bool json)
     const auto t0 = std::chrono::steady_clock::now();
     std::fprintf(stderr, "[%zu/%zu] drape of %s (5 mm, self-contact %s) ...\n", i + 1, refs.size(),
                  r.material.name.c_str(), self_contact ? "on" : "off");
-    const auto d = gd::validation::measure_reference_drape(r, self_contact);
+    const auto d = gd::validation::measure_reference_drape(r, self_contact, setup);
     const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     measured.push_back(r.measured);
     simulated.push_back(d.coefficient);
@@ -151,7 +152,8 @@ int main(int argc, char** argv) {
                "run only the Cusick drape of each fabric in the drape reference file and compare it with the "
                "measured coefficient");
   app.add_option("--drape-reference-file", drape_reference_file,
-                 "drape reference file (default: the data directory's drape_reference.json, Petrak et al. 2025)");
+                 "drape reference file (default: the data directory's drape_reference.json, Petrak et al. 2025); "
+                 "implies --drape-reference");
   app.add_option("--drape-waves", drape_setup.waves, "periods of the ripple that seeds the folds round the rim")
       ->check(CLI::Range(2, 30))
       ->capture_default_str();
@@ -166,12 +168,18 @@ int main(int argc, char** argv) {
   try {
     auto lib = gd::sim::MaterialLibrary::load_default();
     if (!materials.empty()) lib.merge_file(materials);
+    if (!drape_reference_file.empty()) drape_reference = true;
+    // The drape's own options mean nothing to the other cases: refused there, not ignored.
+    if (!drape_reference && drape_spacings.empty())
+      for (const char* flag : {"--drape-self-contact", "--drape-waves", "--drape-gravity-ramp", "--drape-settle"})
+        if (app.count(flag) > 0)
+          throw gd::sim::InputError(std::string(flag) + " applies to --drape-spacings or --drape-reference only");
     if (drape_reference) {
       if (drape_self_contact != "" && drape_self_contact != "off" && drape_self_contact != "on")
         throw gd::sim::InputError("--drape-reference: --drape-self-contact is off or on (got " + drape_self_contact + ")");
       return drape_reference_study(
           drape_reference_file.empty() ? gd::validation::default_drape_reference_path() : drape_reference_file,
-          drape_self_contact == "on", json);
+          drape_self_contact == "on", drape_setup, json);
     }
     if (!drape_spacings.empty())
       return drape_study(lib.get(drape_fabric), split(drape_spacings),
