@@ -7,8 +7,8 @@
 # matched without the ' # GetParam() = ...' that gtest_discover_tests appends; one that no longer
 # exists is ignored. Refresh from a full run: the "Test #N: name ... Passed S sec" lines of ctest.
 set(_gd_costs
-  "DrapeReference.SimulatedCoefficientsOrderTheFabricsAsMeasured" 480
-  "Drape.CoefficientConvergesWithTheMesh" 360
+  "DrapeReference.SimulatedCoefficientsOrderTheFabricsAsMeasured" 210
+  "Drape.CoefficientConvergesWithTheMesh" 100
   "Folds/GarmentFold.LiesFoldedOnTheTable/tshirt_vertices_x2" 282
   "Folds/GarmentFold.LiesFoldedOnTheTable/hoodie_nominal" 186
   "Folds/GarmentFold.LiesFoldedOnTheTable/pleat_skirt_vertices_x2" 152

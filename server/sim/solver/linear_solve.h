@@ -198,7 +198,7 @@ int Solver<Exec>::solve_pcg(double first_step) {
   return static_cast<int>(Exec::read(pcg_s_, kPcgIters));
 }
 
-/// Sparse LDLT on the CPU (validation and small scenes).
+/// Sparse Cholesky on the CPU (DirectSolver: validation and small scenes).
 template <class Exec>
 int Solver<Exec>::solve_direct() {
   if constexpr (Exec::kHostMemory) {
@@ -235,21 +235,17 @@ int Solver<Exec>::solve_direct() {
     }
     Eigen::SparseMatrix<double> A(3 * n_, 3 * n_);
     A.setFromTriplets(trip.begin(), trip.end());
-    // The mesh pattern is fixed, but contact pairs add entries that change from one solve to the
-    // next: a factorisation on a stale analysis reads outside the matrix.
-    if (!ldlt_analyzed_ || self_) {
-      ldlt_.analyzePattern(A);
-      ldlt_analyzed_ = true;
-    }
-    ldlt_.factorize(A);
+    // Contact pairs add entries that change from one solve to the next: the ordering is computed
+    // again where the pattern changed (DirectSolver::factorize).
     Eigen::Map<const Eigen::VectorXd> g(g_.data(), 3 * n_);
     Eigen::Map<Eigen::VectorXd> dx(dx_.data(), 3 * n_);
-    if (ldlt_.info() != Eigen::Success) {
+    if (!direct_) direct_ = std::make_unique<DirectSolver>();
+    if (!direct_->factorize(A)) {
       if (self_) merge_pair_blocks();
       precond_->setup(matrix_view());
       return solve_pcg(0);
     }
-    dx = ldlt_.solve(-g);
+    direct_->solve(-g, dx);
     return 1;
   } else {
     return solve_pcg(0);

@@ -16,13 +16,14 @@
 /// stopping_rule.h, assembly.h, linear_solve.h, step_bounds.h, vector_ops.h, diagnostics.h),
 /// included at the end.
 
-#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <type_traits>
 
 #include "sim/contact/lbvh_broad_phase.h"
+#include "sim/solver/direct_solver.h"
 #include "sim/solver/element_terms.h"
 #include "sim/solver/pair_blocks.h"
 #include "sim/solver/preconditioner.h"
@@ -656,8 +657,7 @@ class Solver final : public SolverBase {
   Vec<double> g_trial_, cand_gd_;  ///< gradient at the trial point; candidate pairs' gradients
   Vec<double> cand_d2_;            ///< per candidate: squared distance at the last evaluation without Hessian
   Vec<int> live_;                  ///< per pair of the last evaluate_pairs: whether it added anything
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
-  bool ldlt_analyzed_ = false;
+  std::unique_ptr<DirectSolver> direct_;  ///< kDirect's factorisation (made at the first direct solve)
 };
 
 }  // namespace gd::sim
