@@ -256,6 +256,7 @@ bool Solver<Exec>::guess_pinch_first() {
     Exec::upload(dx_, leg);
     const CcdBounds b = ccd_bounds(true, true, false);
     const double a = std::min(b.self, b.table);
+    if (a < 1.0 && gd::log().should_log(spdlog::level::debug)) log_what_cuts(pinch ? "the pinch's leg" : "the rest's leg", b);
     const double taken = a < 1.0 ? 0.9 * a : 1.0;
     axpy(taken, dx_, x_);
     return taken;
@@ -447,6 +448,45 @@ void Solver<Exec>::stop_yielding_colliders() {
     for (size_t j = 0; j < host_x_.size(); ++j) host_x_[j] = host_xt_[j] + b * (host_x_[j] - host_xt_[j]);
     Exec::upload(x_, host_x_);
   }
+}
+
+/// Debug log (guess_pinch_first): what bounds a leg's CCD, the table or a self-contact pair; for
+/// the pair that allows the least (its step fraction recomputed on the host), its kind, its four
+/// vertices, which of them the predictor carried with a pinch (carry_pinched_cloth) and how far
+/// each moves in the leg, so a leg cut back by the pinch's own layers tells from one cut by cloth
+/// nearby.
+template <class Exec>
+void Solver<Exec>::log_what_cuts(const char* leg, const CcdBounds& b) {
+  if (b.table <= b.self) {
+    gd::log().debug("{}: CCD bound {:.4f} by the table (self-contact {:.4f})", leg, b.table, b.self);
+    return;
+  }
+  const ContactPairs c = cand_.to_host();
+  std::vector<double> x, dx;
+  Exec::download(x, x_);
+  Exec::download(dx, dx_);
+  auto at = [](const std::vector<double>& v, int i) { return Vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]); };
+  int worst = -1;
+  double least = 1.0;
+  for (int k = 0; k < c.size(); ++k) {
+    const int* v = c.v.data() + 4 * k;
+    const Real alpha =
+        c.type[k] == 0 ? point_triangle_ccd(at(x, v[0]), at(x, v[1]), at(x, v[2]), at(x, v[3]), at(dx, v[0]),
+                                            at(dx, v[1]), at(dx, v[2]), at(dx, v[3]), 0.0, kCcdGapFraction,
+                                            kCcdMaxIterations, P_.ccd_floor)
+                       : edge_edge_ccd(at(x, v[0]), at(x, v[1]), at(x, v[2]), at(x, v[3]), at(dx, v[0]), at(dx, v[1]),
+                                       at(dx, v[2]), at(dx, v[3]), 0.0, kCcdGapFraction, kCcdMaxIterations,
+                                       P_.ccd_floor);
+    if (alpha < least) least = alpha, worst = k;
+  }
+  if (worst < 0) return;
+  const int* v = c.v.data() + 4 * worst;
+  auto tag = [&](int i) { return pinched(i) ? "pinched" : (at(dx, i).norm() > 0 ? "moving" : "still"); };
+  gd::log().debug("{}: CCD bound {:.4f} by {} pair: vertices {} ({}, moving {:.2e} m), {} ({}, {:.2e}), {} ({}, {:.2e}), "
+                  "{} ({}, {:.2e})",
+                  leg, b.self, c.type[worst] == 0 ? "a point-triangle" : "an edge-edge", v[0], tag(v[0]), at(dx, v[0]).norm(),
+                  v[1], tag(v[1]), at(dx, v[1]).norm(), v[2], tag(v[2]), at(dx, v[2]).norm(), v[3], tag(v[3]),
+                  at(dx, v[3]).norm());
 }
 
 /// Debug log (stop_yielding_colliders): for each stopped collider, the free vertex that keeps it

@@ -402,6 +402,7 @@ class Solver final : public SolverBase {
                    const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
   Vec3 guess_at(int i, double b) const;              ///< predictor.h
   bool pinched(int i) const;                         ///< predictor.h
+  void log_what_cuts(const char* leg, const CcdBounds& b);  ///< predictor.h
   void log_what_stops(const std::vector<int>& stop, const std::vector<double>& reach, double b,
                       const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
   double max_strain() override;
