@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "sim/backend/cpu/omp_threads.h"
+#include "sim/demand.h"
 #include "sim/log.h"
 
 namespace gd::sim {
@@ -61,7 +62,6 @@ class SerialOpenMp {
 
 struct DirectSolver::Impl {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
-  Eigen::SparseMatrix<double> lower;  // A's lower triangle (what CHOLMOD reads)
   std::vector<int> outer, inner;      // the pattern the ordering was computed for
   bool analyzed = false;
 
@@ -88,16 +88,17 @@ DirectSolver::~DirectSolver() = default;
 
 bool DirectSolver::factorize(const Eigen::SparseMatrix<double>& A) {
   Impl& s = *impl_;
-  s.lower = A.triangularView<Eigen::Lower>();
-  s.lower.makeCompressed();
+  // CHOLMOD is handed A as it is, marked symmetric with its lower triangle stored (stype -1):
+  // the upper triangle is not read, so no copy of the lower one is made.
+  GD_DEMAND(A.isCompressed(), "DirectSolver::factorize takes a compressed matrix");
   const SerialOpenMp serial(omp_threads() == 1);
-  if (!s.same_pattern(s.lower)) {  // CHOLMOD's default ordering (AMD, or METIS where AMD fills much)
-    s.llt.analyzePattern(s.lower);
-    s.outer.assign(s.lower.outerIndexPtr(), s.lower.outerIndexPtr() + s.lower.outerSize() + 1);
-    s.inner.assign(s.lower.innerIndexPtr(), s.lower.innerIndexPtr() + s.lower.nonZeros());
+  if (!s.same_pattern(A)) {  // CHOLMOD's default ordering (AMD, or METIS where AMD fills much)
+    s.llt.analyzePattern(A);
+    s.outer.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
+    s.inner.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
     s.analyzed = true;
   }
-  s.llt.factorize(s.lower);
+  s.llt.factorize(A);
   return s.llt.info() == Eigen::Success;
 }
 

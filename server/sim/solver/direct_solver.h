@@ -19,7 +19,8 @@ class DirectSolver {
   DirectSolver(const DirectSolver&) = delete;
   DirectSolver& operator=(const DirectSolver&) = delete;
 
-  /// Factorises the symmetric matrix A (both triangles stored; only the lower one is read).
+  /// Factorises the symmetric, compressed matrix A (both triangles stored; only the lower one is
+  /// read, in place).
   /// The fill-reducing ordering is computed again only when A's pattern (size, column pointers or
   /// row indices) differs from the last one's. Returns false where A is not positive definite
   /// (the caller falls back to PCG).
