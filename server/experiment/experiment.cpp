@@ -20,6 +20,7 @@
 #include "metrics/alignment.h"
 #include "metrics/cloud_io.h"
 #include "metrics/report.h"
+#include "sim/backend/cpu/omp_threads.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 #include "sim/material.h"
@@ -982,6 +983,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["failed"] = sc.failed();
   s["failure"] = sc.failure();
   s["backend"] = sc.backend();
+  s["threads"] = omp_threads();  // OpenMP threads of the run's host loops (SceneOptions::threads, else every core)
   s["deterministic"] = config.scene.deterministic;
   s["initial"] = {{"min_z", ini.min_z}, {"max_z", ini.max_z}, {"extent_x", ini.extent_x}, {"extent_y", ini.extent_y}};
   s["final"] = {{"min_z", fin.min_z}, {"max_z", fin.max_z}, {"mean_z", fin.mean_z}, {"p95_z", fin.p95_z},

@@ -174,6 +174,7 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
         cfg->settle_after, cfg->scene.dt, cfg->settle_after / cfg->scene.dt, options_.max_job_steps));
   if (spec.self_contact) cfg->scene.self_contact = *spec.self_contact;
   cfg->scene.backend = options_.backend;
+  cfg->scene.threads = options_.threads_per_job;
   cfg->scene.deterministic = options_.deterministic;
   cfg->icp = spec.icp;
   cfg->plots = options_.plots;

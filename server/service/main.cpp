@@ -61,7 +61,8 @@ int main(int argc, char** argv) {
   app.add_flag("--deterministic", o.deterministic,
                "CUDA: assembly in a fixed order instead of atomic adds, so a scene reset by seed takes the same "
                "steps bit for bit (slower; the CPU backend is deterministic either way)");
-  app.add_option("--threads", o.threads, "scene worker threads (0: hardware concurrency)")->check(CLI::NonNegativeNumber);
+  app.add_option("--threads", o.threads, "cores to compute on: the scene worker threads, and each running job's solver threads (--threads / "
+                 "--job-workers, at least 1); 0: hardware concurrency")->check(CLI::NonNegativeNumber);
   app.add_option("--max-scenes", o.max_scenes, "scenes alive at once")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--max-vertices", o.max_vertices, "vertices per scene")->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--max-substeps", o.max_substeps, "substeps per StepScenes call")->check(CLI::NonNegativeNumber)->capture_default_str();

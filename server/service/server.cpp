@@ -172,6 +172,7 @@ std::unique_ptr<Server> Server::start(const ServerOptions& o, Status* status) {
     jo.capture_root = o.capture_root.empty() ? (fs::path(o.data_dir) / "captures").string() : o.capture_root;
     fs::create_directories(jo.capture_root);
     jo.workers = o.job_workers;
+    jo.threads_per_job = std::max(1, im.scenes->threads() / o.job_workers);  // the jobs' share of --threads
     jo.max_job_steps = o.max_job_steps;
     jo.max_vertices = o.max_vertices;
     jo.plots = o.plots;

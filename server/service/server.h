@@ -22,7 +22,9 @@ struct ServerOptions {
   std::string capture_root;          ///< empty: data_dir/captures
   sim::BackendKind backend = sim::BackendKind::kCpu;
   bool deterministic = false;  ///< SceneOptions::deterministic for every scene (--deterministic)
-  int threads = 0;                   ///< scene worker threads (0: hardware concurrency)
+  /// Cores the server computes on (0: hardware concurrency): its scene workers, and each of the
+  /// job_workers jobs' solver gets threads / job_workers OpenMP threads (at least one).
+  int threads = 0;
   int max_scenes = 256;
   int max_vertices = 50000;
   int max_substeps = 1000;

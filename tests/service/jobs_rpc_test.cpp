@@ -98,6 +98,7 @@ TEST(JobsRpc, JobWithProgressAndReportSurvivesKillAndRestart) {
     EXPECT_EQ(summary["task"], "grasp");
     EXPECT_EQ(summary["failed"], false);
     EXPECT_GT(summary["steps"].get<int>(), 100);
+    EXPECT_EQ(summary["threads"], 2) << "one job worker of a --threads 2 server computes on both threads";
     EXPECT_EQ(rep.job().label(), "first");
     std::set<std::string> names(rep.file_names().begin(), rep.file_names().end());
     for (const char* f : {"summary.json", "final.obj", "initial.obj", "trajectory.csv", "timeseries.csv"})
@@ -142,6 +143,26 @@ TEST(JobsRpc, JobWithProgressAndReportSurvivesKillAndRestart) {
   const std::vector<pb::JobInfo> seen = watch(*stub, second);
   ASSERT_EQ(seen.size(), 1u);
   EXPECT_EQ(seen[0].status(), pb::JOB_INTERRUPTED);
+}
+
+// Jobs running at once share the server's --threads: two job workers of a --threads 2 server
+// run each job's solver on one thread (not on every core each, which on a busy machine waits a
+// scheduler slice at every parallel region's barrier).
+TEST(JobsRpc, RunningJobsShareTheServersThreads) {
+  TempDir dir;
+  ServerProcess server(dir.str() + "/data", {"--job-workers", "2"});
+  auto stub = server.stub();
+  pb::SubmitJobResponse sub;
+  const grpc::Status st = stub->SubmitJob(ctx().get(), short_grasp("shared"), &sub);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  const std::vector<pb::JobInfo> seen = watch(*stub, sub.job_id());
+  ASSERT_FALSE(seen.empty());
+  ASSERT_EQ(seen.back().status(), pb::JOB_SUCCEEDED) << seen.back().message();
+  pb::GetReportRequest gr;
+  gr.set_job_id(sub.job_id());
+  pb::GetReportResponse rep;
+  ASSERT_TRUE(stub->GetReport(ctx().get(), gr, &rep).ok());
+  EXPECT_EQ(nlohmann::json::parse(rep.summary_json())["threads"], 1);
 }
 
 /// grpc.health.v1.Health/Check, with the messages encoded by hand (no health.proto is installed).
