@@ -135,6 +135,16 @@ GD_HD double pair_distance(const int* v, int type, const double* x) {
   return sqrt(d2 < 0.0 ? 0.0 : d2);  // std::max(d2, 0.0)'s NaN: kept
 }
 
+/// The fraction of a pair's motion dx (4 vertex ids, type 0 VF or 1 EE) it may take from x
+/// without closing below kCcdGapFraction of its gap (nor under the floor; contact/ccd.h): the
+/// step bound's per-pair CCD (Solver::self_ccd_inverse_to) and its debug report (log_what_cuts).
+GD_HD Real pair_ccd_fraction(const int* v, int type, const double* x, const double* dx, Real ccd_floor) {
+  const Vec3 a = load3(x, v[0]), b = load3(x, v[1]), q = load3(x, v[2]), d = load3(x, v[3]);
+  const Vec3 da = load3(dx, v[0]), db = load3(dx, v[1]), dq = load3(dx, v[2]), dd = load3(dx, v[3]);
+  return type == 0 ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor)
+                   : edge_edge_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor);
+}
+
 /// A pair list as the source of a selection (Solver::select_from): every pair is one.
 struct ListSource {
   static constexpr bool kList = true;

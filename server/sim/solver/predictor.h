@@ -469,14 +469,7 @@ void Solver<Exec>::log_what_cuts(const char* leg, const CcdBounds& b) {
   int worst = -1;
   double least = 1.0;
   for (int k = 0; k < c.size(); ++k) {
-    const int* v = c.v.data() + 4 * k;
-    const Real alpha =
-        c.type[k] == 0 ? point_triangle_ccd(at(x, v[0]), at(x, v[1]), at(x, v[2]), at(x, v[3]), at(dx, v[0]),
-                                            at(dx, v[1]), at(dx, v[2]), at(dx, v[3]), 0.0, kCcdGapFraction,
-                                            kCcdMaxIterations, P_.ccd_floor)
-                       : edge_edge_ccd(at(x, v[0]), at(x, v[1]), at(x, v[2]), at(x, v[3]), at(dx, v[0]), at(dx, v[1]),
-                                       at(dx, v[2]), at(dx, v[3]), 0.0, kCcdGapFraction, kCcdMaxIterations,
-                                       P_.ccd_floor);
+    const Real alpha = detail::pair_ccd_fraction(c.v.data() + 4 * k, c.type[k], x.data(), dx.data(), P_.ccd_floor);
     if (alpha < least) least = alpha, worst = k;
   }
   if (worst < 0) return;

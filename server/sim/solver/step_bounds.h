@@ -107,15 +107,7 @@ void Solver<Exec>::self_ccd_inverse_to(double* out) {
   const double* dx = Exec::ptr(dx_);
   const Real ccd_floor = P_.ccd_floor;
   Exec::max_to(V.cand.n, [=] GD_HD_LAMBDA(int c) {
-    const int* v = V.cand.v + 4 * c;
-    const Vec3 a = detail::load3(x, v[0]), b = detail::load3(x, v[1]), q = detail::load3(x, v[2]),
-               d = detail::load3(x, v[3]);
-    const Vec3 da = detail::load3(dx, v[0]), db = detail::load3(dx, v[1]), dq = detail::load3(dx, v[2]),
-               dd = detail::load3(dx, v[3]);
-    const Real alpha =
-        V.cand.type[c] == 0
-            ? point_triangle_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor)
-            : edge_edge_ccd(a, b, q, d, da, db, dq, dd, 0.0, kCcdGapFraction, kCcdMaxIterations, ccd_floor);
+    const Real alpha = detail::pair_ccd_fraction(V.cand.v + 4 * c, V.cand.type[c], x, dx, ccd_floor);
     return alpha >= 1.0 ? 0.0 : (alpha > 1e-12 ? 1.0 / alpha : 1e12);
   }, out, Exec::kParallelMinHeavy);
 }
