@@ -675,3 +675,14 @@ class Solver final : public SolverBase {
 #include "sim/solver/step_bounds.h"
 #include "sim/solver/vector_ops.h"
 #include "sim/solver/diagnostics.h"
+
+#if !defined(__CUDACC__)
+#include "sim/backend/cpu/exec_cpu.h"
+namespace gd::sim {
+// The CPU backend's two instances are compiled once, in backend/cpu/cpu_solver.cpp: a test that
+// includes this header to reach a stage links them instead of compiling the whole solver again
+// (each such test's unity batch took ~2 min to compile).
+extern template class Solver<CpuExec>;
+extern template class Solver<CpuGpuPathsExec>;
+}  // namespace gd::sim
+#endif

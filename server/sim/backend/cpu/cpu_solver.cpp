@@ -5,6 +5,9 @@
 
 namespace gd::sim {
 
+template class Solver<CpuExec>;          // the instances solver_impl.h declares extern
+template class Solver<CpuGpuPathsExec>;
+
 std::unique_ptr<SolverBase> make_cpu_solver(std::shared_ptr<const SceneData> data, const SceneOptions& opt) {
   if (opt.backend == BackendKind::kCpuGpuPaths) return std::make_unique<Solver<CpuGpuPathsExec>>(std::move(data), opt);
   return std::make_unique<Solver<CpuExec>>(std::move(data), opt);
