@@ -301,6 +301,10 @@ int main(int argc, char** argv) {
   run->add_option("--grip-force-limit", grip_force_limit,
                   "most a grip pulls on one held vertex, N (0: no limit)")
       ->capture_default_str();
+  run->add_option("--pad-stiffness", cfg.scene.pad_stiffness,
+                  "robot mode: pads stopped short by the cloth go on in the solve, pulled to their poses by "
+                  "this stiffness, N/m (0: they stay stopped)")
+      ->capture_default_str();
   run->add_option("--jaw-radius", cfg.grippers.jaw_radius,
                   "pseudo mode: a closing gripper takes the vertices within this distance, m (at least the nearest)")
       ->capture_default_str();
@@ -402,7 +406,7 @@ int main(int argc, char** argv) {
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic", "--garment-position",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--newton-max", "--no-plots", "--mesh-every",
-                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf-package-path",
+                                     "--compression-ratio", "--grip-force-limit", "--pad-stiffness", "--jaw-radius", "--urdf-package-path",
                                      "--no-link-colliders", "--grip-force-schedule", "--independent-pads"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");

@@ -1024,6 +1024,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                          robot->state(tasks::Arm::kRight).link_colliders.size()},
                   {"link_meshes_not_found", robot->arm_model().skipped_meshes()},
                   {"rigid_hands", config.robot.rigid_hands},
+                  {"pad_stiffness", config.scene.pad_stiffness},  // N/m; 0: pads stopped by the predictor
                   {"arms", arms}};
     if (placement)  // the garment moved to where the arms follow the task best (absent: placed as given)
       s["robot"]["placement"] = {{"given_position_m", {config.garment_position.x(), config.garment_position.y(),

@@ -358,6 +358,8 @@ void SceneOptions::validate() const {
   nonneg(bending_damping, "bending_damping");
   nonneg(mass_damping, "mass_damping");
   positive(grip_stiffness, "grip_stiffness");
+  if (!(pad_stiffness >= 0) || !std::isfinite(pad_stiffness))
+    throw InputError(fmt::format("option pad_stiffness must be >= 0 N/m (0: off), got {}", pad_stiffness));
   if (!(grip_force_limit > 0))  // infinity allowed
     throw InputError(fmt::format("option grip_force_limit must be > 0 N (infinity: no limit), got {}", grip_force_limit));
   if (!(compression_ratio > 0 && compression_ratio <= 1))

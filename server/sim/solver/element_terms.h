@@ -34,6 +34,9 @@ GD_HD void store3(double* p, int i, const Vec3& v) {
 }
 
 /// Scalars every element kernel needs, passed by value into kernels.
+/// Values per collider in View::col_move.
+constexpr int kColMove = 13;
+
 struct Params {
   Real h = 0;
   Vec3 gravity = Vec3::Zero();
@@ -105,6 +108,11 @@ struct View {
   const double* col_pose;
   const double* col_mu;
   const double* col_kappa;  ///< barrier stiffness scale per collider (Collider::stiffness_scale)
+  /// Per collider, for pads in the solve (pads_in_solve.h; col_moving set where one is): its
+  /// displacement over a whole Newton step (alpha = 1) at world point p, A p + b (A row-major, then
+  /// b: 12 values), and a bound on |A| (the 13th; negative: the collider does not move).
+  const double* col_move;
+  bool col_moving = false;
   ColliderMeshView col_mesh;
   // self-contact: candidate pairs (line search, CCD), active pairs (Hessian), lagged friction
   PairView cand, act;
@@ -190,6 +198,35 @@ GD_HD Vec3 clear_of_table(const Params& P, const Vec3& p, Vec3 step) {
 /// the membrane (SceneOptions::grip_stiffness).
 GD_HD Real grip_stiffness(const Params& P, Real m) { return P.kin_stiffness * (m / (P.h * P.h) + P.membrane_ref); }
 
+/// One vertex against one kinematic collider, added to *e, *g and *H (g, H may be null): the
+/// barrier at the collider's end-of-step pose, then the friction lagged at the step's start (the
+/// collider's motion over the step as the surface's displacement). `pose`: R0 row-major, t0, R1,
+/// t1 (24 doubles); kappa: the barrier stiffness for this vertex. vertex_terms adds it over the
+/// colliders; the pads in the solve (pads_in_solve.h) take it one pad at a time, on the host.
+GD_HD void add_collider_vertex_terms(const Params& P, const Vec3& x, const Vec3& xt, const double* pose,
+                                     const ColliderShape& shape, const ColliderMeshView& mesh, Real kappa, Real mu,
+                                     Real* e, Vec3* g, Mat3* H) {
+  const Mat3 R0 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(pose);
+  const Vec3 t0(pose[9], pose[10], pose[11]);
+  const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(pose + 12);
+  const Vec3 t1(pose[21], pose[22], pose[23]);
+  Vec3 gk;
+  Mat3 Hc;
+  *e += point_collider_energy(x, R1, t1, shape, 0.0, P.dhat, kappa, g ? &gk : nullptr, H ? &Hc : nullptr,
+                              HessianKind::kProjected, &mesh);
+  if (g) *g += gk;
+  if (H) *H += Hc;
+  if (mu > 0) {
+    const ColliderContactFrame f = collider_contact_frame(xt, R0, t0, R1, t1, shape, 0.0, P.dhat, kappa, &mesh);
+    if (f.lambda > 0) {
+      *e += point_collider_friction(x, xt, f.surface_displacement, f.T, mu, f.lambda, P.friction_eps,
+                                    g ? &gk : nullptr, H ? &Hc : nullptr);
+      if (g) *g += gk;
+      if (H) *H += Hc;
+    }
+  }
+}
+
 /// Per-vertex terms: inertia, gravity, mass damping, table barrier, lagged friction and grip springs.
 GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Vec3* g, Mat3* H) {
   const Real m = V.mass[i];
@@ -214,31 +251,10 @@ GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Ve
     if (g) *g += gk;
     if (H) *H += Hk;
   }
-  if (!V.fixed[i]) {  // kinematic colliders: barrier at the end pose, friction lagged
-    for (int c = 0; c < V.n_col; ++c) {
-      const double* q = V.col_pose + 24 * c;
-      const Mat3 R0 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q);
-      const Vec3 t0(q[9], q[10], q[11]);
-      const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
-      const Vec3 t1(q[21], q[22], q[23]);
-      const Real kappa = P.kappa_per_mass * m * V.col_kappa[c];
-      Mat3 Hc;
-      e += point_collider_energy(x, R1, t1, V.col_shape[c], 0.0, P.dhat, kappa, g ? &gk : nullptr, H ? &Hc : nullptr,
-                                 HessianKind::kProjected, &V.col_mesh);
-      if (g) *g += gk;
-      if (H) *H += Hc;
-      if (V.col_mu[c] > 0) {
-        const ColliderContactFrame f =
-            collider_contact_frame(xt, R0, t0, R1, t1, V.col_shape[c], 0.0, P.dhat, kappa, &V.col_mesh);
-        if (f.lambda > 0) {
-          e += point_collider_friction(x, xt, f.surface_displacement, f.T, V.col_mu[c], f.lambda, P.friction_eps,
-                                       g ? &gk : nullptr, H ? &Hc : nullptr);
-          if (g) *g += gk;
-          if (H) *H += Hc;
-        }
-      }
-    }
-  }
+  if (!V.fixed[i])  // kinematic colliders: barrier at the end pose, friction lagged
+    for (int c = 0; c < V.n_col; ++c)
+      add_collider_vertex_terms(P, x, xt, V.col_pose + 24 * c, V.col_shape[c], V.col_mesh,
+                                P.kappa_per_mass * m * V.col_kappa[c], V.col_mu[c], &e, g, H);
   if (P.table && !V.fixed[i]) {
     const Real kappa = P.kappa_per_mass * m;
     Mat3 Hb;

@@ -94,6 +94,13 @@ struct SceneOptions {
   /// the garment held the pinch back while the pads went on (docs/robot.md, "A guess that carries
   /// the pinch first"). Needs pinch_stopping_rule (which finds the pinch); no effect without a hand.
   bool pinch_first_guess = true;
+  /// Pads in the solve: where the predictor stopped a hand's pads short of their poses
+  /// (yielding colliders), Newton's iterations carry them on along their paths, each hand one
+  /// degree of freedom (how far along its step it got) pulled to the step's end by a spring of this
+  /// stiffness (N/m) and pushed back by the cloth's barrier and friction: a hand is held back by
+  /// the force the cloth resists with, not stopped by where the predictor's guess could go
+  /// (docs/robot.md, "Pads in the solve"). 0: off (the pads stay where the predictor stopped them).
+  Real pad_stiffness = 0;
   /// PCG iteration cap per Newton iteration; 0 (the default): max(50, sqrt(n) / 2.5) for n vertices
   /// (effective_pcg_max_iters). Block-Jacobi PCG (self-contact's default) reaches the cap in most
   /// Newton iterations after a step's first, and past ~50 iterations at 5-20k vertices its slow

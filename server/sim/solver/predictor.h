@@ -93,7 +93,10 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
   });
   pinch_mass_ = 0;                                   // no pinch until carry_pinched_cloth finds one
   if (n_col_ > 0) carry_pinched_cloth();            // cloth pinched by a hand's pads goes with the hand
-  if (n_col_ > 0) project_out_of_colliders(false);  // a collider may have moved into the cloth
+  // A collider may have moved into the cloth: out of it (a pad in the solve is stopped where the
+  // guess is clear of it instead, below: pushed out unguarded, cloth squeezed between pads went
+  // into the other pad).
+  if (n_col_ > 0) project_out_of_colliders(false, opt_.pad_stiffness > 0);
   if (self_) {
     // One broad phase on the predictor's motion x_t -> x: its candidates hold every pair within
     // dhat at x_t too (a swept box contains the box at x_t), so the contacts at the start of
@@ -114,9 +117,10 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
       axpy(alpha < 1.0 ? 0.9 * alpha : 1.0, dx_, x_);
     // The scaled motion may stop short inside a collider, and a vertex squeezed between two may be
     // left inside one by the projection itself.
-    if (n_col_ > 0 && (alpha < 1.0 || (Exec::download(host_x_, x_), inside_a_collider(host_x_)))) {
+    if (n_col_ > 0 &&
+        (alpha < 1.0 || opt_.pad_stiffness > 0 || (Exec::download(host_x_, x_), inside_a_collider(host_x_)))) {
       stop_yielding_colliders();        // a yielding one (a gripper pad) stops where the cloth is
-      project_out_of_colliders(true);   // out of the others, unguarded by CCD
+      project_out_of_colliders(true, false);  // out of the others, unguarded by CCD
     }
   }
 }
@@ -138,6 +142,7 @@ int Solver<Exec>::newton_max_iters() const {
 /// g_ now holds the gradient at the new x.
 template <class Exec>
 bool Solver<Exec>::accept_step(double alpha) {
+  move_pads(alpha);  // the hands in the solve (pads_in_solve.h) to where the step takes them
   if (alpha == 0.0) return false;
   if (alpha == last_trial_alpha_) {
     std::swap(x_, x_trial_);
@@ -170,16 +175,18 @@ void Solver<Exec>::end_step() {
 /// the yielding colliders the guess is clear of (stop_yielding_colliders: stopped short or not,
 /// the guess keeps half its clearance from them, and a vertex moved back out to its clearance at
 /// the step's start would move unguarded by CCD); the later rounds take every collider (moving a
-/// vertex out of another may have moved it into one). Each collider at its end pose as the solver
-/// has it (col_end_: where a yielding one stopped).
+/// vertex out of another may have moved it into one). skip_yielding: every yielding collider left
+/// out (pads in the solve, SceneOptions::pad_stiffness: stop_yielding_colliders then stops each where
+/// the guess is clear of it). Each collider at its end pose as the solver has it (col_end_: where
+/// a yielding one stopped).
 template <class Exec>
-void Solver<Exec>::project_out_of_colliders(bool skip_clear) {
+void Solver<Exec>::project_out_of_colliders(bool skip_clear, bool skip_yielding) {
   Exec::download(host_x_, x_);
   Exec::download(host_xt_, x_t_);
   double gap = 0.5 * P_.dhat;
   for (int round = 0; round < 4; ++round, gap *= 0.5) {
     for (int k = 0; k < n_col_; ++k)
-      if (!(skip_clear && round == 0 && col_clear_[k]))
+      if (!(skip_clear && round == 0 && col_clear_[k]) && !(skip_yielding && (*colliders_)[k].yielding()))
         (*colliders_)[k].project_out(&host_x_, kin_fixed_host_, col_end_[k], gap, host_xt_,
                                      (*colliders_)[k].checked_pose(col_t0_), kClearanceFloor * P_.dhat);
     if (colliders_->size() < 2 || !inside_a_collider(host_x_)) break;

@@ -129,25 +129,27 @@ class Solver final : public SolverBase {
     const long bp_queries_at_start = self_ ? self_->broad_phase_queries() : 0;
     const long halvings_at_start = self_ ? self_->flood_halvings() : 0;
     timed(T.predictor, [&] { begin_step(kin, quasi_static); });   // lagged data, Dirichlet targets, predictor
+    begin_pad_dofs();                                               // hands stopped short join the solve
     bool gradient_known = false;                                    // g_ is the gradient at x (line search)
     double scale = 0;                                               // the first Newton step's size, m/s
     double taken = 0;                                               // the last correction made, m/s
     const int newton_cap = newton_max_iters();                      // higher while fingers pinch the cloth
     for (int k = 0; k < newton_cap; ++k) {
-      if (k > 0 && residual_rule() && converged(&st, k, gradient_known, scale, taken)) break;  // residual small
+      if (k > 0 && residual_rule() && pads_settled() && converged(&st, k, gradient_known, scale, taken))
+        break;                                                      // residual small
       timed(T.contacts, [&] { select_contacts(); });                // active self-contact pairs at x
       double e0 = 0;
-      timed(T.assembly, [&] { e0 = assemble(); });                  // L, gradient and PSD Hessian at x
+      timed(T.assembly, [&] { e0 = assemble() + pad_spring_energy(0.0); });  // L, gradient and PSD Hessian at x
       if (!std::isfinite(e0)) {                                     // e.g. a target that tears the cloth apart
         gd::log().warn("newton {}: the energy at the iterate is not finite: {}", k, infinite_terms());
         st.finite = false;
         break;
       }
-      if (k == 0 && residual_rule() && predictor_converged(&st)) break;  // nothing left to solve
+      if (k == 0 && residual_rule() && pad_hands_.empty() && predictor_converged(&st)) break;  // nothing left to solve
       timed(T.couplings, [&] { merge_couplings(); });               // contact pairs' blocks as a matrix
       timed(T.precond, [&] { prepare_linear_solve(); });            // PCG's preconditioner
       timed(T.stopping, [&] { order_estimator(); });                // the stopping rule's, ordered at x
-      timed(T.pcg, [&] { st.pcg_iters += solve_linear(scale); });   // dx = -H^-1 g (inexact)
+      timed(T.pcg, [&] { st.pcg_iters += solve_with_pads(scale); });  // dx = -H^-1 g (inexact), hands too
       bool direction_finite = true;
       timed(T.contacts, [&] { direction_finite = find_contacts_along_step(); });  // broad phase on x -> x + dx
       if (!direction_finite) {                                      // a linear solve that broke down
@@ -156,7 +158,7 @@ class Solver final : public SolverBase {
         break;
       }
       double alpha_max = 1, alpha = 0;
-      timed(T.ccd, [&] { alpha_max = max_step(); });                // CCD: largest safe fraction of dx
+      timed(T.ccd, [&] { alpha_max = std::min(max_step(), pad_step_bound()); });  // CCD: largest safe fraction of dx
       timed(T.line_search, [&] { alpha = step_length(alpha_max, e0, &st); });  // table cut or Armijo backtracking
       gradient_known = accept_step(alpha);                          // x += alpha dx
       st.newton_iters = k + 1;
@@ -168,14 +170,14 @@ class Solver final : public SolverBase {
       gd::log().trace("newton {}: step rms {:.3g} m/s (max |dx|/h {:.3g}), alpha {:.3g} (max {:.3g}), pcg {}, "
                       "candidates {}, evaluations {}", k, taken, st.step_norm, alpha, alpha_max, st.pcg_iters, cand_.n,
                       st.energy_evals);
-      if (k > 0 && residual_rule() && taken <= residual_threshold(scale) && !pressed() &&
+      if (k > 0 && residual_rule() && taken <= residual_threshold(scale) && pads_settled() && !pressed() &&
           pinch_settled(dx_, alpha, residual_threshold(scale))) {  // last correction small, at the pinch too
         st.converged = true;
         break;
       }
       // Also converged when the Newton direction itself is small: a step cut short by CCD or the
       // line search (alpha << 1) moves little without being at the minimum.
-      if (st.step_norm < opt_.newton_tol) {
+      if (st.step_norm < opt_.newton_tol && pads_settled()) {
         st.converged = true;
         break;
       }
@@ -239,6 +241,15 @@ class Solver final : public SolverBase {
     col_pose_host_ = std::move(poses);
     Exec::upload(col_mu_, mu);
     Exec::upload(col_kappa_, kappa);
+    pad_hands_.clear();
+    still_colliders();
+    if (opt_.pad_stiffness > 0) {  // host copies for the pads' couplings (pads_in_solve.h)
+      col_shape_host_ = std::move(packed.shapes);
+      col_vertices_host_ = std::move(packed.vertices);
+      col_tris_host_ = std::move(packed.triangles);
+      col_mu_host_ = std::move(mu);
+      col_kappa_host_ = std::move(kappa);
+    }
   }
 
   // The stages, declared here and defined one file each (included at the end of this file). They
@@ -393,11 +404,23 @@ class Solver final : public SolverBase {
   std::string infinite_terms();
   /// Whether a free vertex of x (host, 3 per vertex) lies on or inside a collider's end pose.
   bool inside_a_collider(const std::vector<double>& x) const;
-  void project_out_of_colliders(bool skip_clear);  ///< predictor.h
+  void project_out_of_colliders(bool skip_clear, bool skip_yielding);  ///< predictor.h
   void stop_yielding_colliders();                    ///< predictor.h
   void carry_pinched_cloth();                        ///< predictor.h
   bool guess_pinch_first();                          ///< predictor.h
   std::vector<std::vector<double>> yielding_clearances() const;  ///< predictor.h
+  // The pads in the solve (pads_in_solve.h; SceneOptions::pad_stiffness)
+  void begin_pad_dofs();
+  Eigen::Isometry3d pad_pose(int k, double s) const;
+  void set_pads_at(double alpha);
+  double pad_spring_energy(double alpha) const;
+  double pad_slope() const;
+  void pad_couplings();
+  int solve_with_pads(double first_step);
+  double pad_step_bound() const;
+  void move_pads(double alpha);
+  bool pads_settled() const;
+  void still_colliders();
   bool keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
                    const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
   Vec3 guess_at(int i, double b) const;              ///< predictor.h
@@ -437,6 +460,8 @@ class Solver final : public SolverBase {
     V.col_pose = Exec::ptr(col_pose_);
     V.col_mu = Exec::ptr(col_mu_);
     V.col_kappa = Exec::ptr(col_kappa_);
+    V.col_move = Exec::ptr(col_move_);
+    V.col_moving = !pad_hands_.empty();
     V.col_mesh = ColliderMeshView{Exec::ptr(col_vertices_), Exec::ptr(col_tris_)};
     V.cand = cand_.view();
     V.act = act_.view();
@@ -532,6 +557,23 @@ class Solver final : public SolverBase {
   Vec<Eigen::Vector3i> col_tris_;
   Vec<double> col_pose_, col_mu_, col_kappa_;
   std::vector<double> host_x_, host_xt_;
+  /// A hand in the solve (pads_in_solve.h): its pads (colliders), how far along the step's motion
+  /// they are (s, 0..1), the Newton direction's part for it (ds), the spring's K |path|^2, and its
+  /// gradient, Hessian and coupling to the cloth (3 per vertex) at the current iterate.
+  struct PadHand {
+    int group = -1;
+    std::vector<int> pads;
+    double s = 1, ds = 0, k_path2 = 0, grad = 0, hess = 0;
+    std::vector<double> coupling;
+    std::vector<Eigen::Isometry3d> unit_motion;  ///< per pad: its motion per unit s, about s
+  };
+  std::vector<PadHand> pad_hands_;
+  double pad_moved_ = 0;  ///< the largest path a hand moved in the last Newton iteration, m
+  Vec<double> col_move_;
+  std::vector<ColliderShape> col_shape_host_;
+  std::vector<Vec3> col_vertices_host_;
+  std::vector<Eigen::Vector3i> col_tris_host_;
+  std::vector<double> col_mu_host_, col_kappa_host_;
   /// The cloth pinched between a hand's pads this step (carry_pinched_cloth): per vertex its mass
   /// where pinched, else 0, and their total (0: no pinch; SceneOptions::pinch_stopping_rule).
   std::vector<double> pinch_w_host_;
@@ -675,6 +717,7 @@ class Solver final : public SolverBase {
 #include "sim/solver/step_bounds.h"
 #include "sim/solver/vector_ops.h"
 #include "sim/solver/diagnostics.h"
+#include "sim/solver/pads_in_solve.h"
 
 #if !defined(__CUDACC__)
 #include "sim/backend/cpu/exec_cpu.h"

@@ -46,7 +46,11 @@ typename Solver<Exec>::CcdBounds Solver<Exec>::ccd_bounds(bool table, bool self,
 /// function, so d(x + a dx) >= d(x) + a n.dx (n its gradient, the outward normal): only the motion
 /// towards the surface is bounded, and cloth pressed against a pad slides along it or leaves it
 /// freely; so for a convex mesh (a URDF link's hull). Another mesh may be non-convex: there the
-/// distance's 1-Lipschitz bound, |dx| <= 0.9 d, holds.
+/// distance's 1-Lipschitz bound, |dx| <= 0.9 d, holds. A pad in the solve (pads_in_solve.h) moves
+/// too: the vertex's motion is taken relative to the pad's point under it (the pad's displacement,
+/// affine in the point: V.col_move, 12 values), plus the turn's margin (V.col_move's 13th value,
+/// a bound on how much the displacement differs over the distance d): cloth the pads carry moves
+/// with them without being held back.
 template <class Exec>
 void Solver<Exec>::collider_step_inverse_to(double* out) {
   const detail::View V = view();
@@ -54,22 +58,32 @@ void Solver<Exec>::collider_step_inverse_to(double* out) {
   const double* dx = Exec::ptr(dx_);
   Exec::max_to(n_, [=] GD_HD_LAMBDA(int i) {
     if (V.fixed[i]) return 0.0;
-    const Real len = detail::load3(dx, i).norm();
-    if (len == 0) return 0.0;
+    const Vec3 xi = detail::load3(x, i);
+    const Vec3 di = detail::load3(dx, i);
+    if (di.squaredNorm() == 0 && !V.col_moving) return 0.0;
     double worst = 0;
     for (int c = 0; c < V.n_col; ++c) {
       const double* q = V.col_pose + 24 * c;
       const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
       const Vec3 t1(q[21], q[22], q[23]);
+      Vec3 rel = di;  // the vertex's motion relative to the collider's point under it
+      Real turn = 0;  // how far the collider's displacement may differ from that point's, per metre
+      if (V.col_moving && V.col_move[detail::kColMove * c + 12] >= 0) {
+        const double* m = V.col_move + detail::kColMove * c;
+        const Mat3 A = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(m);
+        rel -= A * xi + Vec3(m[9], m[10], m[11]);
+        turn = m[12];
+      }
+      if (rel.squaredNorm() == 0) continue;
       Vec3 n;
-      const Real d = collider_world_distance(detail::load3(x, i), R1, t1, V.col_shape[c], &V.col_mesh, &n, nullptr);
+      const Real d = collider_world_distance(xi, R1, t1, V.col_shape[c], &V.col_mesh, &n, nullptr);
       if (!(d > 0)) {
         worst = 1e12;
       } else if (V.col_shape[c].type == ColliderType::kMesh && !V.col_shape[c].mesh_convex) {
-        worst = fmax(worst, len / (0.9 * d));
+        worst = fmax(worst, (rel.norm() + turn * d) / (0.9 * d));
       } else {
-        const Real dn = n.dot(detail::load3(dx, i));
-        if (dn < 0) worst = fmax(worst, -dn / (0.9 * d));
+        const Real dn = n.dot(rel);
+        if (dn < 0 || turn > 0) worst = fmax(worst, (fmax(-dn, 0.0) + turn * d) / (0.9 * d));
       }
     }
     return worst;
@@ -153,12 +167,13 @@ double Solver<Exec>::table_cut_step(double alpha_max, double e0, int* evals) {
     if (dn < 0 && -dn > 0.9 * d) detail::store3(dx, i, Vec3(di - (dn + 0.9 * d) * P.table_n));
   });
   const CcdBounds b = ccd_bounds(false, true, true, true);  // with g·dx
-  const double alpha = std::min({1.0, b.self, b.collider});
-  const double slope = host_red_[kRedSlope];
+  const double alpha = std::min({1.0, b.self, b.collider, pad_step_bound()});
+  const double slope = host_red_[kRedSlope] + pad_slope();
   if (alpha >= 2 * table_bound && slope < 0) {
     copy(x_, x_trial_);
     axpy(alpha, dx_, x_trial_);
-    const double e = evaluate(x_trial_, g_trial_, false);
+    if (!pad_hands_.empty()) set_pads_at(alpha);
+    const double e = evaluate(x_trial_, g_trial_, false) + pad_spring_energy(alpha);
     ++*evals;
     if (std::isfinite(e) && e <= e0 + 1e-4 * alpha * slope) {
       last_trial_alpha_ = alpha;
@@ -182,8 +197,9 @@ double Solver<Exec>::line_search(double alpha_max, double e0, int* evals) {
   for (int k = 0; k < 20; ++k) {
     copy(x_, x_trial_);
     axpy(alpha, dx_, x_trial_);
-    const double e = evaluate(x_trial_, g_trial_, false);
-    if (k == 0) slope = host_red_[kRedSlope];
+    if (!pad_hands_.empty()) set_pads_at(alpha);  // the hands in the solve where the trial puts them
+    const double e = evaluate(x_trial_, g_trial_, false) + pad_spring_energy(alpha);
+    if (k == 0) slope = host_red_[kRedSlope] + pad_slope();
     ++*evals;
     if (std::isfinite(e) && e <= e0 + 1e-4 * alpha * std::min(slope, 0.0)) {
       last_trial_alpha_ = alpha;

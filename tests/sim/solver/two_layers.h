@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "sim/mesh.h"
@@ -55,6 +56,31 @@ struct Pads {
     }
   }
 };
+
+/// The squeeze scenes' pads (yielding_collider_test, pads_in_solve_test): two boxes of half extents
+/// (W, thick, grip/2) across the layers at height z, the -y one still centred at
+/// y = -y_start, the +y one moved by `moving`; added in that order. `still_yields`: the still pad
+/// yields too; `group`: both are one hand (a yield group). Returns {still id, moving id}.
+inline std::pair<int, int> add_squeeze_pads(Scene& scene, const std::shared_ptr<PadMotion>& moving, double W,
+                                            double thick, double grip, double y_start, double z, bool moving_yields,
+                                            bool still_yields, bool group, double friction) {
+  std::pair<int, int> ids{-1, -1};
+  for (const double side : {-1.0, 1.0}) {
+    Collider pad = Collider::box(Vec3(W, thick, 0.5 * grip));
+    if (side > 0) {
+      pad.set_pose([moving](double t) { return moving->at(t); });
+      pad.set_yielding(moving_yields);
+    } else {
+      pad.set_pose([=](double) { return Eigen::Isometry3d(Eigen::Translation3d(0.5 * W, -y_start, z)); });
+      pad.set_yielding(still_yields);
+    }
+    if (group) pad.set_yield_group(0);
+    pad.set_friction(friction);
+    pad.set_stiffness_scale(20);
+    (side > 0 ? ids.second : ids.first) = scene.add_collider(pad);
+  }
+  return ids;
+}
 
 /// Options of the pinch scenes: 5 ms steps, self-contact on, no table, no air.
 inline SceneOptions pinch_options() {

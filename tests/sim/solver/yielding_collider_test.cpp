@@ -44,22 +44,9 @@ SqueezeRun squeeze(bool yielding, double speed, double seconds, bool grouped = f
   auto target = [=](double t) { return Vec3(0.5 * W, std::max(y_end, y_start - speed * t), z); };
   auto moving = std::make_shared<PadMotion>();
   moving->from = moving->to = target(0);
-  int id = -1, still = -1;
-  for (const double side : {-1.0, 1.0}) {
-    Collider pad = Collider::box(Vec3(W, thick, 0.5 * grip));
-    if (side > 0) {
-      pad.set_pose([moving](double t) { return moving->at(t); });
-      pad.set_yielding(yielding);
-    } else {
-      pad.set_pose([=](double) { return Eigen::Isometry3d(Eigen::Translation3d(0.5 * W, -y_start, z)); });
-      pad.set_yielding(grouped);
-    }
-    if (grouped) pad.set_yield_group(0);
-    pad.set_friction(1.5);
-    pad.set_stiffness_scale(20);
-    const int k = scene->add_collider(pad);
-    (side > 0 ? id : still) = k;
-  }
+  const auto [still, id] =
+      testing_layers::add_squeeze_pads(*scene, moving, W, thick, grip, y_start, z, yielding, grouped, grouped, 1.5);
+
   SqueezeRun r;
   while (scene->time() < seconds - 1e-9 && !scene->failed()) {
     const double reached = scene->collider_reached({id})[0];
