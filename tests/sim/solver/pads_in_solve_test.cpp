@@ -53,11 +53,7 @@ ClosingRun close_on_stack(double pad_stiffness, double seconds, double friction,
   ClosingRun r;
   int steps = 0;
   while (scene->time() < seconds - 1e-9 && !scene->failed()) {
-    const double reached = scene->collider_reached({id})[0];
-    moving->from = moving->at(moving->t0 + reached * (moving->t1 - moving->t0)).translation();
-    moving->t0 = scene->time();
-    moving->t1 = scene->time() + o.dt;
-    moving->to = target(moving->t1);
+    moving->next(scene->collider_reached({id})[0], scene->time(), o.dt, target(scene->time() + o.dt));
     const Vec3 path = moving->to - moving->from;
     scene->step();
     const StepStats& st = scene->last_stats();

@@ -21,6 +21,14 @@ struct PadMotion {
     const double u = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
     return Eigen::Isometry3d(Eigen::Translation3d((1 - u) * from + u * to));
   }
+  /// The coming step, from `now` to now + dt: from where the last one got to (the fraction
+  /// `reached` of its motion: Scene::collider_reached) to `target`.
+  void next(double reached, double now, double dt, const Vec3& target) {
+    from = at(t0 + reached * (t1 - t0)).translation();
+    t0 = now;
+    t1 = now + dt;
+    to = target;
+  }
 };
 
 /// Box pads of half extents `half` at `at` (one per entry), moved by PadMotion: each step from
@@ -47,13 +55,7 @@ struct Pads {
   template <class Target>
   void advance(const Scene& scene, double dt, Target target) {
     const std::vector<double> reached = scene.collider_reached(ids);
-    for (size_t k = 0; k < ids.size(); ++k) {
-      PadMotion& m = *motion[k];
-      m.from = m.at(m.t0 + reached[k] * (m.t1 - m.t0)).translation();
-      m.t0 = scene.time();
-      m.t1 = scene.time() + dt;
-      m.to = target(k, m.t1);
-    }
+    for (size_t k = 0; k < ids.size(); ++k) motion[k]->next(reached[k], scene.time(), dt, target(k, scene.time() + dt));
   }
 };
 

@@ -49,11 +49,7 @@ SqueezeRun squeeze(bool yielding, double speed, double seconds, bool grouped = f
 
   SqueezeRun r;
   while (scene->time() < seconds - 1e-9 && !scene->failed()) {
-    const double reached = scene->collider_reached({id})[0];
-    moving->from = moving->at(moving->t0 + reached * (moving->t1 - moving->t0)).translation();
-    moving->t0 = scene->time();
-    moving->t1 = scene->time() + o.dt;
-    moving->to = target(moving->t1);
+    moving->next(scene->collider_reached({id})[0], scene->time(), o.dt, target(scene->time() + o.dt));
     scene->step();
     const StepStats& st = scene->last_stats();
     r.found = std::max(r.found, st.intersecting_found);
