@@ -24,12 +24,6 @@
 
 namespace gd::sim {
 
-/// Pad k's pose at fraction s of its motion over the step (the predictor's path).
-template <class Exec>
-Eigen::Isometry3d Solver<Exec>::pad_pose(int k, double s) const {
-  return (*colliders_)[k].checked_pose(col_t0_ + s * (col_t1_ - col_t0_));
-}
-
 /// After the predictor: every hand whose pads it stopped short joins the solve.
 template <class Exec>
 void Solver<Exec>::begin_pad_dofs() {
@@ -53,13 +47,14 @@ void Solver<Exec>::begin_pad_dofs() {
   }
   for (PadHand& h : pad_hands_) {
     double path = 0;
-    for (const int k : h.pads) path += (pad_pose(k, 1.0).translation() - pad_pose(k, 0.0).translation()).norm();
+    for (const int k : h.pads) path += (pose_along(k, 1.0).translation() - pose_along(k, 0.0).translation()).norm();
     path /= static_cast<double>(h.pads.size());
     h.k_path2 = opt_.pad_stiffness * path * path;
   }
   pad_hands_.erase(std::remove_if(pad_hands_.begin(), pad_hands_.end(), [](const PadHand& h) { return !(h.k_path2 > 0); }),
                    pad_hands_.end());
-  if (!pad_hands_.empty()) set_pads_at(0.0);
+  if (pad_hands_.empty()) return;
+  set_pads_at(0.0);
   gd::log().debug("pads in the solve: {} hand(s)", pad_hands_.size());
 }
 
@@ -69,12 +64,8 @@ void Solver<Exec>::set_pads_at(double alpha) {
   for (const PadHand& h : pad_hands_) {
     const double s = std::clamp(h.s + alpha * h.ds, 0.0, 1.0);
     for (const int k : h.pads) {
-      col_end_[k] = pad_pose(k, s);
+      set_collider_end(k, pose_along(k, s));
       col_reached_[k] = s;
-      double* q = col_pose_host_.data() + 24 * k + 12;
-      for (int r = 0; r < 3; ++r)
-        for (int j = 0; j < 3; ++j) q[3 * r + j] = col_end_[k].linear()(r, j);
-      for (int r = 0; r < 3; ++r) q[9 + r] = col_end_[k].translation()[r];
     }
   }
   Exec::upload(col_pose_, col_pose_host_);
@@ -115,13 +106,16 @@ void Solver<Exec>::pad_couplings() {
     h.grad = -h.k_path2 * (1.0 - h.s);
     h.hess = h.k_path2;
     h.coupling.assign(3 * static_cast<size_t>(n_), 0.0);
-    h.unit_motion.clear();
+    h.rate.clear();
     for (const int k : h.pads) {
       const Collider& c = (*colliders_)[k];
-      const Eigen::Isometry3d at = pad_pose(k, h.s), start = c.checked_pose(col_t0_);
+      const Eigen::Isometry3d at = pose_along(k, h.s), start = c.checked_pose(col_t0_);
       const double eps = h.s + 1e-3 <= 1.0 ? 1e-3 : -1e-3;
-      const Eigen::Isometry3d M = pad_pose(k, h.s + eps) * at.inverse();  // a point from s to s + eps
-      h.unit_motion.push_back(M);
+      const Eigen::Isometry3d M = pose_along(k, h.s + eps) * at.inverse();  // a point from s to s + eps
+      Eigen::Matrix<double, 3, 4> rate;  // the pad's displacement per unit s at world point p: A p + b
+      rate.leftCols<3>() = (M.linear() - Mat3::Identity()) / eps;
+      rate.col(3) = M.translation() / eps;
+      h.rate.push_back(rate);
       for (int i = 0; i < n_; ++i) {
         if (kin_fixed_host_[i]) continue;
         const Vec3 p(host_x_[3 * i], host_x_[3 * i + 1], host_x_[3 * i + 2]);
@@ -133,7 +127,7 @@ void Solver<Exec>::pad_couplings() {
         detail::add_collider_vertex_terms(P, p, pt, col_pose_host_.data() + 24 * k, col_shape_host_[k], mesh,
                                           P.kappa_per_mass * data_->mass[i] * col_kappa_host_[k], col_mu_host_[k],
                                           &e, &g, &H);
-        const Vec3 v = (M * p - p) / eps;
+        const Vec3 v = rate.leftCols<3>() * p + rate.col(3);
         h.grad -= g.dot(v);
         h.hess += v.dot(H * v);
         const Vec3 b = -(H * v);
@@ -192,14 +186,11 @@ int Solver<Exec>::solve_with_pads(double first_step) {
   Exec::upload(dx_, y0);
   // Each pad's displacement for the whole direction, affine in the point (CCD takes each vertex's
   // motion relative to it: step_bounds.h).
-  std::vector<double> move(detail::kColMove * static_cast<size_t>(n_col_), 0.0);
-  for (int k = 0; k < n_col_; ++k) move[detail::kColMove * k + 12] = -1;  // still
+  std::vector<double> move = still_moves();
   for (const PadHand& h : pad_hands_) {
-    const double eps = h.s + 1e-3 <= 1.0 ? 1e-3 : -1e-3;
     for (size_t p = 0; p < h.pads.size(); ++p) {
-      const Eigen::Isometry3d& M = h.unit_motion[p];
-      const Mat3 A = (h.ds / eps) * (M.linear() - Mat3::Identity());
-      const Vec3 b = (h.ds / eps) * M.translation();
+      const Mat3 A = h.ds * h.rate[p].template leftCols<3>();
+      const Vec3 b = h.ds * h.rate[p].col(3);
       double* m = move.data() + detail::kColMove * h.pads[p];
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) m[3 * r + c] = A(r, c);
@@ -244,9 +235,15 @@ void Solver<Exec>::move_pads(double alpha) {
 /// No collider moves within Newton's iterations (View::col_move).
 template <class Exec>
 void Solver<Exec>::still_colliders() {
+  Exec::upload(col_move_, still_moves());
+}
+
+/// View::col_move for colliders that do not move within Newton's iterations.
+template <class Exec>
+std::vector<double> Solver<Exec>::still_moves() const {
   std::vector<double> move(detail::kColMove * static_cast<size_t>(n_col_), 0.0);
   for (int k = 0; k < n_col_; ++k) move[detail::kColMove * k + 12] = -1;
-  Exec::upload(col_move_, move);
+  return move;
 }
 
 /// Whether the hands' last move was within Newton's tolerance (no hand in the solve: true).

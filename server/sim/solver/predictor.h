@@ -343,6 +343,23 @@ void Solver<Exec>::carry_pinched_cloth() {
   if (pinch_mass_ > 0) Exec::upload(pinch_w_, pinch_w_host_);
 }
 
+/// Collider k's pose at fraction s of its motion over the step.
+template <class Exec>
+Eigen::Isometry3d Solver<Exec>::pose_along(int k, double s) const {
+  return (*colliders_)[k].checked_pose(col_t0_ + s * (col_t1_ - col_t0_));
+}
+
+/// Collider k ends this step at `pose` (a yielding one stopped short, a pad in the solve): col_end_
+/// and the host copy of the poses (its R1, t1); the caller uploads col_pose_host_.
+template <class Exec>
+void Solver<Exec>::set_collider_end(int k, const Eigen::Isometry3d& pose) {
+  col_end_[k] = pose;
+  double* q = col_pose_host_.data() + 24 * k + 12;
+  for (int r = 0; r < 3; ++r)
+    for (int j = 0; j < 3; ++j) q[3 * r + j] = pose.linear()(r, j);
+  for (int r = 0; r < 3; ++r) q[9 + r] = pose.translation()[r];
+}
+
 /// After CCD scaled the predictor's motion back, the guess may lie inside a collider's end pose.
 /// Moving it out again is not guarded by CCD: where a gripper pad presses a stack of pinched
 /// layers, the layer under the pad went onto the layer beneath (they met at 1e-17 m, Newton's step
@@ -361,7 +378,6 @@ template <class Exec>
 void Solver<Exec>::stop_yielding_colliders() {
   Exec::download(host_x_, x_);
   Exec::download(host_xt_, x_t_);
-  auto pose_at = [&](int k, double s) { return (*colliders_)[k].checked_pose(col_t0_ + s * (col_t1_ - col_t0_)); };
   const std::vector<std::vector<double>> keep = yielding_clearances();
   auto clear = [&](int k, const Eigen::Isometry3d& pose, double b) { return keeps_clear(k, pose, b, keep); };
   std::vector<int> stop;
@@ -387,7 +403,7 @@ void Solver<Exec>::stop_yielding_colliders() {
   // other; cloth the predictor moves along with a pad stays clear of it all the way. A yielding
   // collider the guess that went back is no longer clear of joins them, until none is left.
   auto clear_together = [&](double u) {
-    return std::all_of(stop.begin(), stop.end(), [&](int k) { return clear(k, pose_at(k, u), u); });
+    return std::all_of(stop.begin(), stop.end(), [&](int k) { return clear(k, pose_along(k, u), u); });
   };
   double b = 1.0;
   for (bool grew = true; grew;) {
@@ -417,7 +433,7 @@ void Solver<Exec>::stop_yielding_colliders() {
     double lo = b, hi = 1;
     for (int it = 0; it < 12; ++it) {
       const double mid = 0.5 * (lo + hi);
-      (clear(k, pose_at(k, mid), b) ? lo : hi) = mid;
+      (clear(k, pose_along(k, mid), b) ? lo : hi) = mid;
     }
     reach[k] = lo;
   }
@@ -434,7 +450,7 @@ void Solver<Exec>::stop_yielding_colliders() {
     if (g < 0 || reach[k] <= b) continue;
     bool all_clear = true;
     for (const int j : stop)
-      if ((*colliders_)[j].yield_group() == g) all_clear = all_clear && clear(j, pose_at(j, reach[k]), b);
+      if ((*colliders_)[j].yield_group() == g) all_clear = all_clear && clear(j, pose_along(j, reach[k]), b);
     if (!all_clear)
       for (const int j : stop)
         if ((*colliders_)[j].yield_group() == g) reach[j] = b;
@@ -443,11 +459,7 @@ void Solver<Exec>::stop_yielding_colliders() {
   for (const int k : stop) {
     const double lo = reach[k];
     col_reached_[k] = lo;
-    col_end_[k] = pose_at(k, lo);
-    double* q = col_pose_host_.data() + 24 * k + 12;
-    for (int r = 0; r < 3; ++r)
-      for (int j = 0; j < 3; ++j) q[3 * r + j] = col_end_[k].linear()(r, j);
-    for (int r = 0; r < 3; ++r) q[9 + r] = col_end_[k].translation()[r];
+    set_collider_end(k, pose_along(k, lo));
     gd::log().debug("collider {} stops at {:.3f} of its motion (guess at {:.3f} of its path)", k, lo, b);
   }
   Exec::upload(col_pose_, col_pose_host_);

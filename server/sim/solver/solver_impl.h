@@ -409,9 +409,10 @@ class Solver final : public SolverBase {
   void carry_pinched_cloth();                        ///< predictor.h
   bool guess_pinch_first();                          ///< predictor.h
   std::vector<std::vector<double>> yielding_clearances() const;  ///< predictor.h
+  Eigen::Isometry3d pose_along(int k, double s) const;           ///< predictor.h
+  void set_collider_end(int k, const Eigen::Isometry3d& pose);   ///< predictor.h
   // The pads in the solve (pads_in_solve.h; SceneOptions::pad_stiffness)
   void begin_pad_dofs();
-  Eigen::Isometry3d pad_pose(int k, double s) const;
   void set_pads_at(double alpha);
   double pad_spring_energy(double alpha) const;
   double pad_slope() const;
@@ -421,6 +422,7 @@ class Solver final : public SolverBase {
   void move_pads(double alpha);
   bool pads_settled() const;
   void still_colliders();
+  std::vector<double> still_moves() const;
   bool keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
                    const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
   Vec3 guess_at(int i, double b) const;              ///< predictor.h
@@ -565,7 +567,7 @@ class Solver final : public SolverBase {
     std::vector<int> pads;
     double s = 1, ds = 0, k_path2 = 0, grad = 0, hess = 0;
     std::vector<double> coupling;
-    std::vector<Eigen::Isometry3d> unit_motion;  ///< per pad: its motion per unit s, about s
+    std::vector<Eigen::Matrix<double, 3, 4>> rate;  ///< per pad: its displacement per unit s at p, A p + b
   };
   std::vector<PadHand> pad_hands_;
   double pad_moved_ = 0;  ///< the largest path a hand moved in the last Newton iteration, m
