@@ -217,6 +217,11 @@ int main(int argc, char** argv) {
   run->add_option("--finger-friction", cfg.robot.finger_friction,
                   "robot mode: friction of the finger pads on the cloth (< 0: the material's)")
       ->capture_default_str();
+  run->add_option("--pad-stiffness", cfg.robot.pad_stiffness,
+                  "robot mode: a hand the cloth stops short goes on in the solve, pulled along its step by "
+                  "this stiffness, N/m (0: its pads wait where the cloth stopped them; docs/robot.md, \"Pads in "
+                  "the solve\")")
+      ->capture_default_str();
   double lift_max_tilt_deg = cfg.robot.lift_max_tilt * 180 / M_PI;
   run->add_option("--lift-max-tilt", lift_max_tilt_deg,
                   "robot mode: a generated grasp's lift or fling's height left to its default is lowered to the "
@@ -300,10 +305,6 @@ int main(int argc, char** argv) {
   double grip_force_limit = cfg.scene.grip_force_limit;
   run->add_option("--grip-force-limit", grip_force_limit,
                   "most a grip pulls on one held vertex, N (0: no limit)")
-      ->capture_default_str();
-  run->add_option("--pad-stiffness", cfg.scene.pad_stiffness,
-                  "robot mode: pads stopped short by the cloth go on in the solve, pulled to their poses by "
-                  "this stiffness, N/m (0: they stay stopped)")
       ->capture_default_str();
   run->add_option("--jaw-radius", cfg.grippers.jaw_radius,
                   "pseudo mode: a closing gripper takes the vertices within this distance, m (at least the nearest)")
@@ -406,7 +407,7 @@ int main(int argc, char** argv) {
     if (!server.empty() && *run) {
       for (const char* local_only : {"--experiment-library", "--shoulder-index", "--backend", "--threads", "--deterministic", "--garment-position",
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--newton-max", "--no-plots", "--mesh-every",
-                                     "--compression-ratio", "--grip-force-limit", "--pad-stiffness", "--jaw-radius", "--urdf-package-path",
+                                     "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf-package-path",
                                      "--no-link-colliders", "--grip-force-schedule", "--independent-pads"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
@@ -423,6 +424,7 @@ int main(int argc, char** argv) {
       }
       if (run->count("--grip-force") > 0) r.job.robot.grip_force = cfg.robot.grip_force;
       if (run->count("--finger-friction") > 0) r.job.robot.finger_friction = cfg.robot.finger_friction;
+      if (run->count("--pad-stiffness") > 0) r.job.robot.pad_stiffness = cfg.robot.pad_stiffness;
       if (run->count("--lift-max-tilt") > 0) r.job.robot.lift_max_tilt_deg = lift_max_tilt_deg;
       if (cfg.place_within_reach) r.job.robot.place_within_reach = true;
       r.job.vertices = cfg.vertices;

@@ -71,6 +71,7 @@ void to_proto(const RobotSettings& in, pb::RobotSettings* out) {
   if (in.finger_friction) out->set_finger_friction(*in.finger_friction);
   if (in.lift_max_tilt_deg) out->set_lift_max_tilt_deg(*in.lift_max_tilt_deg);
   if (in.place_within_reach) out->set_place_within_reach(*in.place_within_reach);
+  if (in.pad_stiffness) out->set_pad_stiffness(*in.pad_stiffness);
   for (double q : in.left_initial_joints) out->add_left_initial_joints(q);
   for (double q : in.right_initial_joints) out->add_right_initial_joints(q);
 }
@@ -85,7 +86,8 @@ Pose pose_from_proto(const pb::Pose& p) {
 
 bool empty(const RobotSettings& r) {
   return r.urdf.empty() && !r.grip_force && !r.finger_friction && r.left_initial_joints.empty() &&
-         r.right_initial_joints.empty() && !r.lift_max_tilt_deg && !r.place_within_reach;
+         r.right_initial_joints.empty() && !r.lift_max_tilt_deg && !r.place_within_reach &&
+         !r.pad_stiffness;
 }
 
 }  // namespace

@@ -162,11 +162,11 @@ def read_urdf(urdf: Union[str, bytes, "os.PathLike[str]"]) -> bytes:
 
 
 def _robot_settings(mode: str, urdf, grip_force: Optional[float], finger_friction: Optional[float],
-                    lift_max_tilt_deg: Optional[float] = None,
+                    pad_stiffness: Optional[float] = None, lift_max_tilt_deg: Optional[float] = None,
                     place_within_reach: Optional[bool] = None) -> Optional["pb.RobotSettings"]:
     """RobotSettings of a robot-mode request (None in the other modes, which take none)."""
     given = [name for name, v in (("urdf", urdf), ("grip_force", grip_force), ("finger_friction", finger_friction),
-                                  ("lift_max_tilt_deg", lift_max_tilt_deg),
+                                  ("pad_stiffness", pad_stiffness), ("lift_max_tilt_deg", lift_max_tilt_deg),
                                   ("place_within_reach", place_within_reach))
              if v is not None]
     if mode != "robot":
@@ -177,7 +177,7 @@ def _robot_settings(mode: str, urdf, grip_force: Optional[float], finger_frictio
     if urdf is not None:
         out.urdf = read_urdf(urdf)
     for name, value in (("grip_force", grip_force), ("finger_friction", finger_friction),
-                        ("lift_max_tilt_deg", lift_max_tilt_deg)):
+                        ("pad_stiffness", pad_stiffness), ("lift_max_tilt_deg", lift_max_tilt_deg)):
         if value is not None:
             value = float(value)
             if not np.isfinite(value):
@@ -352,7 +352,7 @@ class Client:
                       garment_params: Optional[Dict[str, float]] = None,
                       material_params: Optional[Dict[str, float]] = None,
                       urdf: Union[None, str, bytes, "os.PathLike[str]"] = None, grip_force: Optional[float] = None,
-                      finger_friction: Optional[float] = None,
+                      finger_friction: Optional[float] = None, pad_stiffness: Optional[float] = None,
                       initial_joints: Optional[Dict[str, Sequence[float]]] = None) -> List[str]:
         """Creates `count` identical scenes and returns their ids.
 
@@ -374,12 +374,14 @@ class Client:
             material_params: parameters of `material` replaced, by the material file's names in
                 catalogue units, e.g. {"stretch_g_s2": 230000, "bending_g_mm2_s2_rad": 1000,
                 "areal_density_g_m2": 220, "poisson": 0.35} (docs/materials.md).
-            urdf, grip_force, finger_friction: robot mode only. urdf: the arms' URDF as a path, its
-                text or its bytes (at most 1 MiB; the meshes it names are not read); None: the
-                server's own (gd-server --robot-urdf), and a server without one answers
-                FAILED_PRECONDITION. grip_force: N at which closing fingers stop (default the
-                URDF's finger effort limit); finger_friction: the fingers' Coulomb coefficient on
-                the cloth (default the material's).
+            urdf, grip_force, finger_friction, pad_stiffness: robot mode only. urdf: the arms'
+                URDF as a path, its text or its bytes (at most 1 MiB; the meshes it names are not
+                read); None: the server's own (gd-server --robot-urdf), and a server without one
+                answers FAILED_PRECONDITION. grip_force: N at which closing fingers stop (default
+                the URDF's finger effort limit); finger_friction: the fingers' Coulomb coefficient
+                on the cloth (default the material's); pad_stiffness: N/m, how stiffly a hand the
+                cloth stops short is pulled along its step (default 3e5; 0: its pads wait where
+                the cloth stopped them; docs/robot.md, "Pads in the solve").
             initial_joints: robot mode only: {"left": joints, "right": joints} (either may be
                 left out), each arm's joints at t = 0 and after every reset, e.g. a recording's
                 first row.
@@ -405,7 +407,7 @@ class Client:
                                      randomization=pb.Randomization(yaw_deg=yaw_deg, offset_m=offset_m),
                                      garment_params={str(k): float(v) for k, v in (garment_params or {}).items()},
                                      material_params={str(k): float(v) for k, v in (material_params or {}).items()})
-        robot = _robot_settings(mode, urdf, grip_force, finger_friction)
+        robot = _robot_settings(mode, urdf, grip_force, finger_friction, pad_stiffness)
         if initial_joints is not None:
             if mode != "robot":
                 raise ValueError(f"initial_joints: robot settings are for mode='robot' (mode is {mode!r})")
@@ -597,7 +599,8 @@ class Client:
                    task_params: Optional[Dict[str, float]] = None,
                    material_params: Optional[Dict[str, float]] = None,
                    urdf: Union[None, str, bytes, "os.PathLike[str]"] = None, grip_force: Optional[float] = None,
-                   finger_friction: Optional[float] = None, lift_max_tilt_deg: Optional[float] = None,
+                   finger_friction: Optional[float] = None, pad_stiffness: Optional[float] = None,
+                   lift_max_tilt_deg: Optional[float] = None,
                    place_within_reach: Optional[bool] = None, refine_grasp_edge: Optional[float] = None,
                    refine_grasp_radius: Optional[float] = None) -> str:
         """Submits a whole rollout (garment + task) to run on the server; returns the job id.
@@ -608,8 +611,8 @@ class Client:
         garment by name, as in create_scenes. task_params: parameters of the generated task by
         name, e.g. {"fold_duration": 5.0} (docs/tasks.md). material_params: parameters of the
         material replaced, as in create_scenes. mode "robot": the arms of urdf (a path, its text
-        or bytes; None: the server's --robot-urdf) with grip_force and finger_friction, as in
-        create_scenes; lift_max_tilt_deg: a generated grasp's lift (fling's height) left to its
+        or bytes; None: the server's --robot-urdf) with grip_force, finger_friction and
+        pad_stiffness, as in create_scenes; lift_max_tilt_deg: a generated grasp's lift (fling's height) left to its
         default is lowered until no hand tilts more than this from pointing down (default 30,
         `gd run --lift-max-tilt`); place_within_reach: a generated task's garment first moved along
         the table to where the arms lift it highest (`gd run --place-within-reach`).
@@ -625,7 +628,8 @@ class Client:
                                   garment_params={str(k): float(v) for k, v in (garment_params or {}).items()},
                                   task_params={str(k): float(v) for k, v in (task_params or {}).items()},
                                   material_params={str(k): float(v) for k, v in (material_params or {}).items()})
-        robot = _robot_settings(mode, urdf, grip_force, finger_friction, lift_max_tilt_deg, place_within_reach)
+        robot = _robot_settings(mode, urdf, grip_force, finger_friction, pad_stiffness, lift_max_tilt_deg,
+                                place_within_reach)
         if robot is not None:
             req.robot.SetInParent()  # present even when empty: the server's own URDF
             req.robot.MergeFrom(robot)

@@ -52,6 +52,8 @@ and its own optional block env.garment_dynamics:
     grip_force, finger_friction   robot mode: N at which the closing fingers stop (default the
                   URDF's finger effort limit, the Piper's 10 N) and their friction coefficient on
                   the cloth (default the material's)
+    pad_stiffness robot mode: N/m, how stiffly a hand the cloth stops short is pulled along its
+                  step (default the server's 3e5; 0: its pads wait; docs/robot.md)
 
 Semantics (rgbench-format.md section 3):
 - fixed_point grasp/fold, auto pins: the scene runs in the server's fixed-point mode with
@@ -364,7 +366,7 @@ class GarmentDynamicsEnv(_Base):
         self.urdf = None
         if self.robot:
             self.urdf = robot_urdf(self.cfg)
-            for key in ("grip_force", "finger_friction"):
+            for key in ("grip_force", "finger_friction", "pad_stiffness"):
                 if gd.get(key) is not None:
                     common[key] = float(gd.get(key))
             common["urdf"] = self.urdf

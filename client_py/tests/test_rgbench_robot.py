@@ -123,10 +123,11 @@ def test_robot_mode_sends_the_recorded_joints_ahead(recorded, tmp_path):
     urdf = tmp_path / "arm.urdf"
     urdf.write_text("<robot name='arm'/>")
     paths = write_joint_csvs(tmp_path, start_delay=(0.0, 0.05))
-    env = GarmentDynamicsEnv(cfg=robot_cfg(paths, urdf=urdf, grip_force=7.5, dt=0.01), client=c)
+    env = GarmentDynamicsEnv(cfg=robot_cfg(paths, urdf=urdf, grip_force=7.5, pad_stiffness=1e5, dt=0.01), client=c)
     try:
         req = stub.calls("CreateScenes")[-1]
         assert req.mode == "robot" and req.robot.urdf == b"<robot name='arm'/>" and req.robot.grip_force == 7.5
+        assert req.robot.pad_stiffness == 1e5
         assert not req.settings.HasField("grab_time")
         assert env.get_master_start_time() == pytest.approx(T0)
         env.step_to_time(0.03)

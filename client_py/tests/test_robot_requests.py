@@ -173,17 +173,20 @@ def test_create_scenes_sends_robot_settings(recorded, tmp_path):
     c, stub = recorded
     path = tmp_path / "arm.urdf"
     path.write_text(URDF_TEXT)
-    ids = c.create_scenes(garment="towel", vertices=200, mode="robot", urdf=path, grip_force=8.0, finger_friction=0.7)
+    ids = c.create_scenes(garment="towel", vertices=200, mode="robot", urdf=path, grip_force=8.0, finger_friction=0.7,
+                          pad_stiffness=0.0)
     req = stub.calls("CreateScenes")[-1]
     assert req.mode == "robot" and req.HasField("robot")
     assert req.robot.urdf == URDF_TEXT.encode()
     assert req.robot.HasField("grip_force") and req.robot.grip_force == 8.0
     assert req.robot.HasField("finger_friction") and req.robot.finger_friction == pytest.approx(0.7)
+    assert req.robot.HasField("pad_stiffness") and req.robot.pad_stiffness == 0.0  # 0 is sent: pads wait
     # the URDF's text as it is; unset forces stay unset (the server's defaults)
     c.create_scenes(garment="towel", mode="robot", urdf=URDF_TEXT)
     req = stub.calls("CreateScenes")[-1]
     assert req.robot.urdf == URDF_TEXT.encode()
     assert not req.robot.HasField("grip_force") and not req.robot.HasField("finger_friction")
+    assert not req.robot.HasField("pad_stiffness")
     # no urdf: robot settings present but empty, the server's own URDF
     c.create_scenes(garment="towel", mode="robot")
     req = stub.calls("CreateScenes")[-1]
@@ -211,6 +214,10 @@ def test_bad_robot_settings_are_refused_before_a_call(recorded, tmp_path):
         c.create_scenes(garment="towel", mode="robot", grip_force=float("nan"))
     with pytest.raises(ValueError, match="finger_friction must be finite"):
         c.submit_job(garment="towel", mode="robot", finger_friction=float("inf"))
+    with pytest.raises(ValueError, match="pad_stiffness must be finite"):
+        c.create_scenes(garment="towel", mode="robot", pad_stiffness=float("nan"))
+    with pytest.raises(ValueError, match="pad_stiffness.*mode='robot'"):
+        c.submit_job(garment="towel", pad_stiffness=3e5)
     with pytest.raises(ValueError, match="no file"):
         c.create_scenes(garment="towel", mode="robot", urdf=tmp_path / "nothing.urdf")
     assert stub.requests == []
@@ -220,9 +227,11 @@ def test_submit_job_sends_robot_settings(recorded, tmp_path):
     c, stub = recorded
     path = tmp_path / "arm.urdf"
     path.write_text(URDF_TEXT)
-    assert c.submit_job(garment="towel", task="grasp", mode="robot", urdf=str(path), grip_force=12.0) == "job-1"
+    assert c.submit_job(garment="towel", task="grasp", mode="robot", urdf=str(path), grip_force=12.0,
+                        pad_stiffness=1e5) == "job-1"
     req = stub.calls("SubmitJob")[-1]
     assert req.mode == "robot" and req.robot.urdf == URDF_TEXT.encode() and req.robot.grip_force == 12.0
+    assert req.robot.pad_stiffness == 1e5
     assert not req.robot.HasField("finger_friction")
     c.submit_job(garment="towel", task="grasp")
     assert not stub.calls("SubmitJob")[-1].HasField("robot")
@@ -318,9 +327,11 @@ def test_robot_settings_reach_the_envs_scenes(recorded, tmp_path):
     c, stub = recorded
     path = tmp_path / "arm.urdf"
     path.write_text(URDF_TEXT)
-    env = GarmentEnv(c, mode="robot", control="joints", urdf=path, grip_force=6.0, finger_friction=0.9)
+    env = GarmentEnv(c, mode="robot", control="joints", urdf=path, grip_force=6.0, finger_friction=0.9,
+                     pad_stiffness=2e5)
     env.close()
     req = stub.calls("CreateScenes")[-1]
     assert req.robot.urdf == URDF_TEXT.encode() and req.robot.grip_force == 6.0
+    assert req.robot.pad_stiffness == 2e5
     assert math.isclose(req.robot.finger_friction, 0.9)
     assert Path(path).read_text() == URDF_TEXT  # read, not changed

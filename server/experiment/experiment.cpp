@@ -823,7 +823,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     throw InputError(fmt::format("the run would take {:.3g} steps ({:.4g} s simulated at dt {:g} s), over the limit of "
                                  "{} ({}); shorten it (time_scale, settle, dt) or raise the limit",
                                  steps, end_time, config.scene.dt, config.max_steps, config.steps_limit_name));
-  auto scene = sim::Scene::create(mesh, material, config.scene);
+  sim::SceneOptions scene_options = config.scene;
+  if (config.mode == "robot") scene_options.pad_stiffness = config.robot.pad_stiffness;  // the hands' lag spring
+  auto scene = sim::Scene::create(mesh, material, scene_options);
   if (settled) scene->set_state(settled->x, settled->v);
   gd::log().info("experiment: {} ({} vertices, {} triangles), {}, {} in {} mode from {}, {:.2f} s simulated",
                  garment.type, scene->vertex_count(), mesh.tris.size(), config.material, config.task, config.mode,
@@ -1024,7 +1026,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                          robot->state(tasks::Arm::kRight).link_colliders.size()},
                   {"link_meshes_not_found", robot->arm_model().skipped_meshes()},
                   {"rigid_hands", config.robot.rigid_hands},
-                  {"pad_stiffness", config.scene.pad_stiffness},  // N/m; 0: pads stopped by the predictor
+                  {"pad_stiffness", config.robot.pad_stiffness},  // N/m; 0: pads stopped by the predictor
                   {"arms", arms}};
     if (placement)  // the garment moved to where the arms follow the task best (absent: placed as given)
       s["robot"]["placement"] = {{"given_position_m", {config.garment_position.x(), config.garment_position.y(),

@@ -98,6 +98,7 @@ void to_robot_spec(const pb::RobotSettings& r, RobotSpec* out) {
   if (r.has_finger_friction()) out->finger_friction = r.finger_friction();
   if (r.has_lift_max_tilt_deg()) out->lift_max_tilt_deg = r.lift_max_tilt_deg();
   if (r.has_place_within_reach()) out->place_within_reach = r.place_within_reach();
+  if (r.has_pad_stiffness()) out->pad_stiffness = r.pad_stiffness();
   out->initial_joints[0].assign(r.left_initial_joints().begin(), r.left_initial_joints().end());
   out->initial_joints[1].assign(r.right_initial_joints().begin(), r.right_initial_joints().end());
 }

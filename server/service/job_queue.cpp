@@ -257,6 +257,7 @@ Status JobQueue::submit(const JobSpec& spec, std::string* job_id) {
                                                                    : nlohmann::json{{"urdf", urdf_text.empty() ? cfg->robot.urdf : "sent"},
                                                                                     {"grip_force", cfg->robot.grip_force},
                                                                                     {"finger_friction", cfg->robot.finger_friction},
+                                                                                    {"pad_stiffness", cfg->robot.pad_stiffness},
                                                                                     {"lift_max_tilt_deg", cfg->robot.lift_max_tilt * 180 / 3.14159265358979323846},
                                                                                     {"place_within_reach", cfg->place_within_reach}}},
                                     {"trajectory", traj ? spec.trajectory_format : std::string()}}

@@ -29,6 +29,13 @@ Status apply_robot_spec(const RobotSpec& spec, bool server_has_urdf, tasks::Robo
           fmt::format("robot finger_friction must be a finite number >= 0 (got {})", *spec.finger_friction));
     options->finger_friction = *spec.finger_friction;
   }
+  if (spec.pad_stiffness) {
+    if (!std::isfinite(*spec.pad_stiffness) || *spec.pad_stiffness < 0)
+      return Status::InvalidArgument(fmt::format(
+          "robot pad_stiffness must be a finite number >= 0 N/m (0: pads wait where the cloth stops them; got {})",
+          *spec.pad_stiffness));
+    options->pad_stiffness = *spec.pad_stiffness;
+  }
   if (spec.lift_max_tilt_deg) {
     const double deg = *spec.lift_max_tilt_deg;
     if (!std::isfinite(deg) || deg < 0 || deg > 180)

@@ -536,6 +536,7 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     if (spec.self_contact) t->options.self_contact = *spec.self_contact;
     t->options.backend = options_.backend;
     t->options.deterministic = options_.deterministic;
+    if (mode == "robot") t->options.pad_stiffness = robot_options.pad_stiffness;  // the hands' lag spring
     t->options.validate();
     t->grippers.mode = mode == "fixed_point" ? tasks::GraspMode::kFixedPoint : tasks::GraspMode::kPseudoGrasp;
     t->grippers.action = tasks::TaskKind::kGrasp;

@@ -52,6 +52,9 @@ void RobotOptions::validate(bool need_urdf) const {
   if (max_tilt < 0) throw InputError("robot option max_tilt must be >= 0 rad");
   check(lift_max_tilt, "lift_max_tilt");
   if (lift_max_tilt < 0) throw InputError("robot option lift_max_tilt must be >= 0 rad");
+  if (!(pad_stiffness >= 0) || !std::isfinite(pad_stiffness))
+    throw InputError(fmt::format("robot option pad_stiffness must be a finite number >= 0 N/m (0: pads wait where "
+                                 "the cloth stops them), got {}", pad_stiffness));
   if (grip_force == 0) throw InputError("robot option grip_force must be > 0 N (or < 0 for the URDF's effort limit)");
   for (size_t k = 0; k < grip_force_schedule.size(); ++k) {
     const auto [t, f] = grip_force_schedule[k];

@@ -82,6 +82,9 @@ struct FingerJointInput {
 /// load on the joint (docs/robot.md, "Holding while the pads are stopped short").
 double finger_joint_step(const FingerJointInput& in);
 
+/// RobotOptions::pad_stiffness's default, N/m.
+inline constexpr double kDefaultPadStiffness = 3e5;
+
 struct RobotOptions {
   std::string urdf;                 ///< path of the arms' URDF (required unless a model is given)
   robot::ArmModelOptions arm;       ///< links, finger joints and pads of the URDF
@@ -126,6 +129,12 @@ struct RobotOptions {
   /// pads' faces then opened its pinch by the trailing pad's lag: docs/robot.md, "Pads that stop
   /// together").
   bool rigid_hands = true;
+  /// N/m: a hand the cloth stops short of its pose goes on as one more unknown of the solve,
+  /// pulled along its step by a spring of this stiffness (sim::SceneOptions::pad_stiffness, which
+  /// robot mode's scenes take from here; docs/robot.md, "Pads in the solve"): 3e5 lags 1 mm per
+  /// 300 N. 0: the predictor stops its pads short and they wait there for the step (before
+  /// 2026-12-06).
+  double pad_stiffness = kDefaultPadStiffness;
   /// Rotation from the trajectory's tool frame to the end-effector link (IK targets only). Piper
   /// default: link7 y = tool z (approach), link7 z = tool x (closing direction).
   Eigen::Matrix3d tool_to_ee = (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished();

@@ -158,6 +158,9 @@ struct RobotSettings {
   /// Jobs, generated tasks: the garment moved along the table to where the arms lift it highest
   /// (`gd run --place-within-reach`; docs/robot.md, "Placed within reach").
   std::optional<bool> place_within_reach;
+  /// N/m: a hand the cloth stops short goes on in the solve, pulled along its step by this
+  /// stiffness (default 3e5; 0: its pads wait; docs/robot.md, "Pads in the solve").
+  std::optional<double> pad_stiffness;
 };
 
 /// What to create: a generated garment (`garment`) or an uploaded mesh (`mesh_id`), one of them.

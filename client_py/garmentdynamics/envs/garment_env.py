@@ -28,7 +28,7 @@ class GarmentEnv(gym.Env):
     joint6, rad; scene_info["joint_names"], "joint_lower", "joint_upper"), then the gripper
     opening in [0, scene_info["gripper_max"]] m, reached at the step's end. The arms start at a
     home pose 0.3 m above their bases; reset's and step's info["arms"] give each arm's joints,
-    gripper opening and squeeze (N). grip_force, finger_friction: as in Client.create_scenes.
+    gripper opening and squeeze (N). grip_force, finger_friction, pad_stiffness: as in Client.create_scenes.
     Reward: `task` ("lift" or "fold"), see garmentdynamics.envs.rewards.
     terminated: the scene failed (its state turned non-finite; reward -10).
     truncated: after max_episode_steps steps (None: never). gymnasium.make("garmentdynamics/Garment-v0")
@@ -55,7 +55,8 @@ class GarmentEnv(gym.Env):
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
                  yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None,
                  render_mode: Optional[str] = None, control: str = "pose", urdf=None,
-                 grip_force: Optional[float] = None, finger_friction: Optional[float] = None):
+                 grip_force: Optional[float] = None, finger_friction: Optional[float] = None,
+                 pad_stiffness: Optional[float] = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
@@ -64,7 +65,7 @@ class GarmentEnv(gym.Env):
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
                                   self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m,
                                   client_kwargs=client_kwargs, control=control, urdf=urdf, grip_force=grip_force,
-                                  finger_friction=finger_friction)
+                                  finger_friction=finger_friction, pad_stiffness=pad_stiffness)
         self.observation_space = observation_space(self._scenes.vertex_count)
         self.metadata = {**self.metadata, "render_fps": max(1, round(1.0 / (float(self._scenes.info["dt"]) * substeps)))}
         self._x: Optional[np.ndarray] = None

@@ -41,7 +41,7 @@ class RayVectorEnv(VectorEnv):
     is unaffected. RuntimeError when no server is left.
 
     Autoreset, seeds, spaces, rewards and the other keyword arguments (control="joints" and
-    robot mode's urdf, grip_force, finger_friction included) as in GarmentVectorEnv.
+    robot mode's urdf, grip_force, finger_friction, pad_stiffness included) as in GarmentVectorEnv.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -50,7 +50,8 @@ class RayVectorEnv(VectorEnv):
                  vertices: int = 200, task: str = "lift", max_episode_steps: int = 100, substeps: int = 1,
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
                  yaw_deg: float = 10.0, offset_m: float = 0.02, timeout: float = 120.0, control: str = "pose",
-                 urdf=None, grip_force: Optional[float] = None, finger_friction: Optional[float] = None):
+                 urdf=None, grip_force: Optional[float] = None, finger_friction: Optional[float] = None,
+                 pad_stiffness: Optional[float] = None):
         if num_envs < 1:
             raise ValueError("num_envs must be at least 1")
         if not servers:
@@ -67,7 +68,7 @@ class RayVectorEnv(VectorEnv):
         self._batch_kwargs = dict(garment=garment, material=material, vertices=vertices, task=task,
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
                                   self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m, control=control,
-                                  urdf=urdf, grip_force=grip_force, finger_friction=finger_friction)
+                                  urdf=urdf, grip_force=grip_force, finger_friction=finger_friction, pad_stiffness=pad_stiffness)
         self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=len(self._servers))
         # Scene i is scene _slot[i] of batch _batch[i]; a batch is SceneBatch scenes on one server.
         self._batches: Dict[int, SceneBatch] = {}

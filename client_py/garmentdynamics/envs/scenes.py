@@ -23,7 +23,7 @@ class SceneBatch:
     certificate_chain, private_key, timeout, ...
     control: "pose" (the arms' end-effector poses, (2, 8) actions; the default) or "joints"
     (mode "robot" only: each arm's joint targets and gripper opening, (2, J + 1) actions).
-    urdf, grip_force, finger_friction: robot mode's settings (Client.create_scenes).
+    urdf, grip_force, finger_friction, pad_stiffness: robot mode's settings (Client.create_scenes).
     """
 
     def __init__(self, count: int, client: Optional[Client] = None, target: Optional[str] = None,
@@ -32,7 +32,8 @@ class SceneBatch:
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
                  yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None,
                  control: str = "pose", urdf=None, grip_force: Optional[float] = None,
-                 finger_friction: Optional[float] = None):
+                 finger_friction: Optional[float] = None,
+                 pad_stiffness: Optional[float] = None):
         if (max_episode_steps is not None and max_episode_steps < 1) or substeps < 1:
             raise ValueError("max_episode_steps (None: no limit) and substeps must be at least 1")
         if control not in CONTROLS:
@@ -58,7 +59,7 @@ class SceneBatch:
             self.ids = client.create_scenes(garment=garment, material=material, vertices=vertices, count=count,
                                             mode=mode, dt=dt, self_contact=self_contact, yaw_deg=yaw_deg,
                                             offset_m=offset_m, urdf=urdf, grip_force=grip_force,
-                                            finger_friction=finger_friction)
+                                            finger_friction=finger_friction, pad_stiffness=pad_stiffness)
             self.info = client.scene_info(self.ids[0])
             self.reward = Reward(task, self.info["rest_positions"])
         except BaseException:

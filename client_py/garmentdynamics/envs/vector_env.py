@@ -70,7 +70,7 @@ class GarmentVectorEnv(VectorEnv):
     client, target, spawn_kwargs, client_kwargs: the server, as in GarmentEnv (client_kwargs: the
     options of the Client made here, e.g. token_file= and root_certificates=).
     mode="robot" with control="joints": joint-space actions, (num_envs, 2, J + 1); urdf,
-    grip_force, finger_friction: robot mode's settings (as in GarmentEnv).
+    grip_force, finger_friction, pad_stiffness: robot mode's settings (as in GarmentEnv).
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -81,7 +81,8 @@ class GarmentVectorEnv(VectorEnv):
                  mode: str = "pseudo", dt: Optional[float] = None, self_contact: Optional[bool] = None,
                  yaw_deg: float = 10.0, offset_m: float = 0.02, client_kwargs: Optional[dict] = None,
                  control: str = "pose", urdf=None, grip_force: Optional[float] = None,
-                 finger_friction: Optional[float] = None):
+                 finger_friction: Optional[float] = None,
+                 pad_stiffness: Optional[float] = None):
         if num_envs < 1:
             raise ValueError("num_envs must be at least 1")
         self._scenes = SceneBatch(num_envs, client=client, target=target, spawn_kwargs=spawn_kwargs,
@@ -89,7 +90,7 @@ class GarmentVectorEnv(VectorEnv):
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
                                   self_contact=self_contact, yaw_deg=yaw_deg, offset_m=offset_m,
                                   client_kwargs=client_kwargs, control=control, urdf=urdf, grip_force=grip_force,
-                                  finger_friction=finger_friction)
+                                  finger_friction=finger_friction, pad_stiffness=pad_stiffness)
         self.num_envs = num_envs
         self.single_observation_space = observation_space(self._scenes.vertex_count)
         self.single_action_space = self._scenes.action_space()

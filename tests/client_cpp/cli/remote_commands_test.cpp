@@ -250,6 +250,7 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   EXPECT_DOUBLE_EQ(s.at("task_params").at("grasp_depth").get<double>(), 0.005);  // down to the table
   EXPECT_EQ(s.at("robot").at("hands_half_turned").size(), 2u);
   EXPECT_EQ(s.at("robot").at("rigid_hands"), true);  // a hand's pads yield together (--independent-pads: not)
+  EXPECT_DOUBLE_EQ(s.at("robot").at("pad_stiffness").get<double>(), 3e5);  // a stopped hand goes on in the solve
   EXPECT_EQ(s.at("contact_hessian"), "projected");  // auto: the exact projection where fingers press the cloth
   // The time series carries each hand's opening (within the finger's travel), squeeze, lift
   // off the table and squeeze limit (the URDF's 10 N without a schedule), the squeeze split into
@@ -318,15 +319,16 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
          (dir / "remote_pads").string());
   EXPECT_EQ(r.rc, 2) << r.err;
   EXPECT_NE(r.err.find("--independent-pads is not available with --server"), std::string::npos) << r.err;
-  // The same as a job: the URDF's text and the lift tilt bound go with it, and the job's report says
-  // robot mode with that bound.
+  // The same as a job: the URDF's text, the lift tilt bound and the pads' stiffness go with it, and
+  // the job's report says robot mode with those.
   r = gd(server_flag() + run.substr(0, run.find(" --no-plots")) + " --quiet --mode robot --urdf " + urdf +
-         " --lift-max-tilt 20 --out " + (dir / "remote").string());
+         " --lift-max-tilt 20 --pad-stiffness 1e5 --out " + (dir / "remote").string());
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto rs = nlohmann::json::parse(slurp(dir / "remote" / "summary.json"));
   EXPECT_EQ(rs.at("mode"), "robot");
   EXPECT_GT(rs.at("robot").at("ik_samples").get<int>(), 100);
   EXPECT_NEAR(rs.at("robot").at("lift_max_tilt_deg").get<double>(), 20.0, 1e-9);
+  EXPECT_DOUBLE_EQ(rs.at("robot").at("pad_stiffness").get<double>(), 1e5);
   EXPECT_NEAR(s.at("robot").at("lift_max_tilt_deg").get<double>(), 30.0, 1e-9);  // the local run's default
   // Without a URDF: this server has no --robot-urdf of its own.
   r = gd(server_flag() + " run --garment towel --task grasp --mode robot --out " + (dir / "remote_no_urdf").string());
