@@ -188,6 +188,18 @@ def _robot_settings(mode: str, urdf, grip_force: Optional[float], finger_frictio
     return out
 
 
+class _ClosedStub:
+    """A closed Client's stub: every call raises ValueError. grpcio itself raises for a call on a
+    closed channel, but crashes the process (SIGSEGV in _get_registered_call_handle, grpcio 1.85)
+    where the channel has an interceptor, as a Client with a token has."""
+
+    def __init__(self, target: str):
+        self._target = target
+
+    def __getattr__(self, rpc: str):
+        raise ValueError(f"this Client is closed (its channel to {self._target} too); {rpc} needs an open one")
+
+
 def _ids(ids: Union[str, Sequence[str]]) -> List[str]:
     if isinstance(ids, str):
         return [ids]
@@ -321,6 +333,7 @@ class Client:
         if self._closed:
             return
         self._closed = True
+        self._stub = _ClosedStub(self.target)
         self._channel.close()
         if self.server is not None:
             self.server.stop()
@@ -339,6 +352,8 @@ class Client:
 
     def health(self) -> bool:
         """True when the server's health service reports SERVING."""
+        if self._closed:
+            raise ValueError(f"this Client is closed (its channel to {self.target} too); health needs an open one")
         return health.check(self._channel, timeout=self.timeout) == health.SERVING
 
     # ---------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@ import re
 import secrets
 import shutil
 import subprocess
+import sys
 from concurrent import futures
 
 import grpc
@@ -179,6 +180,26 @@ def test_the_token_goes_with_unary_and_streaming_calls(recorder, monkeypatch, to
     with Client(f"127.0.0.1:{port}", timeout=10) as c:
         c.server_info()
     assert seen.seen == [[f"Bearer {a}"]] * 3 + [[], [f"Bearer {a}"]]
+
+
+def test_a_closed_client_with_a_token_raises_instead_of_crashing(tokens):
+    """grpcio crashes the process (SIGSEGV) on a call through a closed channel that has an
+    interceptor, as a Client with a token has; the Client raises ValueError instead. In a child
+    process, so that a crash is this test's failure and not the whole run's."""
+    _, a, _ = tokens
+    code = f"""
+import pytest
+from garmentdynamics import Client
+c = Client("127.0.0.1:1", token={a!r}, timeout=1)
+c.close()
+for call in (lambda: c.destroy(["s-1"]), lambda: c.server_info(), lambda: c.health(),
+             lambda: c.stub.ListGarments):
+    with pytest.raises(ValueError, match="Client is closed"):
+        call()
+print("raised")
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and "raised" in out.stdout, (out.returncode, out.stderr[-2000:])
 
 
 def test_tls_and_client_certificates_against_a_grpc_server(recorder, pki, tokens):

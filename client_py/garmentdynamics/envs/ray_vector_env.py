@@ -64,6 +64,7 @@ class RayVectorEnv(VectorEnv):
         self._servers = list(servers)
         self._clients: List[Optional[Client]] = [None] * len(self._servers)
         self._alive = [True] * len(self._servers)
+        self._retired: List[Client] = []  # lost servers' clients, closed once no batch uses them
         self._timeout = timeout
         self._batch_kwargs = dict(garment=garment, material=material, vertices=vertices, task=task,
                                   max_episode_steps=max_episode_steps, substeps=substeps, mode=mode, dt=dt,
@@ -116,8 +117,19 @@ class RayVectorEnv(VectorEnv):
         once its health says SERVING (checked when scenes next need a home)."""
         self._alive[s] = False
         client, self._clients[s] = self._clients[s], None
-        if client is not None:
-            client.close()
+        if client is not None:  # closed once no batch uses it: another batch on s may call it yet,
+            self._retired.append(client)  # and is lost (UNAVAILABLE, NOT_FOUND) like this one
+        self._close_retired()
+
+    def _close_retired(self, every: bool = False) -> None:
+        """Closes the lost servers' clients that no batch uses any more (every: all of them)."""
+        keep = []
+        for client in self._retired:
+            if not every and any(batch.client is client for batch in self._batches.values()):
+                keep.append(client)
+            else:
+                client.close()
+        self._retired = keep
 
     def _revive(self) -> None:
         """Lost servers whose health service says SERVING again (an actor's restarted process, a
@@ -169,6 +181,10 @@ class RayVectorEnv(VectorEnv):
         for b in np.unique(self._batch[envs]):
             groups[int(b)] = envs[self._batch[envs] == b]
         futures = {b: self._pool.submit(call, self._batches[b], self._slot[e], e) for b, e in groups.items()}
+        # Every call of the round ends before a lost server's client may be closed (two batches
+        # can share a server's channel; grpcio is not safe against a channel closed while another
+        # thread starts a call on it: grpc/grpc#43455).
+        concurrent.futures.wait(futures.values())
         results, lost = {}, []
         for b, fut in futures.items():
             try:
@@ -213,6 +229,7 @@ class RayVectorEnv(VectorEnv):
             self._autoreset[e] = False
             self._cut_server[e] = server
             cut += envs
+        self._close_retired()
         self.cut_episodes += len(cut)
         return np.asarray(cut, dtype=np.int64)
 
@@ -281,6 +298,7 @@ class RayVectorEnv(VectorEnv):
         for batch in self._batches.values():
             batch.close()
         self._batches.clear()
+        self._close_retired(every=True)
         for s, client in enumerate(self._clients):
             if client is not None:
                 client.close()
