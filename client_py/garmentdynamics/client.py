@@ -188,6 +188,10 @@ def _robot_settings(mode: str, urdf, grip_force: Optional[float], finger_frictio
     return out
 
 
+def _closed(target: str, call: str) -> ValueError:
+    return ValueError(f"this Client is closed (its channel to {target} too); {call} needs an open one")
+
+
 class _ClosedStub:
     """A closed Client's stub: every call raises ValueError. grpcio itself raises for a call on a
     closed channel, but crashes the process (SIGSEGV in _get_registered_call_handle, grpcio 1.85)
@@ -197,7 +201,7 @@ class _ClosedStub:
         self._target = target
 
     def __getattr__(self, rpc: str):
-        raise ValueError(f"this Client is closed (its channel to {self._target} too); {rpc} needs an open one")
+        raise _closed(self._target, rpc)
 
 
 def _ids(ids: Union[str, Sequence[str]]) -> List[str]:
@@ -353,7 +357,7 @@ class Client:
     def health(self) -> bool:
         """True when the server's health service reports SERVING."""
         if self._closed:
-            raise ValueError(f"this Client is closed (its channel to {self.target} too); health needs an open one")
+            raise _closed(self.target, "health")
         return health.check(self._channel, timeout=self.timeout) == health.SERVING
 
     # ---------------------------------------------------------------------------------------
