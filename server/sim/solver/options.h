@@ -100,6 +100,7 @@ struct SceneOptions {
   /// stiffness (N/m) and pushed back by the cloth's barrier and friction: a hand is held back by
   /// the force the cloth resists with, not stopped by where the predictor's guess could go
   /// (docs/robot.md, "Pads in the solve"). 0: off (the pads stay where the predictor stopped them).
+  /// Robot mode's scenes set it from tasks::RobotOptions::pad_stiffness (3e5 unless given).
   Real pad_stiffness = 0;
   /// PCG iteration cap per Newton iteration; 0 (the default): max(50, sqrt(n) / 2.5) for n vertices
   /// (effective_pcg_max_iters). Block-Jacobi PCG (self-contact's default) reaches the cap in most
