@@ -11,6 +11,7 @@ modes from above and from the side.
 
 Each run is `gd run --threads 1` (two at a time with --jobs 2) plus the task parameters given
 with --task-param (robot mode needs a lift the Piper can reach: lift_height=0.45 by default here).
+`scripts/plot_modes_grid.py OUT:TASK ...` draws the final shapes of several such runs in one figure.
 """
 
 import argparse
