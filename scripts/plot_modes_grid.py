@@ -15,17 +15,8 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
-
-def read_obj(path: Path):
-    v, f = [], []
-    for line in path.read_text().splitlines():
-        if line.startswith("v "):
-            v.append([float(x) for x in line.split()[1:4]])
-        elif line.startswith("f "):
-            f.append([int(x.split("/")[0]) - 1 for x in line.split()[1:4]])
-    return np.array(v), np.array(f, dtype=int)
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from compare_modes import read_obj  # noqa: E402  (the same OBJ reading as compare_modes.py's own figure)
 
 
 def main():
