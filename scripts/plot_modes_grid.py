@@ -4,7 +4,7 @@ and robot mode side by side"): one panel per garment and task, seen from the sid
 mode in blue and robot mode in red.
 
     build/venv/bin/python scripts/plot_modes_grid.py out/modes/dress:grasp out/modes/skirt:fling \\
-        --out docs/img/robot_vs_pseudo_garments.png
+        --out docs/img/robot_vs_pseudo_default.png
 
 Each argument is DIR:TASK, DIR being a compare_modes.py --out directory (it holds TASK_pseudo/ and
 TASK_robot/, each with final.obj); a panel whose runs are missing is left out.
@@ -25,6 +25,8 @@ def main():
     p.add_argument("--out", required=True, help="PNG to write")
     p.add_argument("--columns", type=int, default=4)
     args = p.parse_args()
+    if args.columns < 1:
+        p.error("--columns must be at least 1")
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

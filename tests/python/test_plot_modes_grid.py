@@ -53,3 +53,12 @@ def test_an_argument_without_a_task_is_refused(tmp_path: Path) -> None:
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert "expected DIR:TASK" in r.stderr
+
+
+def test_no_columns_is_refused(tmp_path: Path) -> None:
+    write_square(tmp_path / "towel" / "grasp_pseudo" / "final.obj", 0.0)
+    write_square(tmp_path / "towel" / "grasp_robot" / "final.obj", 0.0)
+    r = subprocess.run([sys.executable, str(PLOT), f"{tmp_path / 'towel'}:grasp", "--out", str(tmp_path / "x.png"),
+                        "--columns", "0"], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "--columns must be at least 1" in r.stderr
