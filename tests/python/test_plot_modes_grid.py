@@ -2,20 +2,14 @@
 
 from __future__ import annotations
 
-import struct
 import subprocess
 import sys
 from pathlib import Path
 
+from png_size import png_size
+
 ROOT = Path(__file__).resolve().parents[2]
 PLOT = ROOT / "scripts" / "plot_modes_grid.py"
-PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-
-
-def png_size(path: Path) -> tuple[int, int]:
-    data = path.read_bytes()
-    assert data[:8] == PNG_MAGIC
-    return struct.unpack(">II", data[16:24])
 
 
 def write_square(path: Path, z: float) -> None:
