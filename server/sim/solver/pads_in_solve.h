@@ -137,6 +137,55 @@ void Solver<Exec>::pad_couplings() {
   }
 }
 
+/// The hands' steps ds from their Schur complement S ds = r, with an active set at the end of
+/// their motion: a hand at s = 1 whose step would take it past its commanded pose stays there
+/// (ds = 0) and the others, and the cloth, are solved again without it. Bounding the step length
+/// there instead (pad_step_bound: (1 - s) / ds = 0) left such a hand, the cloth still pulling it
+/// on by however little, taking steps of length 0 to the Newton cap while the cloth it holds
+/// never got its correction (docs/robot.md, "A hand at the end of its step"). At s = 0 the bound
+/// stays: the same active set there let a closing pad's stack end a step inside the still pad
+/// (PadsInTheSolve.APadStopsWhereItsSpringMeetsTheClothsPush), not understood.
+template <class Exec>
+Eigen::VectorXd Solver<Exec>::solve_pad_complement(const Eigen::MatrixXd& S, const Eigen::VectorXd& r) const {
+  const int m = static_cast<int>(r.size());
+  std::vector<bool> held(m, false);
+  Eigen::VectorXd ds = Eigen::VectorXd::Zero(m);
+  for (int round = 0; round <= m; ++round) {
+    std::vector<int> free;
+    for (int a = 0; a < m; ++a)
+      if (!held[a]) free.push_back(a);
+    ds.setZero();
+    if (free.empty()) break;
+    const int f = static_cast<int>(free.size());
+    Eigen::MatrixXd Sf(f, f);
+    Eigen::VectorXd rf(f);
+    for (int a = 0; a < f; ++a) {
+      rf(a) = r(free[a]);
+      for (int b = 0; b < f; ++b) Sf(a, b) = S(free[a], free[b]);
+    }
+    Eigen::LDLT<Eigen::MatrixXd> ldlt(Sf);
+    Eigen::VectorXd d(f);
+    if (ldlt.info() == Eigen::Success && ldlt.isPositive() && (ldlt.vectorD().array() > 0).all()) {
+      d = ldlt.solve(rf);
+    } else {  // an inexact Y can spoil the complement: each hand on its own spring and the cloth's push
+      for (int a = 0; a < f; ++a) d(a) = rf(a) / std::max(Sf(a, a), pad_hands_[free[a]].k_path2);
+    }
+    bool changed = false;
+    for (int a = 0; a < f; ++a) {
+      const PadHand& h = pad_hands_[free[a]];
+      ds(free[a]) = d(a);
+      if (h.s >= 1.0 - kPadEndTolerance && d(a) > 0) {
+        held[free[a]] = true;
+        changed = true;
+      }
+    }
+    if (!changed) return ds;
+  }
+  for (int a = 0; a < m; ++a)
+    if (held[a]) ds(a) = 0.0;
+  return ds;
+}
+
 /// Newton's direction with the hands in it (the Schur complement above), or solve_linear's alone
 /// where no hand is in the solve. Leaves each hand's ds and each pad's motion bound for CCD
 /// (col_move_). Returns the PCG iterations of all its solves.
@@ -170,13 +219,7 @@ int Solver<Exec>::solve_with_pads(double first_step) {
     for (int b = 0; b < m; ++b) S(a, b) = (a == b ? pad_hands_[a].hess : 0.0) - dot(pad_hands_[a].coupling, Y[b]);
   }
   S = (0.5 * (S + S.transpose())).eval();
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
-  Eigen::VectorXd ds(m);
-  if (ldlt.info() == Eigen::Success && ldlt.isPositive() && (ldlt.vectorD().array() > 0).all()) {
-    ds = ldlt.solve(r);
-  } else {  // an inexact Y can spoil the complement: each hand on its own spring and the cloth's push
-    for (int a = 0; a < m; ++a) ds(a) = r(a) / std::max(S(a, a), pad_hands_[a].k_path2);
-  }
+  Eigen::VectorXd ds = solve_pad_complement(S, r);
   for (int a = 0; a < m; ++a) {
     pad_hands_[a].ds = ds(a);
     for (size_t j = 0; j < n3; ++j) y0[j] -= Y[a][j] * ds(a);

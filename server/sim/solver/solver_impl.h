@@ -414,6 +414,7 @@ class Solver final : public SolverBase {
   // The pads in the solve (pads_in_solve.h; SceneOptions::pad_stiffness)
   void begin_pad_dofs();
   void set_pads_at(double alpha);
+  Eigen::VectorXd solve_pad_complement(const Eigen::MatrixXd& S, const Eigen::VectorXd& r) const;
   double pad_spring_energy(double alpha) const;
   double pad_slope() const;
   void pad_couplings();
@@ -570,6 +571,8 @@ class Solver final : public SolverBase {
     std::vector<Eigen::Matrix<double, 3, 4>> rate;  ///< per pad: its displacement per unit s at p, A p + b
   };
   std::vector<PadHand> pad_hands_;
+  /// A hand this close to an end of its step's motion (in s) is at it (solve_pad_complement).
+  static constexpr double kPadEndTolerance = 1e-9;
   double pad_moved_ = 0;  ///< the largest path a hand moved in the last Newton iteration, m
   Vec<double> col_move_;
   std::vector<ColliderShape> col_shape_host_;
