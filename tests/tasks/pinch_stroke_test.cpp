@@ -100,7 +100,7 @@ TEST(PinchStroke, AHandAtTheEndOfItsStepNeverStallsNewton) {
       stuck += s.stuck_steps;
     }
   }
-  // One remains with the fix (a step with one zero-length iteration among others), 34 without.
+  // One such step remains with the fix (not examined: the bound kept at s = 0 is one candidate), 34 without.
   EXPECT_LE(stuck, 1) << "steps ran to the Newton cap with a hand held at the end of its motion";
   const Swept frictionless = sweep(0.0, Vec3::Zero());
   ASSERT_FALSE(frictionless.failed);
