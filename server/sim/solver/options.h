@@ -72,7 +72,8 @@ struct SceneOptions {
   /// Residual stopping rule (docs/physics.md, "Solver"), in velocity units: Newton stops once the
   /// correction still to come is at most max(newton_atol, newton_rtol x the first Newton step),
   /// each measured as a mass-weighted RMS velocity over the free vertices, |d|_M / (h sqrt(M)):
-  /// after an iteration, the step it took; before iteration k >= 1, the next step predicted by
+  /// after an iteration, the step it took (unless the line search cut it below half its
+  /// direction); before iteration k >= 1, the next step predicted by
   /// one MAS apply on the gradient (P⁻¹g, no assembly or solve); before the first, an upper bound
   /// of the step the gradient asks for (h |g|_M⁻¹ / sqrt(M)): a step whose predictor is already
   /// within newton_atol takes no Newton iteration. A self-contact pair pressed below 10 CCD floors

@@ -170,9 +170,9 @@ class Solver final : public SolverBase {
       gd::log().trace("newton {}: step rms {:.3g} m/s (max |dx|/h {:.3g}), alpha {:.3g} (max {:.3g}), pcg {}, "
                       "candidates {}, evaluations {}", k, taken, st.step_norm, alpha, alpha_max, st.pcg_iters, cand_.n,
                       st.energy_evals);
-      if (k > 0 && residual_rule() && taken <= residual_threshold(scale) && pads_settled() && !pressed() &&
-          pinch_settled(dx_, alpha, residual_threshold(scale))) {  // last correction small, at the pinch too
-        st.converged = true;
+      if (k > 0 && residual_rule() && correction_measures(alpha, alpha_max) && taken <= residual_threshold(scale) &&
+          pads_settled() && !pressed() && pinch_settled(dx_, alpha, residual_threshold(scale))) {
+        st.converged = true;                                        // last correction small, at the pinch too
         break;
       }
       // Also converged when the Newton direction itself is small: a step cut short by CCD or the
@@ -312,6 +312,7 @@ class Solver final : public SolverBase {
   double pinch_rms_velocity(const Vec<double>& d, double scale);
   double pinch_residual_bound();
   bool pinch_settled(const Vec<double>& d, double scale, double threshold);
+  bool correction_measures(double alpha, double alpha_max) const;
 
   // L, its gradient and PSD-projected Hessian (assembly.h)
   double assemble();
@@ -573,6 +574,9 @@ class Solver final : public SolverBase {
   std::vector<PadHand> pad_hands_;
   /// A hand this close to an end of its step's motion (in s) is at it (solve_pad_complement).
   static constexpr double kPadEndTolerance = 1e-9;
+  /// The least fraction of its direction a step the line search cut short must keep for its
+  /// correction to end Newton (correction_measures).
+  static constexpr double kMeasuredStepFraction = 0.5;
   double pad_moved_ = 0;  ///< the largest path a hand moved in the last Newton iteration, m
   Vec<double> col_move_;
   std::vector<ColliderShape> col_shape_host_;

@@ -86,6 +86,20 @@ bool Solver<Exec>::pinch_settled(const Vec<double>& d, double scale, double thre
   return pinch_mass_ == 0 || pinch_rms_velocity(d, scale) <= threshold;
 }
 
+/// Whether a Newton step taken at fraction `alpha` of its direction (CCD allowing `alpha_max`)
+/// measures how far the iterate is from the step's end, so that a small one ends Newton. A step
+/// the line search backtracked below kMeasuredStepFraction does not: the energy rose along the
+/// direction, so the model that proposed it is poor there, and a correction cut to 1e-4 of a
+/// direction that still asks for metres per second moved little without being near the minimum
+/// (pinches swept at a fling's pace ended steps on such cuts and slid out: docs/robot.md, "Steps
+/// the line search cut short"); the gradient's estimate before the next iteration judges such an
+/// iterate instead. A step CCD cut (alpha = alpha_max: a contact on its path, as where cloth is
+/// pressed onto cloth every step) or one taking at least that fraction does measure it.
+template <class Exec>
+bool Solver<Exec>::correction_measures(double alpha, double alpha_max) const {
+  return alpha >= kMeasuredStepFraction || alpha >= alpha_max;
+}
+
 /// rms_velocity over the pinched vertices alone (pinch_w_), of the correction scale x d, m/s.
 template <class Exec>
 double Solver<Exec>::pinch_rms_velocity(const Vec<double>& d, double scale) {

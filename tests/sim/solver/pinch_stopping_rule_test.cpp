@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 
 #include "sim/mesh.h"
@@ -73,31 +74,43 @@ LiftRun lift(bool rule, bool ballast, double friction, double speed, double seco
   return r;
 }
 
-// Cotton's friction (0.4 against the pads' squeeze), the hand rising at 0.2 m/s for 0.3 s (55 mm):
-// with the ballast and the rule off the steps stop with the pinch still slipping, and it falls
-// behind the hand, faster as it goes (0.3 mm by 0.2 s, 4.9 mm by 0.3 s when written); with the
-// rule on it goes up with the hand as it does without the ballast (0.02 mm), at the cost of more
-// Newton iterations. The runs' numbers are printed.
+// Cotton's friction (0.4 against the pads' squeeze) and a lower one, the hand rising at 0.2 and
+// 0.4 m/s for 0.3 s (55 and 110 mm): with the ballast and the rule off the steps stop with the
+// pinch still slipping, and it falls behind the hand by an amount that varies from draw to draw
+// (0.3 mm by 0.2 s and 4.9 mm by 0.3 s in the first when written; since steps the line search
+// cut short no longer end Newton, -0.03, 4.7, 0.2 and 2.1 mm in the four); with the rule on it
+// goes up with the hand in every draw as it does without the ballast (0.02 mm), at the cost of
+// more Newton iterations. The runs' numbers are printed.
 TEST(PinchStoppingRule, ThePinchGoesUpWithTheHandWhereTheRestOfTheClothOutweighsIt) {
-  const double mu = 0.4, speed = 0.2, seconds = 0.3;
-  const LiftRun alone = lift(true, false, mu, speed, seconds);
-  const LiftRun on = lift(true, true, mu, speed, seconds);
-  const LiftRun off = lift(false, true, mu, speed, seconds);
-  for (const auto& [name, r] : {std::pair{"pinch alone", &alone}, {"with ballast, rule on", &on},
-                                {"with ballast, rule off", &off}})
-    std::printf("%s: hand rose %.2f mm, pinch %.2f mm (slip %.2f mm), %d Newton iterations, intersecting %d, "
-                "untangled %d\n", name, 1e3 * r->pad_rise, 1e3 * r->pinch_rise, 1e3 * (r->pad_rise - r->pinch_rise),
-                r->newton, r->found, r->untangled);
-  for (const LiftRun* r : {&alone, &on, &off}) {
-    EXPECT_FALSE(r->failed);
-    EXPECT_EQ(r->found, 0);
-  }
+  const double seconds = 0.3;
+  const LiftRun alone = lift(true, false, 0.4, 0.2, seconds);
+  std::printf("pinch alone (friction 0.4, 0.2 m/s): hand rose %.2f mm, pinch %.2f mm, %d Newton iterations\n",
+              1e3 * alone.pad_rise, 1e3 * alone.pinch_rise, alone.newton);
+  EXPECT_FALSE(alone.failed);
+  EXPECT_EQ(alone.found, 0);
   const double slip_alone = alone.pad_rise - alone.pinch_rise;
-  const double slip_on = on.pad_rise - on.pinch_rise, slip_off = off.pad_rise - off.pinch_rise;
-  EXPECT_LT(slip_on, 0.01 * on.pad_rise) << "the pinch slipped in the hand with the rule on";
-  EXPECT_LT(std::abs(slip_on - slip_alone), 0.01 * on.pad_rise) << "the ballast changed the pinch with the rule on";
-  EXPECT_GT(slip_off, 0.05 * on.pad_rise) << "without the rule the pinch held too: nothing compared";
-  EXPECT_GT(on.newton, off.newton);
+  double most_off = 0;  // the largest slip with the rule off, as a fraction of the hand's rise
+  for (const double mu : {0.4, 0.3}) {
+    for (const double speed : {0.2, 0.4}) {
+      SCOPED_TRACE(::testing::Message() << "friction " << mu << ", " << speed << " m/s");
+      const LiftRun on = lift(true, true, mu, speed, seconds);
+      const LiftRun off = lift(false, true, mu, speed, seconds);
+      for (const auto& [name, r] : {std::pair{"rule on", &on}, {"rule off", &off}}) {
+        std::printf("friction %.1f, %.1f m/s, with ballast, %s: hand rose %.2f mm, pinch %.2f mm (slip %.2f mm), "
+                    "%d Newton iterations, intersecting %d, untangled %d\n", mu, speed, name, 1e3 * r->pad_rise,
+                    1e3 * r->pinch_rise, 1e3 * (r->pad_rise - r->pinch_rise), r->newton, r->found, r->untangled);
+        EXPECT_FALSE(r->failed);
+        EXPECT_EQ(r->found, 0);
+      }
+      const double slip_on = on.pad_rise - on.pinch_rise, slip_off = off.pad_rise - off.pinch_rise;
+      EXPECT_LT(slip_on, 0.01 * on.pad_rise) << "the pinch slipped in the hand with the rule on";
+      if (mu == 0.4 && speed == 0.2)
+        EXPECT_LT(std::abs(slip_on - slip_alone), 0.01 * on.pad_rise) << "the ballast changed the pinch";
+      EXPECT_GT(on.newton, off.newton);
+      most_off = std::max(most_off, slip_off / off.pad_rise);
+    }
+  }
+  EXPECT_GT(most_off, 0.02) << "without the rule the pinch held in every draw: nothing compared";
 }
 
 }  // namespace
