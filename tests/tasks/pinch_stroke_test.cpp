@@ -114,8 +114,8 @@ TEST(PinchStroke, AHandAtTheEndOfItsStepNeverStallsNewton) {
 // offsets up to 3 mm): steps that ended on a line-search step cut to ~1e-4 of its direction were
 // taken as converged, and 7 of the 16 draws let go of the strip (docs/robot.md, "Steps the line
 // search cut short"); since such a step ends nothing (Solver::correction_measures), 3 of 16. Newton
-// run to newton_tol holds every draw of the test above, so what is left is still the rule's
-// looseness, not the grip: the bound below is the count measured with a draw of margin.
+// run to newton_tol loses 3 of these 16 too (other draws), so what is left is not the rule's
+// looseness but the coarse pinch itself: the bound below is the count measured with a draw of margin.
 TEST(PinchStroke, AStepTheLineSearchCutShortDoesNotEndNewton) {
   if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
   int lost = 0, draws = 0;
