@@ -137,14 +137,15 @@ void Solver<Exec>::pad_couplings() {
   }
 }
 
-/// The hands' steps ds from their Schur complement S ds = r, with an active set at the end of
-/// their motion: a hand at s = 1 whose step would take it past its commanded pose stays there
-/// (ds = 0) and the others, and the cloth, are solved again without it. Bounding the step length
-/// there instead (pad_step_bound: (1 - s) / ds = 0) left such a hand, the cloth still pulling it
-/// on by however little, taking steps of length 0 to the Newton cap while the cloth it holds
-/// never got its correction (docs/robot.md, "A hand at the end of its step"). At s = 0 the bound
-/// stays: the same active set there let a closing pad's stack end a step inside the still pad
-/// (PadsInTheSolve.APadStopsWhereItsSpringMeetsTheClothsPush), not understood.
+/// The hands' steps ds from their Schur complement S ds = r, with an active set at both ends of
+/// their motion: a hand at s = 1 whose step would take it past its commanded pose, or at s = 0
+/// whose step would take it back along a path it has already made, stays there (ds = 0) and the
+/// others, and the cloth, are solved again without it. Bounding the step length there instead
+/// (pad_step_bound: (1 - s) / ds or s / -ds = 0) left every later iteration the same direction
+/// and none of it: at s = 1 the cloth a hand held never got its correction (docs/robot.md, "A hand
+/// at the end of its step"); at s = 0 the step of length 0 passed as converged and the whole
+/// garment stood still for as long as the cloth pushed the pads back ("A hand at the other end of
+/// its step").
 template <class Exec>
 Eigen::VectorXd Solver<Exec>::solve_pad_complement(const Eigen::MatrixXd& S, const Eigen::VectorXd& r) const {
   const int m = static_cast<int>(r.size());
@@ -174,7 +175,9 @@ Eigen::VectorXd Solver<Exec>::solve_pad_complement(const Eigen::MatrixXd& S, con
     for (int a = 0; a < f; ++a) {
       const PadHand& h = pad_hands_[free[a]];
       ds(free[a]) = d(a);
-      if (h.s >= 1.0 - kPadEndTolerance && d(a) > 0) {
+      const bool past_end = h.s >= 1.0 - kPadEndTolerance && d(a) > 0;
+      const bool before_start = h.s <= kPadEndTolerance && d(a) < 0;
+      if (past_end || before_start) {
         held[free[a]] = true;
         changed = true;
       }

@@ -97,6 +97,7 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
   // guess is clear of it instead, below: pushed out unguarded, cloth squeezed between pads went
   // into the other pad).
   if (n_col_ > 0) project_out_of_colliders(false, opt_.pad_stiffness > 0);
+  bool scaled_back = false;  // the guess's motion scaled back by CCD
   if (self_) {
     // One broad phase on the predictor's motion x_t -> x: its candidates hold every pair within
     // dhat at x_t too (a swept box contains the box at x_t), so the contacts at the start of
@@ -115,13 +116,15 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
     const double alpha = std::min(b.self, b.table);
     if (!(alpha < 1.0 && pinch_mass_ > 0 && opt_.pinch_first_guess && guess_pinch_first()))
       axpy(alpha < 1.0 ? 0.9 * alpha : 1.0, dx_, x_);
-    // The scaled motion may stop short inside a collider, and a vertex squeezed between two may be
-    // left inside one by the projection itself.
-    if (n_col_ > 0 &&
-        (alpha < 1.0 || opt_.pad_stiffness > 0 || (Exec::download(host_x_, x_), inside_a_collider(host_x_)))) {
-      stop_yielding_colliders();        // a yielding one (a gripper pad) stops where the cloth is
-      project_out_of_colliders(true, false);  // out of the others, unguarded by CCD
-    }
+    scaled_back = alpha < 1.0;
+  }
+  // The scaled motion may stop short inside a collider, and a vertex squeezed between two may be
+  // left inside one by the projection itself. Pads in the solve stop here with self-contact off
+  // too: the projection above left them out, and the guess went on inside them (not finite).
+  if (n_col_ > 0 &&
+      (scaled_back || opt_.pad_stiffness > 0 || (Exec::download(host_x_, x_), inside_a_collider(host_x_)))) {
+    stop_yielding_colliders();        // a yielding one (a gripper pad) stops where the cloth is
+    project_out_of_colliders(true, false);  // out of the others, unguarded by CCD
   }
 }
 
@@ -198,6 +201,11 @@ void Solver<Exec>::project_out_of_colliders(bool skip_clear, bool skip_yielding)
 /// what it had at the step's start (at most dhat/4, at least the floor). A pad pressing cloth that
 /// cannot get away closes the gap by at most half per step: the barrier's force rises step by step,
 /// and Newton never starts from cloth pressed onto a pad far closer than the last step left it.
+/// With pads in the solve (SceneOptions::pad_stiffness > 0) a vertex already closer than the floor
+/// keeps what it has instead: under the floor the step's start itself failed the test, the pad
+/// went its whole motion and the projection pushed the cloth out of it unguarded, and a stack
+/// squeezed between two pads went into the other pad (PadsInTheSolve, the spring pressing harder
+/// than the barrier holds at the floor); kept, the pad stops at its start and the solve decides.
 /// Empty rows for the other colliders. Reads host_xt_.
 template <class Exec>
 std::vector<std::vector<double>> Solver<Exec>::yielding_clearances() const {
@@ -209,7 +217,9 @@ std::vector<std::vector<double>> Solver<Exec>::yielding_clearances() const {
     const Eigen::Isometry3d start = (*colliders_)[k].checked_pose(col_t0_);
     for (int i = 0; i < n_; ++i) {
       const Vec3 p(host_xt_[3 * i], host_xt_[3 * i + 1], host_xt_[3 * i + 2]);
-      keep[k][i] = std::max(floor, 0.5 * std::min(0.5 * P_.dhat, (*colliders_)[k].query(p, start).distance));
+      const double d0 = (*colliders_)[k].query(p, start).distance;
+      keep[k][i] = std::max(floor, 0.5 * std::min(0.5 * P_.dhat, d0));
+      if (opt_.pad_stiffness > 0 && d0 > 0) keep[k][i] = std::min(keep[k][i], d0);
     }
   }
   return keep;
@@ -407,8 +417,8 @@ void Solver<Exec>::stop_yielding_colliders() {
   };
   double b = 1.0;
   for (bool grew = true; grew;) {
-    if (!clear_together(0.0)) {  // x_t itself is inside one: no stop helps, the projection moves it out
-      gd::log().debug("yielding colliders: the step's start is inside one; projecting instead");
+    if (!clear_together(0.0)) {  // x_t itself within the floor (or inside): no stop helps, the projection moves it out
+      gd::log().debug("yielding colliders: the step's start is within the clearance floor of one; projecting instead");
       return;
     }
     double lo = 0, hi = 1;
