@@ -68,6 +68,20 @@ def picture(path: Path) -> str:
     return f'<img src="data:{mime};base64,{data}" alt="{html.escape(path.name)}">'
 
 
+def grip_news(arms: dict, events: list) -> list:
+    """Sentences on the hands that did not hold what they grasped (summary.json's robot.arms)."""
+    out = []
+    for a, st in arms.items():
+        closed = [e["t"] for e in events if e.get("arm") == a and e.get("grasp")]
+        if st.get("held_at") is None and closed:
+            missed = st.get("missed_at")
+            why = f": its fingers stopped on little cloth or none at {missed:.3f} s" if missed is not None else ""
+            out.append(f"The {a} hand, closed at {closed[0]:.3f} s, never got hold of the cloth{why}.")
+        elif st.get("lost_at") is not None:
+            out.append(f"The {a} hand let go of the cloth at {st['lost_at']:.3f} s.")
+    return out
+
+
 def build(d: Path) -> str:
     s = json.loads((d / "summary.json").read_text()) if (d / "summary.json").exists() else {}
     title = " ".join(str(s.get(k, "")) for k in ("garment", "task")).strip() or d.name
@@ -104,6 +118,7 @@ def build(d: Path) -> str:
         if isinstance(arms, dict):
             parts.append(table([(a, *(fmt(v) for v in st.values())) for a, st in arms.items()],
                                ["arm", *next(iter(arms.values())).keys()]))
+            parts.extend(f"<p class='bad'>{html.escape(line)}</p>" for line in grip_news(arms, s.get("grasp_events", [])))
     if isinstance(s.get("stage_ms_per_step"), dict):
         st = sorted(s["stage_ms_per_step"].items(), key=lambda kv: -kv[1])
         parts.append("<h2>Where a step's time goes (ms per step)</h2>" + table(st, ["stage", "ms"]))

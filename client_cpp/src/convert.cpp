@@ -65,6 +65,18 @@ std::vector<int32_t> decode_int_array(const pb::Array& a, int cols, const char* 
 
 namespace {
 
+/// ArmState::grip's words ("" for GRIP_UNSPECIFIED: not robot mode).
+std::string grip_name(pb::Grip g) {
+  switch (g) {
+    case pb::GRIP_OPEN: return "open";
+    case pb::GRIP_CLOSING: return "closing";
+    case pb::GRIP_HELD: return "held";
+    case pb::GRIP_MISSED: return "missed";
+    case pb::GRIP_LOST: return "lost";
+    default: return "";
+  }
+}
+
 void to_proto(const RobotSettings& in, pb::RobotSettings* out) {
   out->set_urdf(in.urdf);
   if (in.grip_force) out->set_grip_force(*in.grip_force);
@@ -189,6 +201,7 @@ SceneState from_proto(const pb::SceneState& in, const char* rpc) {
     st.joints.assign(a.joints().begin(), a.joints().end());
     st.gripper = a.gripper();
     st.squeeze = a.squeeze();
+    st.grip = grip_name(a.grip());
     st.pose = pose_from_proto(a.pose());
     st.links.assign(a.links().begin(), a.links().end());
     s.arms.push_back(std::move(st));

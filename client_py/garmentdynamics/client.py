@@ -55,6 +55,8 @@ _JOB_STATUS = {pb.JOB_STATUS_UNSPECIFIED: "UNSPECIFIED", pb.JOB_QUEUED: "QUEUED"
 FINAL_JOB_STATUSES = ("SUCCEEDED", "FAILED", "INTERRUPTED", "CANCELLED")
 _SCENE_STATUS = {pb.SCENE_STATUS_UNSPECIFIED: "UNSPECIFIED", pb.SCENE_READY: "READY", pb.SCENE_FAILED: "FAILED"}
 _ARM_NAME = {pb.ARM_UNSPECIFIED: "unspecified", pb.ARM_LEFT: "left", pb.ARM_RIGHT: "right"}
+_GRIPS = {pb.GRIP_OPEN: "open", pb.GRIP_CLOSING: "closing", pb.GRIP_HELD: "held", pb.GRIP_MISSED: "missed",
+          pb.GRIP_LOST: "lost"}
 
 
 @dataclass
@@ -71,8 +73,10 @@ class SceneState:
     # the tool at this time (pseudo: the commanded pose; robot: the end effector by forward
     # kinematics)}; robot mode also joints ((J,) float64, rad, in scene_info()["joint_names"]
     # order), gripper (the fingers' opening now, m; may stop short of the command on cloth),
-    # squeeze (N, the cloth's push on the fingers: the grip) and links ((K, 3) float32, world m:
-    # the arm's chain from its base through its link origins to the end effector).
+    # squeeze (N, the cloth's push on the fingers: the grip), grip (what the hand does with the
+    # cloth: "open", "closing", "held", "missed": its fingers stopped on little cloth or none,
+    # "lost": held, then the cloth left the pads) and links ((K, 3) float32, world m: the arm's
+    # chain from its base through its link origins to the end effector).
     arms: Dict[str, dict] = field(default_factory=dict)
     # of the last step call: newton/pcg iterations, active contacts, wall_ms, intersecting_pairs
     # (the most intersecting triangle pairs after any of its steps)
@@ -114,7 +118,7 @@ def _arm_state(a: "pb.ArmState") -> dict:
     out = {"closed": a.closed, "held_vertices": a.held_vertices, **_pose(a.pose)}
     if len(a.joints):  # robot mode
         out.update(joints=np.array(a.joints, dtype=np.float64), gripper=a.gripper, squeeze=a.squeeze,
-                   links=np.array(a.links, dtype=np.float32).reshape(-1, 3))
+                   grip=_GRIPS.get(a.grip, ""), links=np.array(a.links, dtype=np.float32).reshape(-1, 3))
     return out
 
 

@@ -374,7 +374,7 @@ class SceneViewer:
             self._draw_scene(tr, f)
             st = f.stats
             arms = ", ".join(
-                f"{a}: {'closed' if s['closed'] else 'open'}"
+                f"{a}: {s['grip'] if s.get('grip') else 'closed' if s['closed'] else 'open'}"
                 + (f" {s['squeeze']:.1f} N" if "squeeze" in s else (f" {s['held_vertices']} v" if s["closed"] else ""))
                 for a, s in f.arms.items())
             status = "" if not f.failed else f" FAILED: {f.failure}"

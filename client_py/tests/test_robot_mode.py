@@ -65,7 +65,7 @@ def test_robot_scenes_start_at_home_with_the_gripper_open(client, piper_urdf, pi
                 assert (a["joints"] >= limits[:, 0] - 1e-9).all() and (a["joints"] <= limits[:, 1] + 1e-9).all()
                 np.testing.assert_allclose(a["joints"], piper_home[k], atol=1e-9)
                 assert a["gripper"] == pytest.approx(0.035, abs=1e-6) and not a["closed"]  # open at home
-                assert a["squeeze"] == 0.0
+                assert a["squeeze"] == 0.0 and a["grip"] == "open"
     finally:
         client.destroy(ids)
 
@@ -110,18 +110,23 @@ def test_joint_commands_drive_the_arms_and_close_the_fingers(client, robot_towel
         for arm in ("left", "right"):
             np.testing.assert_allclose(states[0].arms[arm]["joints"], target(arm, t), atol=1e-6)
             assert states[0].arms[arm]["closed"]
+            assert states[0].arms[arm]["grip"] in ("closing", "missed")  # nothing between the fingers
     # the fingers close from 0.1 s on (at most 0.1 m/s) until they meet: nothing is between them
     opening = np.array(opening)
     assert opening[0] == pytest.approx(0.035, abs=1e-6)
     assert (np.diff(opening, axis=0) <= 1e-9).all() and (opening[1] < 0.034).all()
     assert (opening[-1] < 1e-3).all()
-    for arm in ("left", "right"):
+    for arm, g in zip(("left", "right"), opening[-1]):
         assert states[1].arms[arm]["gripper"] == pytest.approx(0.035, abs=1e-6) and not states[1].arms[arm]["closed"]
+        assert states[1].arms[arm]["grip"] == "open"
+        # shut on nothing: the grasp missed (still closing until the fingers meet)
+        assert states[0].arms[arm]["grip"] == ("missed" if g == 0 else "closing")
     # an untimed command: the joints reached at the end of the call's steps
     q = target("left", 0.2) - 0.5 * delta["left"]
     s = client.step_states([a], [{"left": {"joints": q, "gripper": 0.035}}], substeps=5)[0]
     np.testing.assert_allclose(s.arms["left"]["joints"], q, atol=1e-6)
     assert s.arms["left"]["gripper"] > states[0].arms["left"]["gripper"]  # opening again
+    assert s.arms["left"]["grip"] == "open"
     assert np.isfinite(client.positions([a])).all()
 
 

@@ -47,6 +47,7 @@ class RecordingStub:
                 a.joints.extend(HOME)
                 a.gripper = 0.035
                 a.squeeze = 1.5
+                a.grip = pb.GRIP_HELD
         return s
 
     def CreateScenes(self, req, timeout=None):
@@ -251,6 +252,7 @@ def test_step_sends_joints_and_reads_the_arms(recorded):
     left = states[0].arms["left"]
     assert left["joints"].dtype == np.float64 and left["joints"].tolist() == HOME
     assert left["gripper"] == pytest.approx(0.035) and left["squeeze"] == pytest.approx(1.5)
+    assert left["grip"] == "held"
     # pseudo-mode arms report no robot fields
     pseudo = c.create_scenes(garment="towel")
     arms = c.step_states(pseudo)[0].arms

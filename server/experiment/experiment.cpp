@@ -1006,6 +1006,14 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     nlohmann::json arms = nlohmann::json::object();
     for (tasks::Arm a : {tasks::Arm::kLeft, tasks::Arm::kRight}) {
       const tasks::RobotArmState& st = robot->state(a);
+      // A hand the trajectory closed that never got hold is the run's news, not only a null.
+      const auto& events = run.controller().events();
+      const auto grasp = std::find_if(events.begin(), events.end(),
+                                      [&](const tasks::GripperEvent& e) { return e.arm == a && e.grasp; });
+      if (grasp != events.end() && st.held_at < 0)
+        gd::log().warn("robot mode: the {} hand, closed at {:.3f} s, never got hold of the cloth (summary.json: "
+                       "robot.arms.{}.held_at is null)",
+                       tasks::arm_name(a), grasp->t, tasks::arm_name(a));
       arms[tasks::arm_name(a)] = {{"gripper_final", st.gripper}, {"squeeze_final_n", st.squeeze},
                                    {"table_lift_final", st.table_lift}, {"grip_force_final_n", st.grip_force},
                                    // when the hand first held the cloth and when it let go (null: never), and
@@ -1013,7 +1021,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                    {"held_at", st.held_at >= 0 ? nlohmann::json(st.held_at) : nlohmann::json()},
                                    {"lost_at", st.lost_at >= 0 ? nlohmann::json(st.lost_at) : nlohmann::json()},
                                    {"grip_force_at_loss_n", st.lost_at >= 0 ? nlohmann::json(st.force_at_loss)
-                                                                            : nlohmann::json()}};
+                                                                            : nlohmann::json()},
+                                   // when its first grasp stopped closing on too little cloth to hold it
+                                   {"missed_at", st.missed_at >= 0 ? nlohmann::json(st.missed_at) : nlohmann::json()},
+                                   {"grip_final", tasks::grip_name(st.grip)}};
     }
     s["robot"] = {{"urdf", config.robot.urdf},
                   {"ik_samples", robot->ik_solved()},

@@ -202,6 +202,17 @@ void to_proto(const Eigen::Isometry3d& p, pb::Pose* out) {
   out->mutable_orientation()->set_z(q.z());
 }
 
+pb::Grip to_proto(tasks::Grip g) {
+  switch (g) {
+    case tasks::Grip::kOpen: return pb::GRIP_OPEN;
+    case tasks::Grip::kClosing: return pb::GRIP_CLOSING;
+    case tasks::Grip::kHeld: return pb::GRIP_HELD;
+    case tasks::Grip::kMissed: return pb::GRIP_MISSED;
+    case tasks::Grip::kLost: return pb::GRIP_LOST;
+  }
+  return pb::GRIP_UNSPECIFIED;
+}
+
 }  // namespace
 
 void to_proto(const SceneSnapshot& s, bool include_stats, pb::SceneState* out) {
@@ -220,6 +231,7 @@ void to_proto(const SceneSnapshot& s, bool include_stats, pb::SceneState* out) {
     for (double q : s.arms[a].joints) st->add_joints(q);
     st->set_gripper(s.arms[a].gripper);
     st->set_squeeze(s.arms[a].squeeze);
+    if (s.arms[a].grip) st->set_grip(to_proto(*s.arms[a].grip));
     to_proto(s.arms[a].pose, st->mutable_pose());
     for (const Vec3& p : s.arms[a].links)
       for (int k = 0; k < 3; ++k) st->add_links(static_cast<float>(p[k]));

@@ -194,6 +194,7 @@ SceneSnapshot snapshot_of(const sim::Scene& scene, const tasks::TaskController& 
       s.arms[a].joints = st.joints;
       s.arms[a].gripper = st.gripper;
       s.arms[a].squeeze = st.squeeze;
+      s.arms[a].grip = st.grip;
       s.arms[a].pose = robot->ee_world(arm);
       s.arms[a].links = robot->chain_world(arm);
     } else {

@@ -160,6 +160,7 @@ struct ArmSnapshot {
   std::vector<double> joints;        ///< robot mode: the arm's joints, rad
   double gripper = 0;                ///< robot mode: the fingers' opening, m
   double squeeze = 0;                ///< robot mode: the cloth's push on the fingers, N
+  std::optional<tasks::Grip> grip;   ///< robot mode: what the hand does with the cloth
   /// The tool at the snapshot's time, world frame: the commanded trajectory's pose (pseudo,
   /// fixed point) or the end effector by forward kinematics (robot).
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();

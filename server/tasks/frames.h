@@ -32,6 +32,26 @@ enum class Arm { kLeft = 0, kRight = 1 };
 /// "left" or "right".
 inline const char* arm_name(Arm a) { return a == Arm::kLeft ? "left" : "right"; }
 
+/// What a robot-mode hand does with the cloth (RobotArmState::grip, tasks/robot_arms.h).
+enum class Grip {
+  kOpen,     ///< commanded open
+  kClosing,  ///< commanded closed, not (yet) squeezing the cloth with half the limit
+  kHeld,     ///< squeezed with half the limit (RobotArmState::held_at) and not lost since
+  kMissed,   ///< the fingers stopped closing on little cloth or none, short of a hold (RobotArmState::missed_at)
+  kLost,     ///< held, then the cloth left the pads (RobotArmState::lost_at)
+};
+/// "open", "closing", "held", "missed", "lost".
+inline const char* grip_name(Grip g) {
+  switch (g) {
+    case Grip::kOpen: return "open";
+    case Grip::kClosing: return "closing";
+    case Grip::kHeld: return "held";
+    case Grip::kMissed: return "missed";
+    case Grip::kLost: return "lost";
+  }
+  return "?";
+}
+
 /// Offset of the arm's base frame in the world frame (simulation-code convention, see above).
 inline Vec3 base_offset(Arm a) { return a == Arm::kLeft ? Vec3(0, 0.25, 0) : Vec3(0, -0.25, 0); }
 

@@ -116,6 +116,19 @@ Eigen::Isometry3d pad_catch_up(const Eigen::Isometry3d& at, const Eigen::Isometr
   return move > reach ? blend_pose(at, target, reach / move) : target;
 }
 
+namespace {
+
+/// RobotArmState::grip after an update: `released`, the first grasp is over.
+Grip grip_now(const RobotArmState& st, bool closing, bool released, double squeeze, double limit) {
+  if (!closing) return Grip::kOpen;
+  if (released) return squeeze >= 0.5 * limit && limit > 0 ? Grip::kHeld : Grip::kClosing;
+  if (st.lost_at >= 0) return Grip::kLost;
+  if (st.held_at >= 0) return Grip::kHeld;
+  return st.missed_at >= 0 ? Grip::kMissed : Grip::kClosing;
+}
+
+}  // namespace
+
 double finger_joint_step(const FingerJointInput& in) {
   const double g = in.opening;
   if (in.command < g) {
@@ -468,7 +481,10 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     if (!closing) {
       if (st.held_at >= 0) prev_[ai].released = true;  // the hold is over
     } else if (const double was = grip_force_at(t0); !prev_[ai].released && was > 0) {  // the squeeze is of t0
-      if (st.held_at < 0 && squeeze >= 0.5 * was) st.held_at = t0;
+      if (st.held_at < 0 && squeeze >= 0.5 * was) {
+        st.held_at = t0;
+        gd::log().info("robot mode: the {} hand got hold of the cloth at {:.3f} s ({:.3g} N)", arm_name(a), t0, squeeze);
+      }
       if (st.held_at >= 0 && st.lost_at < 0 && squeeze < kLetGoFraction * was && st.gripper < 0.25 * dhat) {
         st.lost_at = t0;
         st.force_at_loss = was;
@@ -494,9 +510,29 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     if (closing != closing_[ai]) {  // a grasp or release event
       events_.push_back({t0, a, closing, {}});
       closing_[ai] = closing;
+      if (closing) prev_[ai].grasp_from = st.gripper;
+    }
+    // A first grasp whose fingers, open when it was commanded, stop closing (at their command, or
+    // on the floor above) before they squeeze with half the limit closed on little cloth (a hem's
+    // edge, a few vertices) or none. Said once; a later hold still counts.
+    if (closing && !prev_[ai].released && prev_[ai].grasp_from > command && st.held_at < 0 && st.missed_at < 0 &&
+        g >= st.gripper && squeeze < 0.5 * limit && limit > 0) {
+      st.missed_at = t0;
+      if (st.vertices_open == 0)
+        gd::log().warn("robot mode: the {} hand closed on nothing: its fingers shut at {:.3f} s with no cloth "
+                       "between its pads (the grasp point is off the garment)",
+                       arm_name(a), t0);
+      else
+        gd::log().warn("robot mode: the {} hand closed on little cloth: at {:.3f} s its fingers stopped {:.2f} mm "
+                       "apart with {} vertices on their pads, squeezing {:.2g} N, under half its {:.3g} N limit "
+                       "(what counts as a hold); the grip may slip (a grasp point further onto the cloth, e.g. "
+                       "--task-param grasp_inset=0.01 on a generated task, or the mesh refined under the pads, "
+                       "--refine-grasp, gives the pads more cloth)",
+                       arm_name(a), t0, 2e3 * g, st.vertices_open, std::max(0.0, squeeze), limit);
     }
     st.gripper_command = command;
     st.gripper = g;
+    st.grip = grip_now(st, closing, prev_[ai].released, squeeze, limit);
     st.joints = s.joints;
     // Pads at the step's end; the whole hand lifted where a pad would go below the table.
     std::array<Eigen::Isometry3d, 2> end = finger_poses(a, st.joints, g);

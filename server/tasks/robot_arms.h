@@ -166,6 +166,15 @@ struct RobotArmState {
   /// keeps them that far apart): the cloth left the pads (< 0: not yet); and the limit then, N. An
   /// opening command (a release) ends the watch: the hold is over.
   double lost_at = -1, force_at_loss = 0;
+  /// s: when the fingers of the first grasp, open when it was commanded and not yet holding,
+  /// stopped closing (at their command, or as near as the cloth between the pads lets them)
+  /// squeezing less than half the limit: the grasp closed on little cloth (a hem's edge, a few
+  /// vertices) or none (< 0: not so). A warning says so; a hold that comes later still sets held_at.
+  double missed_at = -1;
+  /// What the hand does with the cloth now. The first grasp is followed through held_at, lost_at
+  /// and missed_at; a grasp after a release is judged by its squeeze alone (held at half the
+  /// limit, closing below).
+  Grip grip = Grip::kOpen;
   std::array<int, 2> colliders{-1, -1};  ///< the pads' scene collider ids
   std::vector<int> link_colliders;       ///< the links' scene collider ids (RobotOptions::link_colliders)
 };
@@ -260,6 +269,7 @@ class RobotController final : public TaskController {
   struct Previous {
     double gripper = -1, squeeze = 0, stiffness = 0;  ///< the last update's opening and squeeze, N/m
     bool released = false;  ///< the hand opened after holding: RobotArmState::lost_at no longer watched
+    double grasp_from = -1;  ///< m: the opening when the latest grasp was commanded
   };
   std::array<Previous, 2> prev_;
   std::vector<GripperEvent> events_;

@@ -147,6 +147,7 @@ TEST_F(ClientTest, ArmActionGraspsAndLiftsTheCloth) {
   ASSERT_NE(left, s[0].arms.end());
   EXPECT_TRUE(left->closed);
   EXPECT_GT(left->held_vertices, 0);
+  EXPECT_EQ(left->grip, "");  // robot mode's alone
 
   a.arms[0].pose.position[2] += 0.10;  // lift 10 cm
   opt.substeps = 20;

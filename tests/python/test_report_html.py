@@ -42,3 +42,22 @@ def test_a_failed_run_says_so_and_a_missing_directory_is_an_error(tmp_path):
     assert "non-finite state at step 12" in (tmp_path / "report.html").read_text()
     proc = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path / "nope")], capture_output=True, text=True)
     assert proc.returncode == 1
+
+
+def test_a_hand_that_never_got_hold_or_let_go_is_said_in_words(tmp_path):
+    arm = {"held_at": None, "lost_at": None, "missed_at": None, "grip_final": "open"}
+    (tmp_path / "summary.json").write_text(json.dumps({
+        "garment": "pleat_skirt", "task": "fling", "mode": "robot",
+        "grasp_events": [{"t": 3.3, "arm": "left", "grasp": True}, {"t": 3.3, "arm": "right", "grasp": True}],
+        "robot": {"arms": {"left": {**arm, "missed_at": 3.7, "grip_final": "missed"},
+                           "right": {**arm, "held_at": 3.59, "lost_at": 8.81, "grip_final": "lost"}}}}))
+    assert subprocess.run([sys.executable, str(SCRIPT), str(tmp_path)], capture_output=True).returncode == 0
+    page = (tmp_path / "report.html").read_text()
+    assert "The left hand, closed at 3.300 s, never got hold of the cloth: its fingers stopped on little cloth " \
+           "or none at 3.700 s." in page
+    assert "The right hand let go of the cloth at 8.810 s." in page
+    held = {"garment": "tshirt", "task": "grasp", "mode": "robot", "grasp_events": [{"t": 1, "arm": "left", "grasp": True}],
+            "robot": {"arms": {"left": {**arm, "held_at": 1.2, "grip_final": "held"}}}}
+    (tmp_path / "summary.json").write_text(json.dumps(held))
+    assert subprocess.run([sys.executable, str(SCRIPT), str(tmp_path)], capture_output=True).returncode == 0
+    assert "got hold" not in (tmp_path / "report.html").read_text() and "let go" not in (tmp_path / "report.html").read_text()

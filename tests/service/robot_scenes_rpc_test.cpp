@@ -351,10 +351,13 @@ TEST(RobotScenesRpc, FingersPickATowelOffTheTableThroughTheService) {
       EXPECT_GT(s.arms(0).gripper(), 0.0);
       EXPECT_GT(top, 0.04);
       lifted += top > 0.04;
+      EXPECT_TRUE(s.arms(0).grip() == pb::GRIP_HELD || s.arms(0).grip() == pb::GRIP_MISSED)
+          << "grip " << pb::Grip_Name(s.arms(0).grip());  // held, or a weak grasp that says so
     } else {
       // A miss: the fingers closed on nothing and the towel lies where it was.
       EXPECT_EQ(s.arms(0).gripper(), 0.0);
       EXPECT_LT(top, z_rest + 0.005);
+      EXPECT_EQ(s.arms(0).grip(), pb::GRIP_MISSED) << "grip " << pb::Grip_Name(s.arms(0).grip());
     }
   }
   EXPECT_GE(lifted, static_cast<int>(offsets.size()) / 2);

@@ -43,6 +43,7 @@ struct Lifted {
   double squeeze = 0;       ///< N: the pads' squeeze when the pins let go
   double gripper = 0;       ///< m: finger opening then
   bool failed = false;
+  RobotArmState hand;       ///< the left hand when the pins let go
 };
 
 /// A 4 x 12 cm cotton strip hanging in the plane x = kGripX, its top row at `top_z` pinned (no
@@ -77,6 +78,7 @@ Lifted lift_strip(double finger_friction, const Vec3& hand_offset = Vec3::Zero()
   if (!run_until(*scene, c, 0.5)) return {0, 0, 0, true};
   out.squeeze = c.state(Arm::kLeft).squeeze;
   out.gripper = c.state(Arm::kLeft).gripper;
+  out.hand = c.state(Arm::kLeft);
   scene->release(pins);
   EXPECT_TRUE(scene->kinematic_vertices().empty());  // nothing pinned: the fingers hold it
   if (!run_until(*scene, c, 1.4)) return {0, 0, 0, true};
@@ -97,6 +99,9 @@ TEST(RobotArms, FingersHoldAStripByFrictionAndLiftIt) {
     EXPECT_NEAR(held.squeeze, 10.0, 1.0);
     EXPECT_GT(held.gripper, 0.0);
     EXPECT_NEAR(held.rise, 0.08, 0.01);  // it went up with the hand
+    EXPECT_EQ(held.hand.grip, Grip::kHeld);
+    EXPECT_GE(held.hand.held_at, 0.1);
+    EXPECT_LT(held.hand.missed_at, 0.0);
     std::printf("offset (%g, %g, %g): squeeze %.2f N at a %.2f mm opening, rise %.1f mm\n", offset.x(), offset.y(),
                 offset.z(), held.squeeze, 1e3 * held.gripper, 1e3 * held.rise);
   }
@@ -104,6 +109,26 @@ TEST(RobotArms, FingersHoldAStripByFrictionAndLiftIt) {
   ASSERT_FALSE(slipped.failed);
   std::printf("without friction: rise %.1f mm\n", 1e3 * slipped.rise);
   EXPECT_LT(slipped.rise, -0.03);  // without friction it slid out and fell
+}
+
+TEST(RobotArms, AHandClosingBesideTheStripSaysItMissedIt) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  // The hand beside the strip (its pads clear of the strip's edge) at two distances and heights:
+  // the fingers close on nothing, which the hand's state says (a warning is logged), and the
+  // strip falls when the pins let go.
+  for (const Vec3& offset : {Vec3(0, 0.04, 0), Vec3(0, 0.1, 0.005), Vec3(0.002, -0.045, -0.005)}) {
+    SCOPED_TRACE(::testing::Message() << "hand offset " << offset.transpose());
+    const Lifted r = lift_strip(0.8, offset);
+    ASSERT_FALSE(r.failed);
+    std::printf("offset (%g, %g, %g): grip %s, missed at %.3f s, %d vertices on the pads, rise %.1f mm\n", offset.x(),
+                offset.y(), offset.z(), grip_name(r.hand.grip), r.hand.missed_at, r.hand.vertices_open, 1e3 * r.rise);
+    EXPECT_EQ(r.hand.grip, Grip::kMissed);
+    EXPECT_LT(r.hand.held_at, 0.0);
+    // Closing from 0.1 s at the fingers' speed, they reach their command before the pins let go.
+    EXPECT_GT(r.hand.missed_at, 0.1);
+    EXPECT_LT(r.hand.missed_at, 0.5);
+    EXPECT_LT(r.rise, -0.03);  // nothing held it
+  }
 }
 
 /// A strip like lift_strip's, its top 5 mm above the pads, held by the left hand (closed at 0.1 s,

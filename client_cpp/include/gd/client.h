@@ -207,6 +207,10 @@ struct ArmState {
   std::vector<double> joints;          ///< robot mode: the arm's joints, rad
   double gripper = 0;                  ///< robot mode: the fingers' opening, m
   double squeeze = 0;                  ///< robot mode: the cloth's push on the fingers, N
+  /// Robot mode: what the hand does with the cloth ("open", "closing", "held", "missed": the
+  /// fingers stopped on little cloth or none, "lost": held, then the cloth left the pads); empty
+  /// in the other modes.
+  std::string grip;
   /// The tool at the state's time, world frame (pseudo: the commanded pose; robot: the end
   /// effector by forward kinematics).
   Pose pose;
