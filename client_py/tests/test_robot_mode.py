@@ -197,7 +197,8 @@ def test_a_server_with_robot_urdf_uses_it_by_default(server_bin, piper_urdf):
 def test_robot_job_runs_with_the_urdf_sent(client, piper_urdf):
     # a short generated grasp (time_scale 0.25: 2.8 s simulated); the arms solve its poses
     job = client.submit_job(garment="towel", task="grasp", vertices=TOWEL_VERTICES, mode="robot",
-                            urdf=piper_urdf.read_text(), grip_force=8.0, dt=0.02, time_scale=0.25, settle=0.1,
+                            urdf=piper_urdf.read_text(), grip_force=8.0, finger_friction=0.5, dt=0.02,
+                            time_scale=0.25, settle=0.1,
                             self_contact=False, task_params={"lift_height": 0.15}, label="robot job")
     report = client.wait_report(job, progress=False)
     assert report["job"]["status"] == "SUCCEEDED", report["job"]["message"]
@@ -205,6 +206,9 @@ def test_robot_job_runs_with_the_urdf_sent(client, piper_urdf):
     assert summary["mode"] == "robot" and not summary["failed"]
     assert set(summary["robot"]["arms"]) == {"left", "right"} and summary["robot"]["ik_samples"] > 0
     assert "height_fitted" not in summary["robot"]  # the lift given is taken as it is
+    assert summary["robot"]["finger_friction"] == pytest.approx(0.5)  # the request's, not the towel's
+    for arm in summary["robot"]["arms"].values():
+        assert arm["grip_final"] in ("open", "closing", "held", "missed", "lost") and "missed_at" in arm
 
 
 def test_a_robot_jobs_default_lift_is_fitted_to_the_arms_reach(client, piper_urdf):

@@ -1038,6 +1038,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                   {"link_meshes_not_found", robot->arm_model().skipped_meshes()},
                   {"rigid_hands", config.robot.rigid_hands},
                   {"pad_stiffness", config.robot.pad_stiffness},  // N/m; 0: pads stopped by the predictor
+                  // the pads' Coulomb coefficient on the cloth: the option's, else the material's
+                  {"finger_friction", config.robot.finger_friction >= 0 ? config.robot.finger_friction
+                                                                        : double(sc.material().friction)},
                   {"arms", arms}};
     if (placement)  // the garment moved to where the arms follow the task best (absent: placed as given)
       s["robot"]["placement"] = {{"given_position_m", {config.garment_position.x(), config.garment_position.y(),
