@@ -131,6 +131,28 @@ TEST(RobotArms, AHandClosingBesideTheStripSaysItMissedIt) {
   }
 }
 
+TEST(RobotArms, AHandClosingOnTheStripsLowEdgeSaysItClosedOnLittleCloth) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  // The hand 9.6-9.8 cm lower: only the strip's bottom edge lies between the pads' tips. The
+  // fingers stop a quarter contact distance apart on it (cloth between them) with a squeeze the
+  // barrier caps below half the limit (what counts as a hold): the grasp closed on little cloth.
+  for (const Vec3& offset : {Vec3(0, 0, -0.096), Vec3(0, 0, -0.098), Vec3(0.002, 0.003, -0.097)}) {
+    SCOPED_TRACE(::testing::Message() << "hand offset " << offset.transpose());
+    const Lifted r = lift_strip(0.8, offset);
+    ASSERT_FALSE(r.failed);
+    std::printf("offset (%g, %g, %g): grip %s, missed at %.3f s, %d vertices on the pads, squeeze %.2f N at a %.3f "
+                "mm opening\n", offset.x(), offset.y(), offset.z(), grip_name(r.hand.grip), r.hand.missed_at,
+                r.hand.vertices_open, r.squeeze, 1e3 * r.gripper);
+    EXPECT_EQ(r.hand.grip, Grip::kMissed);
+    EXPECT_LT(r.hand.held_at, 0.0);
+    EXPECT_GT(r.hand.missed_at, 0.1);
+    EXPECT_LT(r.hand.missed_at, 0.5);
+    EXPECT_GT(r.hand.vertices_open, 0);  // cloth between the pads, not nothing
+    EXPECT_GT(r.gripper, 0.0);           // and the fingers stopped on it
+    EXPECT_LT(r.squeeze, 5.0);
+  }
+}
+
 /// A strip like lift_strip's, its top 5 mm above the pads, held by the left hand (closed at 0.1 s,
 /// the pins let go at 0.8 s) without lifting while the squeeze limit falls from 10 N at 0.6 s to
 /// 0.1 N at 0.8 s and to 1 mN at 4.8 s.
