@@ -297,7 +297,7 @@ def test_joint_action_space_and_env_steps(recorded):
         np.testing.assert_allclose(cmds[0].joints, HOME, atol=1e-6)
         assert cmds[0].gripper == 0.0 and cmds[1].gripper == pytest.approx(0.035)
         assert not cmds[0].HasField("time")
-        assert info["arms"]["right"]["squeeze"] == pytest.approx(1.5)
+        assert info["arms"]["right"]["squeeze"] == pytest.approx(1.5) and info["arms"]["right"]["grip"] == "held"
     finally:
         env.close()
     # the end-effector actions stay the default, in robot mode too

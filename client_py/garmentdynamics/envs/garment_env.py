@@ -28,7 +28,9 @@ class GarmentEnv(gym.Env):
     joint6, rad; scene_info["joint_names"], "joint_lower", "joint_upper"), then the gripper
     opening in [0, scene_info["gripper_max"]] m, reached at the step's end. The arms start at a
     home pose 0.3 m above their bases; reset's and step's info["arms"] give each arm's joints,
-    gripper opening and squeeze (N). grip_force, finger_friction, pad_stiffness: as in Client.create_scenes.
+    gripper opening, squeeze (N) and grip ("open", "closing", "held", "missed": the fingers
+    stopped on little cloth or none, "lost": held, then the cloth left the pads). grip_force,
+    finger_friction, pad_stiffness: as in Client.create_scenes.
     Reward: `task` ("lift" or "fold"), see garmentdynamics.envs.rewards.
     terminated: the scene failed (its state turned non-finite; reward -10).
     truncated: after max_episode_steps steps (None: never). gymnasium.make("garmentdynamics/Garment-v0")
