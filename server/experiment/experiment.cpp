@@ -1004,10 +1004,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   s["grasp_events"] = ev;
   if (robot) {
     nlohmann::json arms = nlohmann::json::object();
+    const std::vector<tasks::GripperEvent>& events = run.controller().events();
     for (tasks::Arm a : {tasks::Arm::kLeft, tasks::Arm::kRight}) {
       const tasks::RobotArmState& st = robot->state(a);
       // A hand the trajectory closed that never got hold is the run's news, not only a null.
-      const auto& events = run.controller().events();
       const auto grasp = std::find_if(events.begin(), events.end(),
                                       [&](const tasks::GripperEvent& e) { return e.arm == a && e.grasp; });
       if (grasp != events.end() && st.held_at < 0)
@@ -1022,7 +1022,8 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                    {"lost_at", st.lost_at >= 0 ? nlohmann::json(st.lost_at) : nlohmann::json()},
                                    {"grip_force_at_loss_n", st.lost_at >= 0 ? nlohmann::json(st.force_at_loss)
                                                                             : nlohmann::json()},
-                                   // when its first grasp stopped closing on too little cloth to hold it
+                                   // when its first grasp stopped closing on little cloth or none, short of
+                                   // a hold; and what the hand does with the cloth at the end
                                    {"missed_at", st.missed_at >= 0 ? nlohmann::json(st.missed_at) : nlohmann::json()},
                                    {"grip_final", tasks::grip_name(st.grip)}};
     }
