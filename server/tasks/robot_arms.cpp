@@ -121,7 +121,7 @@ namespace {
 /// RobotArmState::grip after an update: `released`, the first grasp is over.
 Grip grip_now(const RobotArmState& st, bool closing, bool released, double squeeze, double limit) {
   if (!closing) return Grip::kOpen;
-  if (released) return squeeze >= 0.5 * limit && limit > 0 ? Grip::kHeld : Grip::kClosing;
+  if (released) return squeeze >= RobotController::kHoldFraction * limit && limit > 0 ? Grip::kHeld : Grip::kClosing;
   if (st.lost_at >= 0) return Grip::kLost;
   if (st.held_at >= 0) return Grip::kHeld;
   return st.missed_at >= 0 ? Grip::kMissed : Grip::kClosing;
@@ -481,7 +481,7 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     if (!closing) {
       if (st.held_at >= 0) prev_[ai].released = true;  // the hold is over
     } else if (const double was = grip_force_at(t0); !prev_[ai].released && was > 0) {  // the squeeze is of t0
-      if (st.held_at < 0 && squeeze >= 0.5 * was) {
+      if (st.held_at < 0 && squeeze >= kHoldFraction * was) {
         st.held_at = t0;
         gd::log().info("robot mode: the {} hand got hold of the cloth at {:.3f} s ({:.3g} N)", arm_name(a), t0, squeeze);
       }
@@ -516,7 +516,7 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     // on the floor above) before they squeeze with half the limit closed on little cloth (a hem's
     // edge, a few vertices) or none. Said once; a later hold still counts.
     if (closing && !prev_[ai].released && prev_[ai].grasp_from > command && st.held_at < 0 && st.missed_at < 0 &&
-        g >= st.gripper && squeeze < 0.5 * limit && limit > 0) {
+        g >= st.gripper && squeeze < kHoldFraction * limit && limit > 0) {
       st.missed_at = t0;
       if (st.vertices_open == 0)
         gd::log().warn("robot mode: the {} hand closed on nothing: its fingers shut at {:.3f} s with no cloth "

@@ -227,6 +227,9 @@ class RobotController final : public TaskController {
   double grip_force_at(double t) const;
   /// A hand whose squeeze falls below this fraction of its limit while closed has let go.
   static constexpr double kLetGoFraction = 0.02;
+  /// A hand squeezing with this fraction of its limit holds the cloth (RobotArmState::held_at; a
+  /// grasp whose fingers stop short of it missed, RobotArmState::missed_at).
+  static constexpr double kHoldFraction = 0.5;
   /// Recorded samples whose joints lay outside the URDF's limits (beyond kJointLimitSlack) and
   /// were clamped to them, and the largest excess (rad or m).
   int joints_clamped() const { return joints_clamped_; }
