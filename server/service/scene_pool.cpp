@@ -190,7 +190,7 @@ SceneSnapshot snapshot_of(const sim::Scene& scene, const tasks::TaskController& 
     const auto arm = static_cast<tasks::Arm>(a);
     if (robot) {
       const tasks::RobotArmState& st = robot->state(arm);
-      s.arms[a].closed = st.gripper_command < 0.5 * robot->arm_model().gripper_max();
+      s.arms[a].closed = st.grip != tasks::Grip::kOpen;  // the command asks for a grip (RobotController::grip_asked)
       s.arms[a].joints = st.joints;
       s.arms[a].gripper = st.gripper;
       s.arms[a].squeeze = st.squeeze;

@@ -129,6 +129,11 @@ Grip grip_now(const RobotArmState& st, bool closing, bool released, double squee
 
 }  // namespace
 
+bool RobotController::grip_asked(double command, double open_ref, double gripper_max) {
+  const double ref = open_ref >= kMinOpenFraction * gripper_max ? open_ref : gripper_max;
+  return command < 0.5 * ref;
+}
+
 double finger_joint_step(const FingerJointInput& in) {
   const double g = in.opening;
   if (in.command < g) {
@@ -474,7 +479,9 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     const double command = std::clamp(s.gripper, 0.0, model_->gripper_max());
     const double limit = grip_force_at(t_end);
     st.grip_force = limit;
-    const bool closing = command < 0.5 * model_->gripper_max();  // the trajectory asks for a grip
+    // The trajectory asks for a grip: the command against the opening the hand last stood open at.
+    if (!closing_[ai]) prev_[ai].open_ref = std::max(prev_[ai].open_ref, command);
+    const bool closing = grip_asked(command, prev_[ai].open_ref, model_->gripper_max());
     // Whether the hand holds the cloth: it squeezed with half its limit, and later, still commanded
     // closed, felt (almost) nothing and closed nearer than cloth between the pads lets them (below):
     // the cloth left the pads.
@@ -511,6 +518,7 @@ void RobotController::update(sim::Scene& scene, double t_end) {
       events_.push_back({t0, a, closing, {}});
       closing_[ai] = closing;
       if (closing) prev_[ai].grasp_from = st.gripper;
+      else prev_[ai].open_ref = command;  // released: judged against the opening from here on
     }
     // A first grasp whose fingers, open when it was commanded, stop closing (at their command, or
     // on the floor above) before they squeeze with half the limit closed on little cloth (a hem's

@@ -230,6 +230,13 @@ class RobotController final : public TaskController {
   /// A hand squeezing with this fraction of its limit holds the cloth (RobotArmState::held_at; a
   /// grasp whose fingers stop short of it missed, RobotArmState::missed_at).
   static constexpr double kHoldFraction = 0.5;
+  /// Whether a gripper command asks for a grip (RobotArmState::grip is then not kOpen; grasp and
+  /// release events are its changes): a command below half `open_ref`, the opening the hand last
+  /// stood open at (its pre-grasp opening: a hand hovering with its fingers 3 cm apart is open, and
+  /// grips below 7.5 mm), or below half the full opening `gripper_max` where the hand has not stood
+  /// open yet (open_ref below kMinOpenFraction of it: a trajectory that starts with the fingers shut).
+  static bool grip_asked(double command, double open_ref, double gripper_max);
+  static constexpr double kMinOpenFraction = 0.1;
   /// Recorded samples whose joints lay outside the URDF's limits (beyond kJointLimitSlack) and
   /// were clamped to them, and the largest excess (rad or m).
   int joints_clamped() const { return joints_clamped_; }
@@ -273,6 +280,9 @@ class RobotController final : public TaskController {
     double gripper = -1, squeeze = 0, stiffness = 0;  ///< the last update's opening and squeeze, N/m
     bool released = false;  ///< the hand opened after holding: RobotArmState::lost_at no longer watched
     double grasp_from = -1;  ///< m: the opening when the latest grasp was commanded
+    /// m: the opening the hand last stood open at: the largest command since the start or the
+    /// latest release (grip_asked); < 0 before the first update
+    double open_ref = -1;
   };
   std::array<Previous, 2> prev_;
   std::vector<GripperEvent> events_;

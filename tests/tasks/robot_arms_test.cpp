@@ -131,6 +131,66 @@ TEST(RobotArms, AHandClosingBesideTheStripSaysItMissedIt) {
   }
 }
 
+TEST(RobotArms, AGripIsAskedBelowHalfTheOpeningTheHandLastStoodOpenAt) {
+  constexpr double kMax = 0.035;
+  EXPECT_FALSE(RobotController::grip_asked(0.015, 0.015, kMax));  // hovering 3 cm apart: open
+  EXPECT_FALSE(RobotController::grip_asked(0.008, 0.015, kMax));
+  EXPECT_TRUE(RobotController::grip_asked(0.007, 0.015, kMax));   // below half the pre-grasp opening
+  EXPECT_FALSE(RobotController::grip_asked(0.018, 0.035, kMax));   // from fully open: half of it, as before
+  EXPECT_TRUE(RobotController::grip_asked(0.017, 0.035, kMax));
+  // A hand not yet stood open (a trajectory starting with the fingers shut) is judged against the
+  // full opening.
+  EXPECT_TRUE(RobotController::grip_asked(0.0, 0.0, kMax));
+  EXPECT_TRUE(RobotController::grip_asked(0.017, 0.002, kMax));
+  EXPECT_FALSE(RobotController::grip_asked(0.018, 0.002, kMax));
+}
+
+TEST(RobotArms, AHandHoveringHalfOpenIsOpenAndGripsWhenItCloses) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  // The left hand round the hanging strip with its fingers 2.4 cm or 1.6 cm apart (below half
+  // their full 7 cm) until 0.1 s, closing to 0 by 0.2 s, lifting 8 cm from 0.6 s to 1.0 s. While
+  // it hovers it is open (no grasp event, nothing missed); the grasp is the command crossing half
+  // the hovering opening, and the hand holds the strip.
+  for (const double g0 : {0.012, 0.008}) {
+    SCOPED_TRACE(::testing::Message() << "pre-grasp opening " << g0);
+    auto strip = hanging_strip(0.11);
+    sim::Scene* scene = strip.first.get();
+    RobotOptions ro;
+    ro.urdf = piper_urdf();
+    ro.finger_friction = 0.8;
+    const DualArmTrajectory traj = two_arms(
+        {0.0, 0.1, 0.2, 0.6, 1.0, 1.4},
+        [](double t) -> Vec3 { return Vec3(kGripX, kGripY, kTipZ + (t >= 1.0 ? 0.08 : 0.0)); },
+        [g0](double t) { return t < 0.15 ? g0 : 0.0; });
+    RobotController c(traj, ro);
+    const auto left_events = [&] {
+      std::vector<GripperEvent> out;
+      for (const GripperEvent& e : c.events())
+        if (e.arm == Arm::kLeft) out.push_back(e);
+      return out;
+    };
+    ASSERT_TRUE(run_until(*scene, c, 0.09));
+    EXPECT_EQ(c.state(Arm::kLeft).grip, Grip::kOpen);
+    EXPECT_TRUE(left_events().empty());
+    EXPECT_NEAR(c.state(Arm::kLeft).gripper, g0, 1e-9);  // the fingers stand at their command
+    ASSERT_TRUE(run_until(*scene, c, 0.5));
+    const std::vector<GripperEvent> ev = left_events();
+    ASSERT_EQ(ev.size(), 1u);
+    EXPECT_TRUE(ev[0].grasp);
+    // The command ramps from g0 at 0.1 s to 0 at 0.2 s: half of g0 at 0.15 s.
+    EXPECT_NEAR(ev[0].t, 0.15, 0.011);
+    scene->release(strip.second);
+    ASSERT_TRUE(run_until(*scene, c, 1.4));
+    const RobotArmState& st = c.state(Arm::kLeft);
+    std::printf("pre-grasp opening %.1f mm: grasp at %.3f s, held at %.3f s, grip %s, squeeze %.2f N\n", 1e3 * g0,
+                ev[0].t, st.held_at, grip_name(st.grip), st.squeeze);
+    EXPECT_EQ(st.grip, Grip::kHeld);
+    EXPECT_GE(st.held_at, ev[0].t);
+    EXPECT_LT(st.missed_at, 0.0);
+    EXPECT_EQ(left_events().size(), 1u);  // no release
+  }
+}
+
 TEST(RobotArms, AHandClosingOnTheStripsLowEdgeSaysItClosedOnLittleCloth) {
   if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
   // The hand 9.6-9.8 cm lower: only the strip's bottom edge lies between the pads' tips. The
