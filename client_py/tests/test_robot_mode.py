@@ -130,6 +130,23 @@ def test_joint_commands_drive_the_arms_and_close_the_fingers(client, robot_towel
     assert np.isfinite(client.positions([a])).all()
 
 
+def test_a_hand_pre_shaped_half_open_stands_open_and_grips_below_half_of_that(client, robot_towels):
+    a = robot_towels[0]
+    home = client.reset_states([a])[0].arms["left"]["joints"]
+    # pre-shaped from fully open to 3 cm apart (15 mm each finger) in the air: the fingers rest at
+    # their command with nothing between them, so the hand stands open (not "missed")
+    s = client.step_states([a], [{"left": {"joints": home, "gripper": 0.015}}], substeps=30)[0]
+    assert s.arms["left"]["gripper"] == pytest.approx(0.015, abs=1e-6)
+    assert not s.arms["left"]["closed"] and s.arms["left"]["grip"] == "open"
+    s = client.step_states([a], substeps=3)[0]  # hovering there
+    assert not s.arms["left"]["closed"] and s.arms["left"]["grip"] == "open"
+    # shut from there: a grip asked, and on nothing it missed
+    client.step_states([a], [{"left": {"joints": home, "gripper": 0.0}}], substeps=30)
+    s = client.step_states([a], substeps=3)[0]
+    assert s.arms["left"]["gripper"] < 1e-3
+    assert s.arms["left"]["closed"] and s.arms["left"]["grip"] == "missed"
+
+
 def test_pose_commands_are_solved_by_inverse_kinematics(client, robot_towels):
     a = robot_towels[0]
     home = client.reset_states([a])[0].arms["left"]["joints"]

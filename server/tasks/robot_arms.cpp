@@ -481,7 +481,7 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     st.grip_force = limit;
     // The trajectory asks for a grip: the command against the opening the hand last stood open at.
     if (!closing_[ai]) prev_[ai].open_ref = std::max(prev_[ai].open_ref, command);
-    const bool closing = grip_asked(command, prev_[ai].open_ref, model_->gripper_max());
+    bool closing = grip_asked(command, prev_[ai].open_ref, model_->gripper_max());
     // Whether the hand holds the cloth: it squeezed with half its limit, and later, still commanded
     // closed, felt (almost) nothing and closed nearer than cloth between the pads lets them (below):
     // the cloth left the pads.
@@ -514,6 +514,12 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     // pulls the mean squeeze below zero (a towel turned over in a fold or a fling: the fingers then
     // closed to 0 on the cloth between them and trapped it inside a pad).
     if (pressed) g = std::max(g, 0.25 * dhat);
+    // Fingers that came to rest at their command with nothing between the pads, still a tenth of
+    // the full opening or more apart, stand open there: a pre-shape (from 35 mm to 15 mm, say),
+    // not a grasp; the next grip is judged against that opening.
+    if (closing && g == command && command >= kMinOpenFraction * model_->gripper_max() && st.vertices_open == 0 &&
+        squeeze <= 0.1 * limit)
+      closing = false;
     if (closing != closing_[ai]) {  // a grasp or release event
       events_.push_back({t0, a, closing, {}});
       closing_[ai] = closing;

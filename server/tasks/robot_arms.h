@@ -235,6 +235,8 @@ class RobotController final : public TaskController {
   /// stood open at (its pre-grasp opening: a hand hovering with its fingers 3 cm apart is open, and
   /// grips below 7.5 mm), or below half the full opening `gripper_max` where the hand has not stood
   /// open yet (open_ref below kMinOpenFraction of it: a trajectory that starts with the fingers shut).
+  /// update() also ends a grip whose fingers came to rest at a command of at least that fraction
+  /// with nothing between the pads: the hand was pre-shaped, and stands open there.
   static bool grip_asked(double command, double open_ref, double gripper_max);
   static constexpr double kMinOpenFraction = 0.1;
   /// Recorded samples whose joints lay outside the URDF's limits (beyond kJointLimitSlack) and

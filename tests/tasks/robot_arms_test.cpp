@@ -191,6 +191,53 @@ TEST(RobotArms, AHandHoveringHalfOpenIsOpenAndGripsWhenItCloses) {
   }
 }
 
+TEST(RobotArms, AHandPreShapedFromFullyOpenStandsOpenThenGrips) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  // The left hand round the hanging strip, fully open, pre-shaped to 3 cm apart (1.5 cm each) from
+  // 0.1 s to 0.2 s, then closing to 0 from 0.5 s to 0.6 s; the pins let go at 0.9 s and the hand
+  // lifts 8 cm from 1.3 s to 1.7 s. The pre-shape crosses half the full opening (a grip asked),
+  // but once the fingers rest at 15 mm with nothing between the pads the hand stands open there,
+  // not "missed"; the grasp is the command crossing half of 15 mm, and the hand holds the strip.
+  auto strip = hanging_strip(0.11);
+  sim::Scene* scene = strip.first.get();
+  RobotOptions ro;
+  ro.urdf = piper_urdf();
+  ro.finger_friction = 0.8;
+  const DualArmTrajectory traj = two_arms(
+      {0.0, 0.1, 0.2, 0.5, 0.6, 0.9, 1.3, 1.7},
+      [](double t) -> Vec3 { return Vec3(kGripX, kGripY, kTipZ + (t >= 1.7 ? 0.08 : 0.0)); },
+      [](double t) { return t < 0.15 ? kGripperOpen : t < 0.55 ? 0.015 : 0.0; });
+  RobotController c(traj, ro);
+  const auto left_events = [&] {
+    std::vector<GripperEvent> out;
+    for (const GripperEvent& e : c.events())
+      if (e.arm == Arm::kLeft) out.push_back(e);
+    return out;
+  };
+  ASSERT_TRUE(run_until(*scene, c, 0.45));
+  EXPECT_EQ(c.state(Arm::kLeft).grip, Grip::kOpen);
+  EXPECT_NEAR(c.state(Arm::kLeft).gripper, 0.015, 1e-9);
+  EXPECT_LT(c.state(Arm::kLeft).missed_at, 0.0);  // not a grasp that closed on nothing
+  const std::vector<GripperEvent> before = left_events();
+  ASSERT_EQ(before.size(), 2u);  // the pre-shape's motion, then standing open at 15 mm
+  EXPECT_TRUE(before[0].grasp);
+  EXPECT_FALSE(before[1].grasp);
+  EXPECT_LT(before[1].t, 0.45);
+  ASSERT_TRUE(run_until(*scene, c, 0.9));
+  const std::vector<GripperEvent> ev = left_events();
+  ASSERT_EQ(ev.size(), 3u);
+  EXPECT_TRUE(ev[2].grasp);
+  EXPECT_NEAR(ev[2].t, 0.55, 0.011);  // the command ramps from 15 mm at 0.5 s to 0 at 0.6 s
+  scene->release(strip.second);
+  ASSERT_TRUE(run_until(*scene, c, 1.7));
+  const RobotArmState& st = c.state(Arm::kLeft);
+  std::printf("pre-shaped: events at %.3f, %.3f (standing open), %.3f s; held at %.3f s, grip %s, squeeze %.2f N\n",
+              ev[0].t, ev[1].t, ev[2].t, st.held_at, grip_name(st.grip), st.squeeze);
+  EXPECT_EQ(st.grip, Grip::kHeld);
+  EXPECT_GE(st.held_at, ev[2].t);
+  EXPECT_LT(st.missed_at, 0.0);
+}
+
 TEST(RobotArms, AHandClosingOnTheStripsLowEdgeSaysItClosedOnLittleCloth) {
   if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
   // The hand 9.6-9.8 cm lower: only the strip's bottom edge lies between the pads' tips. The
