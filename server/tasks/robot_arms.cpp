@@ -514,12 +514,15 @@ void RobotController::update(sim::Scene& scene, double t_end) {
     // pulls the mean squeeze below zero (a towel turned over in a fold or a fling: the fingers then
     // closed to 0 on the cloth between them and trapped it inside a pad).
     if (pressed) g = std::max(g, 0.25 * dhat);
-    // Fingers that came to rest at their command with nothing between the pads, still a tenth of
-    // the full opening or more apart, stand open there: a pre-shape (from 35 mm to 15 mm, say),
-    // not a grasp; the next grip is judged against that opening.
-    if (closing && g == command && command >= kMinOpenFraction * model_->gripper_max() && st.vertices_open == 0 &&
+    // Fingers that came to rest at a command that no longer changes, with nothing between the pads
+    // and still a tenth of the full opening or more apart, stand open there: a pre-shape (from 35
+    // mm to 15 mm, say), not a grasp; the next grip is judged against that opening. (Fingers
+    // following a closing ramp are not at rest: a grasp's events are where the command says.)
+    const bool at_rest = g == command && command == prev_[ai].command;
+    if (closing && at_rest && command >= kMinOpenFraction * model_->gripper_max() && st.vertices_open == 0 &&
         squeeze <= 0.1 * limit)
       closing = false;
+    prev_[ai].command = command;
     if (closing != closing_[ai]) {  // a grasp or release event
       events_.push_back({t0, a, closing, {}});
       closing_[ai] = closing;

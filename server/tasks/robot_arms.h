@@ -235,8 +235,9 @@ class RobotController final : public TaskController {
   /// stood open at (its pre-grasp opening: a hand hovering with its fingers 3 cm apart is open, and
   /// grips below 7.5 mm), or below half the full opening `gripper_max` where the hand has not stood
   /// open yet (open_ref below kMinOpenFraction of it: a trajectory that starts with the fingers shut).
-  /// update() also ends a grip whose fingers came to rest at a command of at least that fraction
-  /// with nothing between the pads: the hand was pre-shaped, and stands open there.
+  /// update() also ends a grip whose fingers came to rest at a command of at least that fraction,
+  /// no longer changing, with nothing between the pads: the hand was pre-shaped, and stands open
+  /// there.
   static bool grip_asked(double command, double open_ref, double gripper_max);
   static constexpr double kMinOpenFraction = 0.1;
   /// Recorded samples whose joints lay outside the URDF's limits (beyond kJointLimitSlack) and
@@ -282,6 +283,7 @@ class RobotController final : public TaskController {
     double gripper = -1, squeeze = 0, stiffness = 0;  ///< the last update's opening and squeeze, N/m
     bool released = false;  ///< the hand opened after holding: RobotArmState::lost_at no longer watched
     double grasp_from = -1;  ///< m: the opening when the latest grasp was commanded
+    double command = -1;     ///< m: the last update's gripper command
     /// m: the opening the hand last stood open at: the largest command since the start or the
     /// latest release (grip_asked); < 0 before the first update
     double open_ref = -1;
