@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 
 #include "robot/arm_model.h"
 #include "robot/urdf_test_util.h"
@@ -131,6 +132,31 @@ TEST(RobotArms, AHandClosingBesideTheStripSaysItMissedIt) {
   }
 }
 
+/// The left hand over the hanging strip at kTipZ, its samples at `times`, lifted 8 cm from the
+/// sample before `lift_end` to `lift_end`, its gripper commanding `gripper(t)` at each sample.
+DualArmTrajectory left_hand_with_gripper(const std::vector<double>& times, double lift_end,
+                                         const std::function<double(double)>& gripper) {
+  return two_arms(
+      times, [lift_end](double t) -> Vec3 { return Vec3(kGripX, kGripY, kTipZ + (t >= lift_end ? 0.08 : 0.0)); },
+      gripper);
+}
+
+/// Robot options with the Piper's URDF and pads of friction 0.8 (the strip holds).
+RobotOptions sticky_pads() {
+  RobotOptions ro;
+  ro.urdf = piper_urdf();
+  ro.finger_friction = 0.8;
+  return ro;
+}
+
+/// The controller's gripper events of one arm, in order.
+std::vector<GripperEvent> events_of(const RobotController& c, Arm a) {
+  std::vector<GripperEvent> out;
+  for (const GripperEvent& e : c.events())
+    if (e.arm == a) out.push_back(e);
+  return out;
+}
+
 TEST(RobotArms, AGripIsAskedBelowHalfTheOpeningTheHandLastStoodOpenAt) {
   constexpr double kMax = 0.035;
   EXPECT_FALSE(RobotController::grip_asked(0.015, 0.015, kMax));  // hovering 3 cm apart: open
@@ -155,20 +181,10 @@ TEST(RobotArms, AHandHoveringHalfOpenIsOpenAndGripsWhenItCloses) {
     SCOPED_TRACE(::testing::Message() << "pre-grasp opening " << g0);
     auto strip = hanging_strip(0.11);
     sim::Scene* scene = strip.first.get();
-    RobotOptions ro;
-    ro.urdf = piper_urdf();
-    ro.finger_friction = 0.8;
-    const DualArmTrajectory traj = two_arms(
-        {0.0, 0.1, 0.2, 0.6, 1.0, 1.4},
-        [](double t) -> Vec3 { return Vec3(kGripX, kGripY, kTipZ + (t >= 1.0 ? 0.08 : 0.0)); },
-        [g0](double t) { return t < 0.15 ? g0 : 0.0; });
-    RobotController c(traj, ro);
-    const auto left_events = [&] {
-      std::vector<GripperEvent> out;
-      for (const GripperEvent& e : c.events())
-        if (e.arm == Arm::kLeft) out.push_back(e);
-      return out;
-    };
+    RobotController c(left_hand_with_gripper({0.0, 0.1, 0.2, 0.6, 1.0, 1.4}, 1.0,
+                                             [g0](double t) { return t < 0.15 ? g0 : 0.0; }),
+                      sticky_pads());
+    const auto left_events = [&] { return events_of(c, Arm::kLeft); };
     ASSERT_TRUE(run_until(*scene, c, 0.09));
     EXPECT_EQ(c.state(Arm::kLeft).grip, Grip::kOpen);
     EXPECT_TRUE(left_events().empty());
@@ -200,20 +216,10 @@ TEST(RobotArms, AHandPreShapedFromFullyOpenStandsOpenThenGrips) {
   // not "missed"; the grasp is the command crossing half of 15 mm, and the hand holds the strip.
   auto strip = hanging_strip(0.11);
   sim::Scene* scene = strip.first.get();
-  RobotOptions ro;
-  ro.urdf = piper_urdf();
-  ro.finger_friction = 0.8;
-  const DualArmTrajectory traj = two_arms(
-      {0.0, 0.1, 0.2, 0.5, 0.6, 0.9, 1.3, 1.7},
-      [](double t) -> Vec3 { return Vec3(kGripX, kGripY, kTipZ + (t >= 1.7 ? 0.08 : 0.0)); },
-      [](double t) { return t < 0.15 ? kGripperOpen : t < 0.55 ? 0.015 : 0.0; });
-  RobotController c(traj, ro);
-  const auto left_events = [&] {
-    std::vector<GripperEvent> out;
-    for (const GripperEvent& e : c.events())
-      if (e.arm == Arm::kLeft) out.push_back(e);
-    return out;
-  };
+  RobotController c(left_hand_with_gripper({0.0, 0.1, 0.2, 0.5, 0.6, 0.9, 1.3, 1.7}, 1.7,
+                                           [](double t) { return t < 0.15 ? kGripperOpen : t < 0.55 ? 0.015 : 0.0; }),
+                    sticky_pads());
+  const auto left_events = [&] { return events_of(c, Arm::kLeft); };
   ASSERT_TRUE(run_until(*scene, c, 0.45));
   EXPECT_EQ(c.state(Arm::kLeft).grip, Grip::kOpen);
   EXPECT_NEAR(c.state(Arm::kLeft).gripper, 0.015, 1e-9);
