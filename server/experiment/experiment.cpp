@@ -1007,10 +1007,11 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
     const std::vector<tasks::GripperEvent>& events = run.controller().events();
     for (tasks::Arm a : {tasks::Arm::kLeft, tasks::Arm::kRight}) {
       const tasks::RobotArmState& st = robot->state(a);
-      // A hand the trajectory closed that never got hold is the run's news, not only a null.
-      const auto grasp = std::find_if(events.begin(), events.end(),
+      // A hand the trajectory closed that never got hold is the run's news, not only a null. Its
+      // latest grasp is named: an earlier one may be a pre-shape the fingers rested from.
+      const auto grasp = std::find_if(events.rbegin(), events.rend(),
                                       [&](const tasks::GripperEvent& e) { return e.arm == a && e.grasp; });
-      if (grasp != events.end() && st.held_at < 0)
+      if (grasp != events.rend() && st.held_at < 0)
         gd::log().warn("robot mode: the {} hand, closed at {:.3f} s, never got hold of the cloth (summary.json: "
                        "robot.arms.{}.held_at is null)",
                        tasks::arm_name(a), grasp->t, tasks::arm_name(a));
