@@ -75,8 +75,11 @@ class SceneState:
     # order), gripper (the fingers' opening now, m; may stop short of the command on cloth),
     # squeeze (N, the cloth's push on the fingers: the grip), grip (what the hand does with the
     # cloth: "open", "closing", "held", "missed": its fingers stopped on little cloth or none,
-    # "lost": held, then the cloth left the pads) and links ((K, 3) float32, world m: the arm's
-    # chain from its base through its link origins to the end effector).
+    # "lost": held, then the cloth left the pads), links ((K, 3) float32, world m: the arm's
+    # chain from its base through its link origins to the end effector) and pad_cuts /
+    # pad_cut_depth (where its pads cut through the cloth now: cloth edges through a pad plus
+    # triangles a pad's edge passes through, and how deep, m; docs/robot.md "Pads that cut
+    # through the cloth").
     arms: Dict[str, dict] = field(default_factory=dict)
     # of the last step call: newton/pcg iterations, active contacts, wall_ms, intersecting_pairs
     # (the most intersecting triangle pairs after any of its steps)
@@ -118,7 +121,8 @@ def _arm_state(a: "pb.ArmState") -> dict:
     out = {"closed": a.closed, "held_vertices": a.held_vertices, **_pose(a.pose)}
     if len(a.joints):  # robot mode
         out.update(joints=np.array(a.joints, dtype=np.float64), gripper=a.gripper, squeeze=a.squeeze,
-                   grip=_GRIPS.get(a.grip, ""), links=np.array(a.links, dtype=np.float32).reshape(-1, 3))
+                   grip=_GRIPS.get(a.grip, ""), links=np.array(a.links, dtype=np.float32).reshape(-1, 3),
+                   pad_cuts=a.pad_cuts, pad_cut_depth=a.pad_cut_depth)
     return out
 
 

@@ -66,6 +66,7 @@ def test_robot_scenes_start_at_home_with_the_gripper_open(client, piper_urdf, pi
                 np.testing.assert_allclose(a["joints"], piper_home[k], atol=1e-9)
                 assert a["gripper"] == pytest.approx(0.035, abs=1e-6) and not a["closed"]  # open at home
                 assert a["squeeze"] == 0.0 and a["grip"] == "open"
+                assert a["pad_cuts"] == 0 and a["pad_cut_depth"] == 0.0  # the pads high above the towel
     finally:
         client.destroy(ids)
 

@@ -48,6 +48,8 @@ class RecordingStub:
                 a.gripper = 0.035
                 a.squeeze = 1.5
                 a.grip = pb.GRIP_HELD
+                a.pad_cuts = 3
+                a.pad_cut_depth = 0.004
         return s
 
     def CreateScenes(self, req, timeout=None):
@@ -253,6 +255,7 @@ def test_step_sends_joints_and_reads_the_arms(recorded):
     assert left["joints"].dtype == np.float64 and left["joints"].tolist() == HOME
     assert left["gripper"] == pytest.approx(0.035) and left["squeeze"] == pytest.approx(1.5)
     assert left["grip"] == "held"
+    assert left["pad_cuts"] == 3 and left["pad_cut_depth"] == pytest.approx(0.004)
     # pseudo-mode arms report no robot fields
     pseudo = c.create_scenes(garment="towel")
     arms = c.step_states(pseudo)[0].arms

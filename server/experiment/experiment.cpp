@@ -203,7 +203,7 @@ class Run {
       f << ",left_gripper,right_gripper,left_squeeze_n,right_squeeze_n,left_table_lift,right_table_lift,"
            "left_grip_limit_n,right_grip_limit_n,left_push_open_n,left_push_close_n,right_push_open_n,"
            "right_push_close_n,left_vertices_open,left_vertices_close,right_vertices_open,right_vertices_close,"
-           "left_reached,right_reached";
+           "left_reached,right_reached,left_pad_cuts,right_pad_cuts,left_pad_cut_depth_mm,right_pad_cut_depth_mm";
     f << "\n";
     for (const std::string& r : rows_) f << r << "\n";
   }
@@ -225,6 +225,9 @@ class Run {
       rows_.back() += fmt::format(",{:.4f},{:.4f},{:.4f},{:.4f},{},{},{},{},{:.4f},{:.4f}", l.push_open, l.push_close,
                                   r.push_open, r.push_close, l.vertices_open, l.vertices_close, r.vertices_open,
                                   r.vertices_close, l.reached, r.reached);
+      // Where the pads cut through the cloth (RobotArmState::pad_cuts): count and depth, mm.
+      rows_.back() += fmt::format(",{},{},{:.3f},{:.3f}", l.pad_cuts, r.pad_cuts, 1e3 * l.pad_cut_depth,
+                                  1e3 * r.pad_cut_depth);
     }
     next_record_ = scene_->time() + frame_interval_;
     // Every anim_stride_-th frame for the animation; past kMaxAnimationFrames every other
@@ -1026,7 +1029,25 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                    // when its first grasp stopped closing on little cloth or none, short of
                                    // a hold; and what the hand does with the cloth at the end
                                    {"missed_at", st.missed_at >= 0 ? nlohmann::json(st.missed_at) : nlohmann::json()},
-                                   {"grip_final", tasks::grip_name(st.grip)}};
+                                   {"grip_final", tasks::grip_name(st.grip)},
+                                   // where its pads cut through the cloth: at the end, at most, how
+                                   // deep at most, since when and since when threaded (null: never)
+                                   {"pad_cuts_final", st.pad_cuts},
+                                   {"pad_cuts_max", st.pad_cuts_max},
+                                   {"pad_cut_depth_max_mm", 1e3 * st.pad_cut_depth_max},
+                                   {"pad_cuts_from", st.pad_cuts_from >= 0 ? nlohmann::json(st.pad_cuts_from)
+                                                                           : nlohmann::json()},
+                                   {"pad_threaded_from", st.pad_threaded_from >= 0
+                                                             ? nlohmann::json(st.pad_threaded_from)
+                                                             : nlohmann::json()}};
+      if (st.pad_threaded_from >= 0)
+        gd::log().warn("robot mode: the {} hand's pads stand through the cloth from {:.3f} s (up to {} cloth edges "
+                       "through a pad or triangles a pad's edge passes through, {:.1f} mm deep): the contact keeps "
+                       "the cloth's vertices out of the pads, not its edges and faces, and cloth threaded on a pad "
+                       "goes where it goes (docs/robot.md, \"Pads that cut through the cloth\"; timeseries.csv "
+                       "{}_pad_cuts)",
+                       tasks::arm_name(a), st.pad_threaded_from, st.pad_cuts_max, 1e3 * st.pad_cut_depth_max,
+                       tasks::arm_name(a));
     }
     s["robot"] = {{"urdf", config.robot.urdf},
                   {"ik_samples", robot->ik_solved()},

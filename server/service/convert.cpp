@@ -232,6 +232,8 @@ void to_proto(const SceneSnapshot& s, bool include_stats, pb::SceneState* out) {
     st->set_gripper(s.arms[a].gripper);
     st->set_squeeze(s.arms[a].squeeze);
     if (s.arms[a].grip) st->set_grip(to_proto(*s.arms[a].grip));
+    st->set_pad_cuts(s.arms[a].pad_cuts);
+    st->set_pad_cut_depth(s.arms[a].pad_cut_depth);
     to_proto(s.arms[a].pose, st->mutable_pose());
     for (const Vec3& p : s.arms[a].links)
       for (int k = 0; k < 3; ++k) st->add_links(static_cast<float>(p[k]));

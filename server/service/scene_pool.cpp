@@ -195,6 +195,8 @@ SceneSnapshot snapshot_of(const sim::Scene& scene, const tasks::TaskController& 
       s.arms[a].gripper = st.gripper;
       s.arms[a].squeeze = st.squeeze;
       s.arms[a].grip = st.grip;
+      s.arms[a].pad_cuts = st.pad_cuts;
+      s.arms[a].pad_cut_depth = st.pad_cut_depth;
       s.arms[a].pose = robot->ee_world(arm);
       s.arms[a].links = robot->chain_world(arm);
     } else {

@@ -161,6 +161,8 @@ struct ArmSnapshot {
   double gripper = 0;                ///< robot mode: the fingers' opening, m
   double squeeze = 0;                ///< robot mode: the cloth's push on the fingers, N
   std::optional<tasks::Grip> grip;   ///< robot mode: what the hand does with the cloth
+  int pad_cuts = 0;                  ///< robot mode: where the pads cut the cloth (RobotArmState::pad_cuts)
+  double pad_cut_depth = 0;          ///< robot mode: how deep, m (RobotArmState::pad_cut_depth)
   /// The tool at the snapshot's time, world frame: the commanded trajectory's pose (pseudo,
   /// fixed point) or the end effector by forward kinematics (robot).
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();

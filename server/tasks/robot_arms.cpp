@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "sim/contact/collider.h"
+#include "sim/contact/cuts.h"
 #include "sim/demand.h"
 #include "sim/log.h"
 
@@ -393,6 +394,14 @@ Eigen::Isometry3d RobotController::shape_pose(Arm a, const robot::LinkShape& s, 
   return p;
 }
 
+std::array<sim::ColliderCuts, 4> RobotController::pad_cuts(const sim::Scene& scene) const {
+  std::array<sim::ColliderCuts, 4> out;
+  const sim::Collider box = sim::Collider::box(options_.arm.pad.half_extents);
+  const std::vector<Vec3> x = scene.positions();
+  for (int k = 0; k < 4; ++k) out[k] = sim::collider_cuts(box, poses_->at(k, scene.time()), x, scene.mesh().tris);
+  return out;
+}
+
 void RobotController::attach_links(sim::Scene& scene, double mu) {
   const double t = scene.time();
   link_poses_->t0 = link_poses_->t1 = t;
@@ -456,6 +465,7 @@ void RobotController::update(sim::Scene& scene, double t_end) {
   // The cloth's push on the four pads now along their opening directions (each pad's z), split
   // into the cloth on their inner faces (opening them) and round their outer faces (closing them).
   const std::vector<sim::ColliderPush> pushes = scene.collider_pushes(pads);
+  const std::array<sim::ColliderCuts, 4> cuts = pad_cuts(scene);
   for (Arm a : {Arm::kLeft, Arm::kRight}) {
     const int ai = static_cast<int>(a);
     RobotArmState& st = state_[ai];
@@ -475,6 +485,14 @@ void RobotController::update(sim::Scene& scene, double t_end) {
       st.vertices_open += p.vertices_along, st.vertices_close += p.vertices_against;
     }
     st.squeeze = squeeze;
+    // Where the pads cut through the cloth (a diagnostic: the solve keeps only vertices out).
+    st.pad_cuts = cuts[2 * ai].total() + cuts[2 * ai + 1].total();
+    st.pad_cut_depth = std::max(cuts[2 * ai].depth, cuts[2 * ai + 1].depth);
+    if (st.pad_cuts > 0 && st.pad_cuts_from < 0) st.pad_cuts_from = t0;
+    st.pad_cuts_max = std::max(st.pad_cuts_max, st.pad_cuts);
+    st.pad_cut_depth_max = std::max(st.pad_cut_depth_max, st.pad_cut_depth);
+    if (st.pad_cut_depth >= kThreadedDepth * pad.half_extents.minCoeff() && st.pad_threaded_from < 0)
+      st.pad_threaded_from = t0;
     // A position-controlled, force-limited finger joint.
     const double command = std::clamp(s.gripper, 0.0, model_->gripper_max());
     const double limit = grip_force_at(t_end);

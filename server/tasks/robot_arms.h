@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "robot/arm_model.h"
+#include "sim/contact/cuts.h"
 #include "tasks/controller.h"
 #include "tasks/trajectory.h"
 
@@ -81,6 +82,10 @@ struct FingerJointInput {
 /// stopped short (reached < 1): the squeeze then is the cloth the moving hand pressed, not the
 /// load on the joint (docs/robot.md, "Holding while the pads are stopped short").
 double finger_joint_step(const FingerJointInput& in);
+
+/// A pad's cut through the cloth at least this fraction of its smallest half extent deep
+/// threads the cloth on it (RobotArmState::pad_threaded_from).
+inline constexpr double kThreadedDepth = 0.5;
 
 /// RobotOptions::pad_stiffness's default, N/m.
 inline constexpr double kDefaultPadStiffness = 3e5;
@@ -158,6 +163,21 @@ struct RobotArmState {
   /// it short: Collider::set_yielding); the squeeze above is measured where the pads got to.
   double reached = 1;
   double table_lift = 0;            ///< m the hand was raised to stay off the table
+  /// Where the hand's two pads cut through the cloth at the step's start (sim::collider_cuts): the
+  /// contact keeps the cloth's vertices out of the pads, not its edges and faces, so cloth whose
+  /// edges are longer than a pad is thick can stand threaded on it (docs/robot.md, "Pads that cut
+  /// through the cloth"). pad_cuts: cloth edges through a pad plus cloth triangles a pad's edge
+  /// passes through; pad_cut_depth: m, how far the deepest such edge passes inside a pad.
+  int pad_cuts = 0;
+  double pad_cut_depth = 0;
+  /// Over the run so far: the most cuts and the deepest cut at any step, when the first was seen
+  /// and when the cloth was first threaded on a pad, a cut as deep as half the pad's half
+  /// thickness (kThreadedDepth; s, < 0: not yet). Shallower cuts are chords across a pad's edge
+  /// that the cloth wraps round (1.2 mm deep for cloth meshed at 5 mm round a Piper pad's tip).
+  int pad_cuts_max = 0;
+  double pad_cut_depth_max = 0;
+  double pad_cuts_from = -1;
+  double pad_threaded_from = -1;
   double grip_force = 0;            ///< N: the squeeze limit at the step's end (RobotOptions)
   /// s: when the closed fingers first squeezed the cloth with half their limit (< 0: not yet).
   double held_at = -1;
@@ -260,6 +280,8 @@ class RobotController final : public TaskController {
   struct LinkPoses;
   void attach(sim::Scene& scene);
   void attach_links(sim::Scene& scene, double mu);
+  /// The four pads' cuts through the cloth at the scene's time (left's two, then right's).
+  std::array<sim::ColliderCuts, 4> pad_cuts(const sim::Scene& scene) const;
   /// World pose of link shape `s` of arm `a` at joints q and opening g, the hand raised by `lift`.
   Eigen::Isometry3d shape_pose(Arm a, const robot::LinkShape& s, const Eigen::VectorXd& q, double g, double lift) const;
 

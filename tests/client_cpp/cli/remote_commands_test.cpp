@@ -255,21 +255,23 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   // The time series carries each hand's opening (within the finger's travel), squeeze, lift
   // off the table and squeeze limit (the URDF's 10 N without a schedule), the squeeze split into
   // the inner faces' push and the outer faces' (summing to it), the vertices doing each, and the
-  // pads' reached fractions; and the hands close.
+  // pads' reached fractions, where the pads cut the cloth (a count, and a depth within a pad's
+  // 4 mm half thickness); and the hands close.
   std::ifstream ts(dir / "local" / "timeseries.csv");
   std::string ts_header, ts_row;
   std::getline(ts, ts_header);
   EXPECT_NE(ts_header.find(",left_gripper,right_gripper,left_squeeze_n,right_squeeze_n,left_table_lift,right_table_lift,"
                            "left_grip_limit_n,right_grip_limit_n,left_push_open_n,left_push_close_n,right_push_open_n,"
                            "right_push_close_n,left_vertices_open,left_vertices_close,right_vertices_open,"
-                           "right_vertices_close,left_reached,right_reached"),
+                           "right_vertices_close,left_reached,right_reached,left_pad_cuts,right_pad_cuts,"
+                           "left_pad_cut_depth_mm,right_pad_cut_depth_mm"),
             std::string::npos) << ts_header;
   double narrowest = 1;
   while (std::getline(ts, ts_row)) {
     std::vector<double> c;
     std::stringstream cells_ts(ts_row);
     for (std::string v; std::getline(cells_ts, v, ',');) c.push_back(std::stod(v));
-    ASSERT_EQ(c.size(), 30u);
+    ASSERT_EQ(c.size(), 34u);
     EXPECT_DOUBLE_EQ(c[18], 10.0);
     EXPECT_DOUBLE_EQ(c[19], 10.0);
     for (int hand : {0, 1}) {
@@ -280,6 +282,9 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
       if (c[24 + 2 * hand] == 0) EXPECT_EQ(open, 0.0);  // no vertex on the inner faces, no push
       EXPECT_GE(c[28 + hand], 0.0);
       EXPECT_LE(c[28 + hand], 1.0);
+      EXPECT_GE(c[30 + hand], 0.0);
+      if (c[30 + hand] == 0) EXPECT_EQ(c[32 + hand], 0.0) << "no cut, no depth";
+      EXPECT_LE(c[32 + hand], 4.0 + 1e-3);
     }
     for (int k : {12, 13}) {
       EXPECT_GE(c[k], 0.0);

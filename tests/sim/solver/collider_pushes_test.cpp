@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "sim/demand.h"
 #include "sim/material.h"
 #include "sim/mesh.h"
 #include "sim/scene.h"
