@@ -167,7 +167,7 @@ struct RobotArmState {
   /// contact keeps the cloth's vertices out of the pads, not its edges and faces, so cloth whose
   /// edges are longer than a pad is thick can stand threaded on it (docs/robot.md, "Pads that cut
   /// through the cloth"). pad_cuts: cloth edges through a pad plus cloth triangles a pad's edge
-  /// passes through; pad_cut_depth: m, how far the deepest such edge passes inside a pad.
+  /// passes through; pad_cut_depth: m, how far inside a pad the deepest of them passes.
   int pad_cuts = 0;
   double pad_cut_depth = 0;
   /// Over the run so far: the most cuts and the deepest cut at any step, when the first was seen

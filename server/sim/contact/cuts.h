@@ -4,9 +4,10 @@
 /// out of a collider (collider.h), not its edges and faces, so a collider thinner than the cloth's
 /// edges are long (a gripper pad 8 mm thick in cloth with 1.7 cm edges) can stand in the sheet
 /// with vertices on either side of it, an edge passing through it or one of its own edges through
-/// a triangle. Such cloth is threaded on the collider: nothing of the model lets it slide off
-/// sideways, and a rising pad carries it up however open its fingers (docs/robot.md, "Pads that
-/// cut through the cloth"). A diagnostic, not part of the solve.
+/// a triangle. Such cloth is threaded on the collider: it comes off only by sliding along the
+/// collider's faces past its end, so with friction on them a rising pad carries it up however open
+/// its fingers (docs/robot.md, "Pads that cut through the cloth"). A diagnostic, not part of the
+/// solve.
 
 #include <vector>
 
