@@ -827,7 +827,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                  "{} ({}); shorten it (time_scale, settle, dt) or raise the limit",
                                  steps, end_time, config.scene.dt, config.max_steps, config.steps_limit_name));
   sim::SceneOptions scene_options = config.scene;
-  if (config.mode == "robot") scene_options.pad_stiffness = config.robot.pad_stiffness;  // the hands' lag spring
+  if (config.mode == "robot") {
+    scene_options.pad_stiffness = config.robot.pad_stiffness;  // the hands' lag spring
+    scene_options.pad_samples = config.robot.pad_samples;      // the cloth's surface samples held out of the pads
+  }
   auto scene = sim::Scene::create(mesh, material, scene_options);
   if (settled) scene->set_state(settled->x, settled->v);
   gd::log().info("experiment: {} ({} vertices, {} triangles), {}, {} in {} mode from {}, {:.2f} s simulated",
@@ -1042,10 +1045,10 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                                                              : nlohmann::json()}};
       if (st.pad_threaded_from >= 0)
         gd::log().warn("robot mode: the {} hand's pads stand through the cloth from {:.3f} s (up to {} cloth edges "
-                       "through a pad or triangles a pad's edge passes through, {:.1f} mm deep): the contact keeps "
-                       "the cloth's vertices out of the pads, not its edges and faces, and cloth threaded on a pad "
-                       "goes where it goes (docs/robot.md, \"Pads that cut through the cloth\"; timeseries.csv "
-                       "{}_pad_cuts)",
+                       "through a pad or triangles a pad's edge passes through, {:.1f} mm deep): cloth threaded on "
+                       "a pad goes where it goes (docs/robot.md, \"Pads that cut through the cloth\" and \"Surface "
+                       "samples\"; timeseries.csv {}_pad_cuts; with --no-pad-samples the contact keeps only the "
+                       "cloth's vertices out of the pads)",
                        tasks::arm_name(a), st.pad_threaded_from, st.pad_cuts_max, 1e3 * st.pad_cut_depth_max,
                        tasks::arm_name(a));
     }
@@ -1061,6 +1064,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                   {"link_meshes_not_found", robot->arm_model().skipped_meshes()},
                   {"rigid_hands", config.robot.rigid_hands},
                   {"pad_stiffness", config.robot.pad_stiffness},  // N/m; 0: pads stopped by the predictor
+                  {"pad_samples", config.robot.pad_samples},      // the cloth's surface samples kept out of the pads
                   // the pads' Coulomb coefficient on the cloth: the option's, else the material's
                   {"finger_friction", config.robot.finger_friction >= 0 ? config.robot.finger_friction
                                                                         : double(sc.material().friction)},

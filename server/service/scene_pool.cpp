@@ -539,7 +539,10 @@ Status ScenePool::create(const SceneSpec& spec, CreatedScenes* out) {
     if (spec.self_contact) t->options.self_contact = *spec.self_contact;
     t->options.backend = options_.backend;
     t->options.deterministic = options_.deterministic;
-    if (mode == "robot") t->options.pad_stiffness = robot_options.pad_stiffness;  // the hands' lag spring
+    if (mode == "robot") {
+      t->options.pad_stiffness = robot_options.pad_stiffness;  // the hands' lag spring
+      t->options.pad_samples = robot_options.pad_samples;      // the cloth's surface samples held out of the pads
+    }
     t->options.validate();
     t->grippers.mode = mode == "fixed_point" ? tasks::GraspMode::kFixedPoint : tasks::GraspMode::kPseudoGrasp;
     t->grippers.action = tasks::TaskKind::kGrasp;

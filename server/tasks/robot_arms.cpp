@@ -485,7 +485,8 @@ void RobotController::update(sim::Scene& scene, double t_end) {
       st.vertices_open += p.vertices_along, st.vertices_close += p.vertices_against;
     }
     st.squeeze = squeeze;
-    // Where the pads cut through the cloth (a diagnostic: the solve keeps only vertices out).
+    // Where the pads cut through the cloth (a diagnostic: the solve keeps the vertices and the
+    // surface samples out, SceneOptions::pad_samples, not every point of the cloth).
     st.pad_cuts = cuts[2 * ai].total() + cuts[2 * ai + 1].total();
     st.pad_cut_depth = std::max(cuts[2 * ai].depth, cuts[2 * ai + 1].depth);
     if (st.pad_cuts > 0 && st.pad_cuts_from < 0) st.pad_cuts_from = t0;

@@ -140,6 +140,12 @@ struct RobotOptions {
   /// 300 N. 0: the predictor stops its pads short and they wait there for the step (before
   /// 2026-12-06).
   double pad_stiffness = kDefaultPadStiffness;
+  /// Points sampled over the cloth's triangles a pad's half thickness apart are held out of the
+  /// pads as its vertices are (sim::SceneOptions::pad_samples, which robot mode's scenes take from
+  /// here): without them a pad thinner than the cloth's edges are long stood in the sheet, threaded
+  /// (docs/robot.md, "Pads that cut through the cloth"). false: the vertices alone (before
+  /// 2026-12-07; for comparison).
+  bool pad_samples = true;
   /// Rotation from the trajectory's tool frame to the end-effector link (IK targets only). Piper
   /// default: link7 y = tool z (approach), link7 z = tool x (closing direction).
   Eigen::Matrix3d tool_to_ee = (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished();

@@ -1,8 +1,9 @@
-// A closed hand stabbing down into a sheet pinned round its edge: the pads keep the cloth's
-// vertices out, not its edges and faces. Where the sheet's triangles are far larger than the pads
-// (8 cm), the pads' tips land inside one, meet no vertex and go through the sheet, which stays
-// where it was: the hand's state says its pads cut the cloth (RobotArmState::pad_cuts). A sheet
-// meshed at 5 mm is caught by the tips and pushed down ahead of them. (This near its base the arm
+// A closed hand stabbing down into a sheet pinned round its edge. Held out by the cloth's vertices
+// alone (SceneOptions::pad_samples off), where the sheet's triangles are far larger than the pads
+// (8 cm) the pads' tips land inside one, meet no vertex and go through the sheet, which stays
+// where it was: the hand's state says its pads cut the cloth (RobotArmState::pad_cuts). With the
+// surface samples (the default) a sheet meshed at 2 cm, coarser than the pads are thick, is caught
+// by the tips and pushed down ahead of them, as one meshed at 5 mm is. (This near its base the arm
 // reaches the point with its hand tilted up to 49 degrees from pointing down; the pads' tips
 // still lead.)
 #include <gtest/gtest.h>
@@ -32,13 +33,13 @@ struct Stab {
 
 /// The sheet (kSize square at kSheetZ, meshed at `spacing`, its boundary pinned, no table) and the
 /// left hand, fingers shut, its tips from 4 cm above the sheet to 3 cm below it by 0.5 s at the
-/// point (x, y) of the sheet plus `offset`; `spacing` >= 5 cm aims at the centroid of the triangle
-/// nearest the sheet's centre, else at the centre.
-Stab stab(double spacing, const Vec3& offset) {
+/// point (x, y) of the sheet plus `offset`; `spacing` >= 2 cm aims at the centroid of the triangle
+/// nearest the sheet's centre, else at the centre. `samples`: SceneOptions::pad_samples.
+Stab stab(double spacing, const Vec3& offset, bool samples = true) {
   sim::Mesh m = sim::make_rect(kSize, kSize, spacing);
   for (Vec3& p : m.x) p = Vec3(0.25 - kSize / 2 + p.x(), 0.25 - kSize / 2 + p.y(), kSheetZ);
   Vec3 aim(0.25, 0.25, kSheetZ);
-  if (spacing >= 0.05) {
+  if (spacing >= 0.02) {
     double best = std::numeric_limits<double>::infinity();
     for (const Eigen::Vector3i& t : m.tris) {
       const Vec3 c = (m.x[t[0]] + m.x[t[1]] + m.x[t[2]]) / 3;
@@ -49,6 +50,7 @@ Stab stab(double spacing, const Vec3& offset) {
   sim::SceneOptions o = task_options();
   o.dt = 0.005;
   o.table = false;
+  o.pad_samples = samples;
   auto scene = make_scene(m, o);
   std::vector<int> rim;
   for (int i = 0; i < scene->vertex_count(); ++i) {
@@ -70,11 +72,11 @@ Stab stab(double spacing, const Vec3& offset) {
   return out;
 }
 
-TEST(PadCuts, PadsGoThroughACoarseSheetAndSaySoAndPushAFineOneDown) {
+TEST(PadCuts, WithoutSamplesPadsGoThroughACoarseSheetAndSaySoWithThemTheyPushItDown) {
   if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
   for (const Vec3& offset : {Vec3(0, 0, 0), Vec3(0.003, -0.002, 0), Vec3(-0.002, 0.003, 0)}) {
     SCOPED_TRACE(::testing::Message() << "aim offset " << offset.transpose());
-    const Stab coarse = stab(0.08, offset);
+    const Stab coarse = stab(0.08, offset, false);
     ASSERT_FALSE(coarse.failed);
     std::printf("8 cm triangles: %d cuts at the end (%d at most, %.2f mm deep, from %.3f s), sheet down to %.1f mm\n",
                 coarse.hand.pad_cuts, coarse.hand.pad_cuts_max, 1e3 * coarse.hand.pad_cut_depth_max,
@@ -98,6 +100,15 @@ TEST(PadCuts, PadsGoThroughACoarseSheetAndSaySoAndPushAFineOneDown) {
     // Wrapped round the tips, its edges cut across their rims a little way in: not threaded.
     EXPECT_LT(fine.hand.pad_cut_depth_max, 0.002);
     EXPECT_LT(fine.hand.pad_threaded_from, 0.0);
+
+    const Stab sampled = stab(0.02, offset);
+    ASSERT_FALSE(sampled.failed);
+    std::printf("2 cm triangles, samples: %d cuts at the end (%d at most, %.2f mm deep), sheet down to %.1f mm\n",
+                sampled.hand.pad_cuts, sampled.hand.pad_cuts_max, 1e3 * sampled.hand.pad_cut_depth_max,
+                1e3 * sampled.sheet_min_z);
+    EXPECT_LT(sampled.sheet_min_z, kSheetZ - 0.02);
+    EXPECT_LT(sampled.hand.pad_cut_depth_max, 0.002);
+    EXPECT_LT(sampled.hand.pad_threaded_from, 0.0);
   }
 }
 

@@ -317,6 +317,30 @@ GD_HD Real collider_world_distance(const Vec3& x, const Mat3& R, const Vec3& t, 
   return d;
 }
 
+/// The world-aligned box around `shape` at pose (R, t): centre *c and half extents *h (m). A box
+/// or a mesh's bounding box turned by R, a capsule's box around its segment and sphere. False for
+/// a plane (unbounded), and for a mesh without a bounding box (mesh_half all 0).
+GD_HD bool collider_world_box(const Mat3& R, const Vec3& t, const ColliderShape& shape, Vec3* c, Vec3* h) {
+  Vec3 lc = Vec3::Zero(), lh;
+  switch (shape.type) {
+    case ColliderType::kBox:
+      lh = shape.half_extents;
+      break;
+    case ColliderType::kCapsule:
+      lh = Vec3(shape.radius, shape.radius, shape.half_length + shape.radius);
+      break;
+    case ColliderType::kMesh:
+      if (!(shape.mesh_half.maxCoeff() > 0)) return false;
+      lc = shape.mesh_center, lh = shape.mesh_half;
+      break;
+    default:
+      return false;
+  }
+  *c = R * lc + t;
+  *h = R.cwiseAbs() * lh;
+  return true;
+}
+
 // ------------------------------------------------------------------------------------------------
 // Barrier energy
 // ------------------------------------------------------------------------------------------------

@@ -6,8 +6,10 @@
 /// with vertices on either side of it, an edge passing through it or one of its own edges through
 /// a triangle. Such cloth is threaded on the collider: it comes off only by sliding along the
 /// collider's faces past its end, so with friction on them a rising pad carries it up however open
-/// its fingers (docs/robot.md, "Pads that cut through the cloth"). A diagnostic, not part of the
-/// solve.
+/// its fingers (docs/robot.md, "Pads that cut through the cloth"). Points sampled over the
+/// triangles a pad's half thickness apart (surface_samples.h, SceneOptions::pad_samples) are held
+/// out of yielding colliders too, which leaves only chords across a pad's rim; this count says
+/// whether a run rests on cuts all the same. A diagnostic, not part of the solve.
 
 #include <vector>
 

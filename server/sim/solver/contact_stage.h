@@ -120,6 +120,33 @@ GD_HD Vec3 collider_reaction(const View& V, const Params& P, const double* x, in
                                        &V.col_mesh);
   return e > 0 && std::isfinite(e) ? g : Vec3::Zero();
 }
+/// The reaction collider c receives from the surface samples of triangle t at x (zero unless c is
+/// sampled), each sample's barrier gradient scaled by its mass; with `z` (non-null), only the samples
+/// whose push along *z has the sign `sign`, counted in *count.
+GD_HD Vec3 samples_reaction(const View& V, const Params& P, const double* x, int c, int t, const Vec3* z = nullptr,
+                            int sign = 1, int* count = nullptr) {
+  Vec3 sum = Vec3::Zero();
+  const int first = V.samp_ptr[t], last = V.samp_ptr[t + 1];
+  if (first == last || !V.col_sampled[c]) return sum;
+  const int* v = V.tris + 3 * t;
+  const Vec3 a[3] = {load3(x, v[0]), load3(x, v[1]), load3(x, v[2])};
+  if (!triangle_within(V, c, a, P.dhat)) return sum;
+  const double* q = V.col_pose + 24 * c;
+  const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+  const Vec3 t1(q[21], q[22], q[23]);
+  for (int s = first; s < last; ++s) {
+    if (!V.samp_on[s]) continue;
+    Vec3 g;
+    const Real e = point_collider_energy(sample_point(V, x, s), R1, t1, V.col_shape[c], 0.0, P.dhat,
+                                         P.kappa_per_mass * V.samp_mass[s] * V.col_kappa[c], &g, nullptr,
+                                         HessianKind::kNone, &V.col_mesh);
+    if (!(e > 0 && std::isfinite(e))) continue;
+    if (z && !(sign * g.dot(*z) > 0)) continue;
+    sum += g;
+    if (count) ++*count;
+  }
+  return sum;
+}
 /// Collider c's local z axis at its end-of-step pose (world frame).
 GD_HD Vec3 collider_z(const View& V, int c) {
   const double* q = V.col_pose + 24 * c + 12;  // R1, row-major: its third column
@@ -128,7 +155,7 @@ GD_HD Vec3 collider_z(const View& V, int c) {
 }  // namespace detail
 
 /// Barrier force on each collider from the cloth (SolverBase::collider_forces): the reaction to
-/// the barrier's push on each free vertex, at the colliders' end-of-step poses.
+/// the barrier's push on each free vertex and surface sample, at the colliders' end-of-step poses.
 template <class Exec>
 std::vector<double> Solver<Exec>::collider_forces() {
   std::vector<double> out(3 * static_cast<size_t>(n_col_), 0.0);
@@ -138,7 +165,8 @@ std::vector<double> Solver<Exec>::collider_forces() {
   const double* x = Exec::ptr(x_);
   for (int c = 0; c < n_col_; ++c)
     for (int k = 0; k < 3; ++k)
-      out[3 * c + k] = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
+      out[3 * c + k] = Exec::sum(n_ + (V.n_samp > 0 ? V.nt : 0), [=] GD_HD_LAMBDA(int i) {
+        if (i >= V.n) return static_cast<double>(detail::samples_reaction(V, P, x, c, i - V.n)[k]);
         return V.fixed[i] ? 0.0 : static_cast<double>(detail::collider_reaction(V, P, x, c, i)[k]);
       });
   return out;
@@ -155,13 +183,26 @@ std::vector<double> Solver<Exec>::collider_pushes() {
   const double* x = Exec::ptr(x_);
   for (int c = 0; c < n_col_; ++c)
     for (const int sign : {1, -1}) {
-      const auto push = [=] GD_HD_LAMBDA(int i) {
+      // The vertices, then (by triangle) the surface samples; *count: how many push this way.
+      const auto push = [=] GD_HD_LAMBDA(int i, int* count) {
+        const Vec3 z = detail::collider_z(V, c);
+        if (i >= V.n) return detail::samples_reaction(V, P, x, c, i - V.n, &z, sign, count).dot(z);
         if (V.fixed[i]) return 0.0;
-        const double f = detail::collider_reaction(V, P, x, c, i).dot(detail::collider_z(V, c));
-        return sign * f > 0 ? f : 0.0;
+        const double f = detail::collider_reaction(V, P, x, c, i).dot(z);
+        if (!(sign * f > 0)) return 0.0;
+        ++*count;
+        return f;
       };
-      out[4 * c + (sign > 0 ? 0 : 1)] = Exec::sum(n_, push);
-      out[4 * c + (sign > 0 ? 2 : 3)] = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return push(i) != 0.0 ? 1.0 : 0.0; });
+      const int points = n_ + (V.n_samp > 0 ? V.nt : 0);
+      out[4 * c + (sign > 0 ? 0 : 1)] = Exec::sum(points, [=] GD_HD_LAMBDA(int i) {
+        int count = 0;
+        return push(i, &count);
+      });
+      out[4 * c + (sign > 0 ? 2 : 3)] = Exec::sum(points, [=] GD_HD_LAMBDA(int i) {
+        int count = 0;
+        push(i, &count);
+        return static_cast<double>(count);
+      });
     }
   return out;
 }
@@ -183,6 +224,16 @@ std::string Solver<Exec>::infinite_terms() {
       return std::isfinite(e) ? 0.0 : 1.0;
     });
     if (inside > 0) out += fmt::format("{} vertices inside collider {}; ", inside, c);
+    const double samples = Exec::sum(V.n_samp, [=] GD_HD_LAMBDA(int s) {
+      if (!V.col_sampled[c] || !V.samp_on[s]) return 0.0;  // a diagnostic: every sample
+      const double* q = V.col_pose + 24 * c;
+      const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+      const Vec3 t1(q[21], q[22], q[23]);
+      const Real e = point_collider_energy(detail::sample_point(V, x, s), R1, t1, V.col_shape[c], 0.0, P.dhat, 1.0,
+                                           nullptr, nullptr, HessianKind::kNone, &V.col_mesh);
+      return std::isfinite(e) ? 0.0 : 1.0;
+    });
+    if (samples > 0) out += fmt::format("{} surface samples inside collider {}; ", samples, c);
   }
   if (P_.table) {
     const double below = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) {
@@ -196,7 +247,7 @@ std::string Solver<Exec>::infinite_terms() {
 }
 
 template <class Exec>
-bool Solver<Exec>::inside_a_collider(const std::vector<double>& x) const {
+bool Solver<Exec>::inside_a_collider(const std::vector<double>& x, bool samples) const {
   for (int k = 0; k < n_col_; ++k) {
     const Collider& c = (*colliders_)[k];
     const Eigen::Isometry3d& pose = col_end_[k];
@@ -205,6 +256,7 @@ bool Solver<Exec>::inside_a_collider(const std::vector<double>& x) const {
       const Vec3 p(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
       if (c.inside(p, pose)) return true;
     }
+    if (samples && samples_inside(k, x, pose)) return true;
   }
   return false;
 }

@@ -114,6 +114,18 @@ struct View {
   const double* col_move;
   bool col_moving = false;
   ColliderMeshView col_mesh;
+  /// Per collider: 1 where the cloth's surface samples are held out of it too (a yielding collider
+  /// thin enough to pass between the vertices: Solver::set_colliders).
+  const int* col_sampled;
+  // Points sampled over the triangles (contact/surface_samples.h): triangle t's are
+  // [samp_ptr[t], samp_ptr[t + 1]); per sample its triangle, 3 barycentric weights, the mass its
+  // barrier stands for, and whether it takes part this step (0: inside a collider at the guess).
+  int n_samp = 0;
+  const int* samp_ptr;
+  const int* samp_tri;
+  const double* samp_w;
+  const double* samp_mass;
+  const int* samp_on;
   // self-contact: candidate pairs (line search, CCD), active pairs (Hessian), lagged friction
   PairView cand, act;
   int n_fr = 0;
@@ -227,6 +239,153 @@ GD_HD void add_collider_vertex_terms(const Params& P, const Vec3& x, const Vec3&
   }
 }
 
+/// Whether a triangle (its corners now, a, and at the step's start, b) comes within dhat of the box
+/// around collider `shape` at its start or end pose (`pose`: R0, t0, R1, t1): only then can the
+/// barrier or the lagged friction of a point on it against the collider be non-zero.
+GD_HD bool triangle_near_collider(const Vec3* a, const Vec3* b, const double* pose, const ColliderShape& shape,
+                                  Real dhat) {
+  Vec3 lo = a[0], hi = a[0];
+  for (int k = 0; k < 3; ++k) {
+    lo = lo.cwiseMin(a[k]).cwiseMin(b[k]);
+    hi = hi.cwiseMax(a[k]).cwiseMax(b[k]);
+  }
+  for (int e = 0; e < 2; ++e) {
+    const Mat3 R = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(pose + 12 * e);
+    const Vec3 t(pose[12 * e + 9], pose[12 * e + 10], pose[12 * e + 11]);
+    Vec3 c, h;
+    if (!collider_world_box(R, t, shape, &c, &h)) return true;
+    if (((lo - c).array() <= (h.array() + dhat)).all() && ((c - hi).array() <= (h.array() + dhat)).all()) return true;
+  }
+  return false;
+}
+
+/// Sample s of its triangle at positions x (flat, 3 per vertex).
+GD_HD Vec3 sample_point(const View& V, const double* x, int s) {
+  const int* v = V.tris + 3 * V.samp_tri[s];
+  const double* w = V.samp_w + 3 * s;
+  return w[0] * load3(x, v[0]) + w[1] * load3(x, v[1]) + w[2] * load3(x, v[2]);
+}
+
+/// The surface samples of triangle t (corners x0..x2 now, y0..y2 at the step's start) against the
+/// sampled colliders: each sample's barrier and lagged friction as a vertex's
+/// (add_collider_vertex_terms, its barrier scaled by its mass), the gradient and Hessian mapped to
+/// the corners by its weights (a sample p = sum w_a x_a: g_a = w_a g_p, H_ab = w_a w_b H_p, PSD as
+/// H_p is). Added to *g and *H (null: not wanted). Triangles far from every sampled collider cost
+/// one box test each.
+GD_HD Real triangle_sample_terms(const View& V, const Params& P, int t, const Vec3* x, const Vec3* y, Vec9* g,
+                                 Mat9* H) {
+  const int first = V.samp_ptr[t], last = V.samp_ptr[t + 1];
+  if (first == last) return 0;
+  Real e = 0;
+  for (int c = 0; c < V.n_col; ++c) {
+    if (!V.col_sampled[c]) continue;
+    const double* pose = V.col_pose + 24 * c;
+    if (!triangle_near_collider(x, y, pose, V.col_shape[c], P.dhat)) continue;
+    const Real kappa = P.kappa_per_mass * V.col_kappa[c];
+    for (int s = first; s < last; ++s) {
+      if (!V.samp_on[s]) continue;
+      const double* w = V.samp_w + 3 * s;
+      const Vec3 p = w[0] * x[0] + w[1] * x[1] + w[2] * x[2];
+      const Vec3 pt = w[0] * y[0] + w[1] * y[1] + w[2] * y[2];
+      Vec3 gp = Vec3::Zero();
+      Mat3 Hp = Mat3::Zero();
+      add_collider_vertex_terms(P, p, pt, pose, V.col_shape[c], V.col_mesh, kappa * V.samp_mass[s], V.col_mu[c], &e,
+                                g ? &gp : nullptr, H ? &Hp : nullptr);
+      for (int a = 0; a < 3; ++a) {
+        if (g) g->segment<3>(3 * a) += w[a] * gp;
+        if (H)
+          for (int b = 0; b < 3; ++b) H->block<3, 3>(3 * a, 3 * b) += (w[a] * w[b]) * Hp;
+      }
+    }
+  }
+  return e;
+}
+
+/// The inverse of the largest fraction of a point's motion di from xi (a free vertex or a surface
+/// sample) that keeps it from closing more than 90% of its distance to collider c at its end
+/// pose (Solver::collider_step_inverse_to; 0 where it may go all the way). The
+/// distance to a convex set (box, capsule, plane) is a convex function, so d(x + a dx) >= d(x) +
+/// a n.dx (n its gradient, the outward normal): only the motion towards the surface is bounded, and
+/// cloth pressed against a pad slides along it or leaves it freely; so for a convex mesh (a URDF
+/// link's hull). Another mesh may be non-convex: there the distance's 1-Lipschitz bound, |dx| <=
+/// 0.9 d, holds. A pad in the solve (pads_in_solve.h) moves too: the point's motion is taken
+/// relative to the pad's point under it (the pad's displacement, affine in the point: V.col_move,
+/// 12 values), plus the turn's margin (V.col_move's 13th value, a bound on how much the
+/// displacement differs over the distance d): cloth the pads carry moves with them without being
+/// held back.
+GD_HD double collider_step_inverse_one(const View& V, int c, const Vec3& xi, const Vec3& di) {
+  if (di.squaredNorm() == 0 && !V.col_moving) return 0.0;
+  const double* q = V.col_pose + 24 * c;
+  const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+  const Vec3 t1(q[21], q[22], q[23]);
+  Vec3 rel = di;  // the point's motion relative to the collider's point under it
+  Real turn = 0;  // how far the collider's displacement may differ from that point's, per metre
+  if (V.col_moving && V.col_move[kColMove * c + 12] >= 0) {
+    const double* m = V.col_move + kColMove * c;
+    const Mat3 A = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(m);
+    rel -= A * xi + Vec3(m[9], m[10], m[11]);
+    turn = m[12];
+  }
+  if (rel.squaredNorm() == 0) return 0.0;
+  Vec3 n;
+  const Real d = collider_world_distance(xi, R1, t1, V.col_shape[c], &V.col_mesh, &n, nullptr);
+  if (!(d > 0)) return 1e12;
+  if (V.col_shape[c].type == ColliderType::kMesh && !V.col_shape[c].mesh_convex)
+    return (rel.norm() + turn * d) / (0.9 * d);
+  const Real dn = n.dot(rel);
+  return dn < 0 || turn > 0 ? (fmax(-dn, 0.0) + turn * d) / (0.9 * d) : 0.0;
+}
+
+/// collider_step_inverse_one's largest over every collider: a free vertex's bound.
+GD_HD double collider_step_inverse(const View& V, const Vec3& xi, const Vec3& di) {
+  double worst = 0;
+  for (int c = 0; c < V.n_col; ++c) worst = fmax(worst, collider_step_inverse_one(V, c, xi, di));
+  return worst;
+}
+
+/// Whether the box around triangle corners a[0..2] comes within `reach` of the box around collider
+/// c at its end pose (a plane or an unbounded mesh: always).
+GD_HD bool triangle_within(const View& V, int c, const Vec3* a, Real reach) {
+  const double* q = V.col_pose + 24 * c;
+  const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
+  Vec3 cen, h;
+  if (!collider_world_box(R1, Vec3(q[21], q[22], q[23]), V.col_shape[c], &cen, &h)) return true;
+  const Vec3 lo = a[0].cwiseMin(a[1]).cwiseMin(a[2]), hi = a[0].cwiseMax(a[1]).cwiseMax(a[2]);
+  return ((lo - cen).array() <= (h.array() + reach)).all() && ((cen - hi).array() <= (h.array() + reach)).all();
+}
+
+/// The largest collider_step_inverse_one of triangle t's surface samples (positions x, motion dx)
+/// against the colliders they are held out of. A sample is a convex combination of the corners, so
+/// it moves relative to a collider by at most the corners' largest such motion r; a bound above 1
+/// needs r + turn d > 0.9 d, so a triangle whose box is farther than r / (0.9 - turn) from the
+/// collider's is skipped whole.
+GD_HD double triangle_samples_step_inverse(const View& V, int t, const double* x, const double* dx) {
+  const int first = V.samp_ptr[t], last = V.samp_ptr[t + 1];
+  if (first == last) return 0.0;
+  const int* v = V.tris + 3 * t;
+  const Vec3 a[3] = {load3(x, v[0]), load3(x, v[1]), load3(x, v[2])};
+  const Vec3 da[3] = {load3(dx, v[0]), load3(dx, v[1]), load3(dx, v[2])};
+  double worst = 0;
+  for (int c = 0; c < V.n_col; ++c) {
+    if (!V.col_sampled[c]) continue;
+    Real r = 0, turn = 0;
+    for (int k = 0; k < 3; ++k) {
+      Vec3 rel = da[k];
+      if (V.col_moving && V.col_move[kColMove * c + 12] >= 0) {
+        const double* m = V.col_move + kColMove * c;
+        rel -= Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(m) * a[k] + Vec3(m[9], m[10], m[11]);
+        turn = m[12];
+      }
+      r = fmax(r, rel.norm());
+    }
+    if (r == 0 && !(turn > 0)) continue;
+    if (turn < 0.9 && !triangle_within(V, c, a, r / (0.9 - turn))) continue;
+    for (int s = first; s < last; ++s)
+      if (V.samp_on[s]) worst = fmax(worst, collider_step_inverse_one(V, c, sample_point(V, x, s), sample_point(V, dx, s)));
+  }
+  return worst;
+}
+
 /// Per-vertex terms: inertia, gravity, mass damping, table barrier, lagged friction and grip springs.
 GD_HD Real vertex_terms(const View& V, const Params& P, int i, const Vec3& x, Vec3* g, Mat3* H) {
   const Real m = V.mass[i];
@@ -303,6 +462,14 @@ GD_HD Real triangle_terms(const View& V, const Params& P, int t, const double* x
     membrane_weights(r.Dm_inv, &cu, &cv);
     if (g) membrane_map_gradient(cu, cv, gw.segment<3>(0), gw.segment<3>(3), g);
     if (H) membrane_map_hessian(cu, cv, Hw, H);
+  }
+  if (V.n_samp > 0) {  // the surface samples against thin colliders
+    const Vec3 xs[3] = {x0, x1, x2}, ys[3] = {y0, y1, y2};
+    if (g) ge.setZero();
+    if (H) He.setZero();
+    e += triangle_sample_terms(V, P, t, xs, ys, g ? &ge : nullptr, H ? &He : nullptr);
+    if (g) *g += ge;
+    if (H) *H += He;
   }
   if (P.air_density > 0 && !P.quasi_static) {
     const Vec3 nrm = (y1 - y0).cross(y2 - y0);

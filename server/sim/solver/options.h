@@ -103,6 +103,12 @@ struct SceneOptions {
   /// (docs/robot.md, "Pads in the solve"). 0: off (the pads stay where the predictor stopped them).
   /// Robot mode's scenes set it from tasks::RobotOptions::pad_stiffness (3e5 unless given).
   Real pad_stiffness = 0;
+  /// Points sampled over the cloth's triangles, half the thinnest yielding collider's thickness
+  /// apart, held out of the yielding colliders (gripper pads) as the vertices are: without them
+  /// a pad thinner than the cloth's edges are long passed between the vertices and stood in the
+  /// sheet, threaded (contact/surface_samples.h; docs/robot.md, "Pads that cut through the cloth").
+  /// false: the vertices alone.
+  bool pad_samples = true;
   /// PCG iteration cap per Newton iteration; 0 (the default): max(50, sqrt(n) / 2.5) for n vertices
   /// (effective_pcg_max_iters). Block-Jacobi PCG (self-contact's default) reaches the cap in most
   /// Newton iterations after a step's first, and past ~50 iterations at 5-20k vertices its slow

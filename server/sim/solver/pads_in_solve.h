@@ -16,7 +16,8 @@
 /// each vertex's motion relative to a moving pad; the line search evaluates the pads where the
 /// trial puts them. Member functions of Solver<Exec> (solver_impl.h); the couplings are computed
 /// on the host (a few hundred vertices lie within a pad's reach), with the same per-vertex
-/// collider term the backend sums (element_terms.h, add_collider_vertex_terms).
+/// collider term the backend sums (element_terms.h, add_collider_vertex_terms), for the vertices
+/// and the surface samples (a sample's row spread over its triangle's corners by its weights).
 
 #include <Eigen/Dense>
 
@@ -132,6 +133,35 @@ void Solver<Exec>::pad_couplings() {
         h.hess += v.dot(H * v);
         const Vec3 b = -(H * v);
         for (int r = 0; r < 3; ++r) h.coupling[3 * i + r] += b[r];
+      }
+      if (!samp_live_ || !col_sampled_host_[k]) continue;
+      const double* pose = col_pose_host_.data() + 24 * k;
+      for (int t = 0; t < data_->triangles(); ++t) {  // the surface samples, as the backend sums them
+        if (samples_.tri_ptr[t] == samples_.tri_ptr[t + 1]) continue;
+        const int* tv = data_->tris.data() + 3 * t;
+        Vec3 a[3], at0[3];
+        for (int j = 0; j < 3; ++j)
+          for (int r = 0; r < 3; ++r) a[j][r] = host_x_[3 * tv[j] + r], at0[j][r] = host_xt_[3 * tv[j] + r];
+        if (!detail::triangle_near_collider(a, at0, pose, col_shape_host_[k], P.dhat)) continue;
+        for (int s = samples_.tri_ptr[t]; s < samples_.tri_ptr[t + 1]; ++s) {
+          if (std::binary_search(samp_off_.begin(), samp_off_.end(), s)) continue;
+          const double* w = samples_.w.data() + 3 * s;
+          const Vec3 p = w[0] * a[0] + w[1] * a[1] + w[2] * a[2], pt = w[0] * at0[0] + w[1] * at0[1] + w[2] * at0[2];
+          Real e = 0;
+          Vec3 g = Vec3::Zero();
+          Mat3 H = Mat3::Zero();
+          detail::add_collider_vertex_terms(P, p, pt, pose, col_shape_host_[k], mesh,
+                                            P.kappa_per_mass * samples_.mass[s] * col_kappa_host_[k], col_mu_host_[k], &e,
+                                            &g, &H);
+          if (e == 0) continue;
+          const Vec3 v = rate.leftCols<3>() * p + rate.col(3);
+          h.grad -= g.dot(v);
+          h.hess += v.dot(H * v);
+          const Vec3 b = -(H * v);
+          for (int j = 0; j < 3; ++j)
+            if (!kin_fixed_host_[tv[j]])
+              for (int r = 0; r < 3; ++r) h.coupling[3 * tv[j] + r] += w[j] * b[r];
+        }
       }
     }
   }

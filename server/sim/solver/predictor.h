@@ -122,10 +122,11 @@ void Solver<Exec>::begin_step(const KinematicTargets& kin, bool quasi_static) {
   // left inside one by the projection itself. Pads in the solve stop here with self-contact off
   // too: the projection above left them out, and the guess went on inside them (not finite).
   if (n_col_ > 0 &&
-      (scaled_back || opt_.pad_stiffness > 0 || (Exec::download(host_x_, x_), inside_a_collider(host_x_)))) {
+      (scaled_back || opt_.pad_stiffness > 0 || (Exec::download(host_x_, x_), inside_a_collider(host_x_, true)))) {
     stop_yielding_colliders();        // a yielding one (a gripper pad) stops where the cloth is
     project_out_of_colliders(true, false);  // out of the others, unguarded by CCD
   }
+  if (samp_live_) switch_samples();  // a surface sample left inside a pad sits this step out
 }
 
 /// This step's Newton cap: SceneOptions::grip_newton_max_iters where higher, while a yielding
@@ -206,20 +207,33 @@ void Solver<Exec>::project_out_of_colliders(bool skip_clear, bool skip_yielding)
 /// went its whole motion and the projection pushed the cloth out of it unguarded, and a stack
 /// squeezed between two pads went into the other pad (PadsInTheSolve, the spring pressing harder
 /// than the barrier holds at the floor); kept, the pad stops at its start and the solve decides.
-/// Empty rows for the other colliders. Reads host_xt_.
+/// The surface samples near a sampled collider (find_near_samples, from host_xt_ and host_x_) get
+/// theirs after the vertices' (index n + sample), the same way, except that a sample the projection
+/// cannot help (within the floor at the step's start with the pads out of the solve, or inside)
+/// keeps none (-infinity; switch_samples leaves it out of the step if the guess leaves it inside):
+/// a weak sample pressed within the floor and then ignored let a pad in the solve through the
+/// cloth the next step. Empty rows for the other colliders. Reads host_xt_ and host_x_.
 template <class Exec>
-std::vector<std::vector<double>> Solver<Exec>::yielding_clearances() const {
+std::vector<std::vector<double>> Solver<Exec>::yielding_clearances() {
   const double floor = kClearanceFloor * P_.dhat;
   std::vector<std::vector<double>> keep(n_col_);
+  find_near_samples(host_xt_, host_x_);
   for (int k = 0; k < n_col_; ++k) {
     if (!(*colliders_)[k].yielding()) continue;
-    keep[k].assign(n_, 0.0);
+    keep[k].assign(n_ + (samp_live_ ? samples_.size() : 0), 0.0);
     const Eigen::Isometry3d start = (*colliders_)[k].checked_pose(col_t0_);
     for (int i = 0; i < n_; ++i) {
       const Vec3 p(host_xt_[3 * i], host_xt_[3 * i + 1], host_xt_[3 * i + 2]);
       const double d0 = (*colliders_)[k].query(p, start).distance;
       keep[k][i] = std::max(floor, 0.5 * std::min(0.5 * P_.dhat, d0));
       if (opt_.pad_stiffness > 0 && d0 > 0) keep[k][i] = std::min(keep[k][i], d0);
+    }
+    for (const int s : samp_near_[k]) {
+      const double d0 = (*colliders_)[k].query(sample_at(host_xt_, s), start).distance;
+      double& kept = keep[k][n_ + s];
+      kept = std::max(floor, 0.5 * std::min(0.5 * P_.dhat, d0));
+      if (opt_.pad_stiffness > 0 && d0 > 0) kept = std::min(kept, d0);  // as a vertex's
+      else if (d0 <= floor) kept = -INFINITY;
     }
   }
   return keep;
@@ -232,6 +246,14 @@ bool Solver<Exec>::keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
                                const std::vector<std::vector<double>>& keep) const {
   for (int i = 0; i < n_; ++i)
     if (!kin_fixed_host_[i] && (*colliders_)[k].query(guess_at(i, b), pose).distance < keep[k][i]) return false;
+  if (!samp_live_ || !col_sampled_host_[k]) return true;
+  for (const int s : samp_near_[k]) {  // and the surface samples near it
+    if (!(keep[k][n_ + s] > -INFINITY)) continue;
+    const int* v = data_->tris.data() + 3 * samples_.tri[s];
+    const double* w = samples_.w.data() + 3 * s;
+    const Vec3 p = w[0] * guess_at(v[0], b) + w[1] * guess_at(v[1], b) + w[2] * guess_at(v[2], b);
+    if ((*colliders_)[k].query(p, pose).distance < keep[k][n_ + s]) return false;
+  }
   return true;
 }
 

@@ -121,12 +121,14 @@ class SolverBase {
   virtual EnergyReport energies() = 0;
   /// The contact (barrier) force each collider of the last set_colliders receives from the cloth
   /// at the current positions, colliders at their end-of-step poses: 3 per collider, N, world
-  /// frame (the sum over free vertices of the barrier's gradient; friction not included). What
-  /// a force-limited gripper finger feels (robot mode).
+  /// frame (the sum over free vertices, and surface samples where the collider is sampled, of the
+  /// barrier's gradient; friction not included). What a force-limited gripper finger feels (robot
+  /// mode).
   virtual std::vector<double> collider_forces() = 0;
   /// collider_forces' push along each collider's own local z axis (at its end-of-step pose) split
-  /// by sign: 4 per collider, {sum of the vertices' pushes towards +z (N, >= 0), sum of those
-  /// towards -z (N, <= 0), vertices pushing towards +z, vertices pushing towards -z}. For a gripper
+  /// by sign: 4 per collider, {sum of the points' pushes towards +z (N, >= 0), sum of those
+  /// towards -z (N, <= 0), points pushing towards +z, points pushing towards -z}; the points are
+  /// the free vertices and, on a sampled collider, the surface samples. For a gripper
   /// pad whose z is its opening direction: the cloth on its inner face against the cloth wrapped
   /// round its outer face (robot mode's timeseries).
   virtual std::vector<double> collider_pushes() = 0;

@@ -23,6 +23,7 @@
 #include <type_traits>
 
 #include "sim/contact/lbvh_broad_phase.h"
+#include "sim/contact/surface_samples.h"
 #include "sim/solver/direct_solver.h"
 #include "sim/solver/element_terms.h"
 #include "sim/solver/pair_blocks.h"
@@ -219,6 +220,7 @@ class Solver final : public SolverBase {
     col_clear_.assign(n_col_, 0);
     col_end_.clear();
     select_contact_hessian(n_col_ > 0);  // SceneOptions::contact_hessian's kAuto
+    samp_live_ = false;
     if (n_col_ == 0) return;
     PackedColliders packed = pack_colliders(colliders);
     for (ColliderShape& s : packed.shapes) s.mesh_cull = 2 * P_.dhat;  // meshes: the far cull (collider.h)
@@ -243,6 +245,7 @@ class Solver final : public SolverBase {
     Exec::upload(col_kappa_, kappa);
     pad_hands_.clear();
     still_colliders();
+    build_samples();
     if (opt_.pad_stiffness > 0) {  // host copies for the pads' couplings (pads_in_solve.h)
       col_shape_host_ = std::move(packed.shapes);
       col_vertices_host_ = std::move(packed.vertices);
@@ -403,13 +406,14 @@ class Solver final : public SolverBase {
   /// Which barriers are infinite at x_ (a diagnostic for a failed step): vertices inside each
   /// collider's end pose or below the table, and the closest self-contact pair.
   std::string infinite_terms();
-  /// Whether a free vertex of x (host, 3 per vertex) lies on or inside a collider's end pose.
-  bool inside_a_collider(const std::vector<double>& x) const;
+  /// Whether a free vertex of x (host, 3 per vertex), or with `samples` a surface sample, lies on
+  /// or inside a collider's end pose.
+  bool inside_a_collider(const std::vector<double>& x, bool samples = false) const;
   void project_out_of_colliders(bool skip_clear, bool skip_yielding);  ///< predictor.h
   void stop_yielding_colliders();                    ///< predictor.h
   void carry_pinched_cloth();                        ///< predictor.h
   bool guess_pinch_first();                          ///< predictor.h
-  std::vector<std::vector<double>> yielding_clearances() const;  ///< predictor.h
+  std::vector<std::vector<double>> yielding_clearances();  ///< predictor.h
   Eigen::Isometry3d pose_along(int k, double s) const;           ///< predictor.h
   void set_collider_end(int k, const Eigen::Isometry3d& pose);   ///< predictor.h
   // The pads in the solve (pads_in_solve.h; SceneOptions::pad_stiffness)
@@ -428,6 +432,16 @@ class Solver final : public SolverBase {
   bool keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
                    const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
   Vec3 guess_at(int i, double b) const;              ///< predictor.h
+  // The surface samples (surface_samples.h) against thin yielding colliders (sample_stage.h)
+  void build_samples();
+  Vec3 sample_at(const std::vector<double>& x, int s) const;
+  void find_near_samples(const std::vector<double>& xa, const std::vector<double>& xb);
+  bool samples_inside(int k, const std::vector<double>& x, const Eigen::Isometry3d& pose) const;
+  void switch_samples();
+  /// Surface samples (for tests and reports).
+  const SurfaceSamples& surface_samples() const { return samples_; }
+  /// How many samples the last step left out of its solve (inside a collider at Newton's guess).
+  int samples_off() const { return static_cast<int>(samp_off_.size()); }
   bool pinched(int i) const;                         ///< predictor.h
   void log_what_cuts(const char* leg, const CcdBounds& b);  ///< predictor.h
   void log_what_stops(const std::vector<int>& stop, const std::vector<double>& reach, double b,
@@ -467,6 +481,13 @@ class Solver final : public SolverBase {
     V.col_move = Exec::ptr(col_move_);
     V.col_moving = !pad_hands_.empty();
     V.col_mesh = ColliderMeshView{Exec::ptr(col_vertices_), Exec::ptr(col_tris_)};
+    V.col_sampled = Exec::ptr(col_sampled_);
+    V.n_samp = samp_live_ ? samples_.size() : 0;
+    V.samp_ptr = Exec::ptr(samp_ptr_);
+    V.samp_tri = Exec::ptr(samp_tri_);
+    V.samp_w = Exec::ptr(samp_w_);
+    V.samp_mass = Exec::ptr(samp_mass_);
+    V.samp_on = Exec::ptr(samp_on_);
     V.cand = cand_.view();
     V.act = act_.view();
     V.n_fr = n_fr_;
@@ -561,6 +582,16 @@ class Solver final : public SolverBase {
   Vec<Eigen::Vector3i> col_tris_;
   Vec<double> col_pose_, col_mu_, col_kappa_;
   std::vector<double> host_x_, host_xt_;
+  /// The cloth's surface samples (sample_stage.h): built for the thinnest sampled collider's
+  /// half thickness; samp_live_ while some collider of the scene is sampled (col_sampled_).
+  SurfaceSamples samples_;
+  bool samp_live_ = false;
+  Vec<int> col_sampled_, samp_ptr_, samp_tri_, samp_on_;
+  Vec<double> samp_w_, samp_mass_;
+  std::vector<int> col_sampled_host_;
+  std::vector<int> samp_off_;  ///< the samples switch_samples left out this step
+  /// Per collider: the samples whose triangle comes within reach of it this step (find_near_samples).
+  std::vector<std::vector<int>> samp_near_;
   /// A hand in the solve (pads_in_solve.h): its pads (colliders), how far along the step's motion
   /// they are (s, 0..1), the Newton direction's part for it (ds), the spring's K |path|^2, and its
   /// gradient, Hessian and coupling to the cloth (3 per vertex) at the current iterate.
@@ -727,6 +758,7 @@ class Solver final : public SolverBase {
 #include "sim/solver/vector_ops.h"
 #include "sim/solver/diagnostics.h"
 #include "sim/solver/pads_in_solve.h"
+#include "sim/solver/sample_stage.h"
 
 #if !defined(__CUDACC__)
 #include "sim/backend/cpu/exec_cpu.h"

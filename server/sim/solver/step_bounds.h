@@ -41,52 +41,18 @@ typename Solver<Exec>::CcdBounds Solver<Exec>::ccd_bounds(bool table, bool self,
   return b;
 }
 
-/// Conservative bound against colliders: no free vertex closes more than 90% of its distance to
-/// a collider's surface in one step. The distance to a convex set (box, capsule, plane) is a convex
-/// function, so d(x + a dx) >= d(x) + a n.dx (n its gradient, the outward normal): only the motion
-/// towards the surface is bounded, and cloth pressed against a pad slides along it or leaves it
-/// freely; so for a convex mesh (a URDF link's hull). Another mesh may be non-convex: there the
-/// distance's 1-Lipschitz bound, |dx| <= 0.9 d, holds. A pad in the solve (pads_in_solve.h) moves
-/// too: the vertex's motion is taken relative to the pad's point under it (the pad's displacement,
-/// affine in the point: V.col_move, 12 values), plus the turn's margin (V.col_move's 13th value,
-/// a bound on how much the displacement differs over the distance d): cloth the pads carry moves
-/// with them without being held back.
+/// Conservative bound against colliders: no free vertex, nor surface sample against the colliders
+/// it is held out of, closes more than 90% of its distance to a collider's surface in one step
+/// (detail::collider_step_inverse: only the motion towards a convex collider is bounded).
 template <class Exec>
 void Solver<Exec>::collider_step_inverse_to(double* out) {
   const detail::View V = view();
   const double* x = Exec::ptr(x_);
   const double* dx = Exec::ptr(dx_);
-  Exec::max_to(n_, [=] GD_HD_LAMBDA(int i) {
-    if (V.fixed[i]) return 0.0;
-    const Vec3 xi = detail::load3(x, i);
-    const Vec3 di = detail::load3(dx, i);
-    if (di.squaredNorm() == 0 && !V.col_moving) return 0.0;
-    double worst = 0;
-    for (int c = 0; c < V.n_col; ++c) {
-      const double* q = V.col_pose + 24 * c;
-      const Mat3 R1 = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(q + 12);
-      const Vec3 t1(q[21], q[22], q[23]);
-      Vec3 rel = di;  // the vertex's motion relative to the collider's point under it
-      Real turn = 0;  // how far the collider's displacement may differ from that point's, per metre
-      if (V.col_moving && V.col_move[detail::kColMove * c + 12] >= 0) {
-        const double* m = V.col_move + detail::kColMove * c;
-        const Mat3 A = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(m);
-        rel -= A * xi + Vec3(m[9], m[10], m[11]);
-        turn = m[12];
-      }
-      if (rel.squaredNorm() == 0) continue;
-      Vec3 n;
-      const Real d = collider_world_distance(xi, R1, t1, V.col_shape[c], &V.col_mesh, &n, nullptr);
-      if (!(d > 0)) {
-        worst = 1e12;
-      } else if (V.col_shape[c].type == ColliderType::kMesh && !V.col_shape[c].mesh_convex) {
-        worst = fmax(worst, (rel.norm() + turn * d) / (0.9 * d));
-      } else {
-        const Real dn = n.dot(rel);
-        if (dn < 0 || turn > 0) worst = fmax(worst, (fmax(-dn, 0.0) + turn * d) / (0.9 * d));
-      }
-    }
-    return worst;
+  // The vertices, then (by triangle) the surface samples against the colliders they are held out of.
+  Exec::max_to(n_ + (V.n_samp > 0 ? V.nt : 0), [=] GD_HD_LAMBDA(int i) {
+    if (i < V.n) return V.fixed[i] ? 0.0 : detail::collider_step_inverse(V, detail::load3(x, i), detail::load3(dx, i));
+    return detail::triangle_samples_step_inverse(V, i - V.n, x, dx);
   }, out, Exec::kParallelMinHeavy);
 }
 
