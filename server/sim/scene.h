@@ -33,8 +33,8 @@ using PoseFn = std::function<Eigen::Isometry3d(double t)>;
 struct ColliderPush {
   double along_z = 0;    ///< N (>= 0): the vertices pushing it towards its +z, summed
   double against_z = 0;  ///< N (<= 0): those pushing it towards -z
-  /// How many points push each way: free vertices and, on a collider the cloth's surface samples
-  /// are held out of (SceneOptions::pad_samples), samples.
+  /// How many free vertices push each way (the sums above include the cloth's surface samples on a
+  /// collider they are held out of, SceneOptions::pad_samples; the counts do not).
   int vertices_along = 0, vertices_against = 0;
 };
 

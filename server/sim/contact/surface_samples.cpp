@@ -19,13 +19,17 @@ int parts(double len, double spacing) {
 }
 }  // namespace
 
-SurfaceSamples sample_surface(const std::vector<double>& x, const std::vector<int>& tris, double density,
-                              double spacing) {
+SurfaceSamples sample_surface(const std::vector<double>& x, const std::vector<int>& tris,
+                              const std::vector<double>& vertex_mass, double spacing, double wider_than) {
   if (!(spacing > 0) || !std::isfinite(spacing))
     throw InputError(fmt::format("sample spacing must be a positive finite length in m, got {}", spacing));
-  if (!(density > 0) || !std::isfinite(density))
-    throw InputError(fmt::format("sample density must be a positive finite areal density in kg/m^2, got {}", density));
+  if (!(wider_than >= 0) || !std::isfinite(wider_than))
+    throw InputError(fmt::format("the width of the triangles to sample must be a finite length >= 0 m, got {}", wider_than));
   const int n = static_cast<int>(x.size() / 3), nt = static_cast<int>(tris.size() / 3);
+  if (vertex_mass.size() != static_cast<size_t>(n))
+    throw InputError(fmt::format("{} vertex masses for {} vertices", vertex_mass.size(), n));
+  for (const double m : vertex_mass)
+    if (!(m > 0) || !std::isfinite(m)) throw InputError(fmt::format("a vertex mass must be positive and finite, got {}", m));
   for (const int v : tris)
     if (v < 0 || v >= n) throw InputError(fmt::format("triangle index {} out of range (0..{})", v, n - 1));
   SurfaceSamples s;
@@ -41,9 +45,12 @@ SurfaceSamples sample_surface(const std::vector<double>& x, const std::vector<in
     const int* v = tris.data() + 3 * t;
     const Vec3 a = at(x, v[0]), b = at(x, v[1]), c = at(x, v[2]);
     const double len[3] = {(b - a).norm(), (c - b).norm(), (a - c).norm()};
+    if (!(std::max({len[0], len[1], len[2]}) > wider_than)) {
+      s.tri_ptr[t + 1] = s.size();
+      continue;
+    }
     const int k = parts(std::max({len[0], len[1], len[2]}), spacing);
-    const double area = 0.5 * (b - a).cross(c - a).norm();
-    const double m = density * 2.0 * area / (k * k);  // the two subdivision triangles round a point
+    const double m = (vertex_mass[v[0]] + vertex_mass[v[1]] + vertex_mass[v[2]]) / 3;
     for (int i = 1; i < k; ++i)
       for (int j = 1; i + j < k; ++j) add(t, double(k - i - j) / k, double(i) / k, double(j) / k, m);
     for (int e = 0; e < 3; ++e) {  // edge e from v[e] to v[(e + 1) % 3]

@@ -20,21 +20,27 @@ struct SurfaceSamples {
   std::vector<int> tri_ptr;  ///< triangles + 1 offsets
   std::vector<int> tri;      ///< per sample: its triangle
   std::vector<double> w;     ///< per sample: 3 barycentric weights on its triangle's vertices
-  std::vector<double> mass;  ///< per sample: the cloth's mass it stands for, kg (its barrier's scale)
+  std::vector<double> mass;  ///< per sample: the mass its barrier is scaled by, kg (its corners' mean)
   double spacing = 0;        ///< m, what they were built for (0: none)
   int size() const { return static_cast<int>(tri.size()); }
 };
 
 /// Samples at most `spacing` (m, > 0) apart over the triangles `tris` of the mesh at positions x
-/// (3 per vertex): a triangle whose longest edge is L gets the interior points of its subdivision
-/// into k = ceil(L / spacing) parts per edge (barycentric (i, j, k - i - j) / k, all three > 0), and
-/// each edge longer than the spacing its own interior points (ceil(len / spacing) parts), on the
-/// first triangle that holds it. k is capped at kMaxSampleDivisions (a sliver longer than that
-/// many spacings is sampled coarser). A sample stands for the mass of the area around it: twice a
-/// subdivision triangle's, at `density` (kg/m^2). The vertices themselves are not samples. Throws
-/// InputError for a spacing or density that is not a positive finite number or a bad index.
-SurfaceSamples sample_surface(const std::vector<double>& x, const std::vector<int>& tris, double density,
-                              double spacing);
+/// (3 per vertex) whose longest edge L is longer than `wider_than` (m, >= 0; a collider that thick
+/// cannot pass between the vertices of a narrower one): such a triangle gets the interior points of
+/// its subdivision into k = ceil(L / spacing) parts per edge (barycentric (i, j, k - i - j) / k, all
+/// three > 0), and each of its edges longer than the spacing its own interior points
+/// (ceil(len / spacing) parts), on the first such triangle that holds it. k is capped at
+/// kMaxSampleDivisions (a sliver longer than that many spacings is sampled coarser). A sample's
+/// barrier is scaled by the mean of its corners' masses (`vertex_mass`, kg, one per vertex), as
+/// stiff as theirs: a pad pressing on samples alone, between the vertices of a coarse triangle,
+/// pushes the cloth as it would by its vertices (scaled by the area a sample stands for, a
+/// sixtieth of a vertex's on a 2 cm mesh, a pad stalled on a pinned sheet or pressed the samples to
+/// within a micrometre). The vertices themselves are not samples. Throws InputError for a spacing
+/// that is not a positive finite number, a negative or non-finite `wider_than`, a mass per vertex
+/// missing or not positive and finite, or a bad index.
+SurfaceSamples sample_surface(const std::vector<double>& x, const std::vector<int>& tris,
+                              const std::vector<double>& vertex_mass, double spacing, double wider_than = 0);
 
 /// The most parts sample_surface cuts one edge into.
 inline constexpr int kMaxSampleDivisions = 12;

@@ -119,7 +119,7 @@ struct View {
   const int* col_sampled;
   // Points sampled over the triangles (contact/surface_samples.h): triangle t's are
   // [samp_ptr[t], samp_ptr[t + 1]); per sample its triangle, 3 barycentric weights, the mass its
-  // barrier stands for, and whether it takes part this step (0: inside a collider at the guess).
+  // barrier is scaled by, and whether it takes part this step (0: inside a collider at the guess).
   int n_samp = 0;
   const int* samp_ptr;
   const int* samp_tri;

@@ -29,8 +29,10 @@ inline constexpr double kSampleReach = 1e-3;
 }  // namespace detail
 
 /// Which colliders the surface samples are held out of (the yielding ones with a thickness:
-/// gripper pads; SceneOptions::pad_samples), and the samples for the thinnest of them, built again
-/// only when that thickness changes. Called by set_colliders.
+/// gripper pads; SceneOptions::pad_samples), and the samples for the thinnest of them (half its
+/// thickness apart, on the triangles wider than it is thick: a pad cannot pass between the vertices
+/// of a narrower one, and samples there only added constraints to a pinch), built again only when
+/// that thickness changes. Called by set_colliders.
 template <class Exec>
 void Solver<Exec>::build_samples() {
   col_sampled_host_.assign(n_col_, 0);
@@ -46,9 +48,7 @@ void Solver<Exec>::build_samples() {
   if (!std::isfinite(spacing)) return;  // samp_live_ stays false
   if (spacing != samples_.spacing) {
     const SceneData& d = *data_;
-    double mass = 0;
-    for (const double m : d.mass) mass += m;
-    samples_ = sample_surface(d.x, d.tris, mass / d.area, spacing);
+    samples_ = sample_surface(d.x, d.tris, d.mass, spacing, 2 * spacing);  // wider than the pad is thick
     Exec::upload(samp_ptr_, samples_.tri_ptr);
     Exec::upload(samp_tri_, samples_.tri);
     Exec::upload(samp_w_, samples_.w);

@@ -126,9 +126,9 @@ class SolverBase {
   /// mode).
   virtual std::vector<double> collider_forces() = 0;
   /// collider_forces' push along each collider's own local z axis (at its end-of-step pose) split
-  /// by sign: 4 per collider, {sum of the points' pushes towards +z (N, >= 0), sum of those
-  /// towards -z (N, <= 0), points pushing towards +z, points pushing towards -z}; the points are
-  /// the free vertices and, on a sampled collider, the surface samples. For a gripper
+  /// by sign: 4 per collider, {sum of the pushes towards +z (N, >= 0; the free vertices' and, on a
+  /// sampled collider, the surface samples'), sum of those towards -z (N, <= 0), vertices pushing
+  /// towards +z, vertices pushing towards -z}. For a gripper
   /// pad whose z is its opening direction: the cloth on its inner face against the cloth wrapped
   /// round its outer face (robot mode's timeseries).
   virtual std::vector<double> collider_pushes() = 0;

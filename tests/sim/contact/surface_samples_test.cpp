@@ -1,6 +1,6 @@
 // Points sampled over the cloth's triangles (sim/contact/surface_samples.h): no point of a triangle
 // farther from a sample or a corner than the spacing, each edge's samples once, barycentric
-// weights on the triangle, the mass they stand for that of the cloth round them, bad input refused.
+// weights on the triangle, a barrier as stiff as its corners', bad input refused.
 #include "sim/contact/surface_samples.h"
 
 #include <gtest/gtest.h>
@@ -28,6 +28,13 @@ std::vector<int> flat(const std::vector<Eigen::Vector3i>& tris) {
   return out;
 }
 
+/// Masses for the vertices of x (flat): 0.1 g, 0.2 g and 0.3 g in turn.
+std::vector<double> masses(const std::vector<double>& x) {
+  std::vector<double> m(x.size() / 3);
+  for (size_t i = 0; i < m.size(); ++i) m[i] = 1e-4 * (1 + i % 3);
+  return m;
+}
+
 Vec3 sample(const SurfaceSamples& s, const std::vector<double>& x, const std::vector<int>& tris, int k) {
   Vec3 p = Vec3::Zero();
   for (int a = 0; a < 3; ++a) {
@@ -45,7 +52,7 @@ TEST(SurfaceSamples, NoPointOfATriangleIsFartherThanTheSpacingFromASample) {
   const std::vector<double> x = flat(m.x);
   const std::vector<int> tris = flat(m.tris);
   const double spacing = 0.004;
-  const SurfaceSamples s = sample_surface(x, tris, 0.2, spacing);
+  const SurfaceSamples s = sample_surface(x, tris, masses(x), spacing);
   ASSERT_EQ(s.tri_ptr.size(), m.tris.size() + 1);
   EXPECT_GT(s.size(), 5 * static_cast<int>(m.x.size()));
   double worst = 0;
@@ -66,15 +73,15 @@ TEST(SurfaceSamples, NoPointOfATriangleIsFartherThanTheSpacingFromASample) {
   EXPECT_LT(worst, spacing);
 }
 
-TEST(SurfaceSamples, EachEdgesSamplesOnceWeightsOnTheTriangleMassOfTheClothRoundThem) {
+TEST(SurfaceSamples, EachEdgesSamplesOnceWeightsOnTheTriangleBarrierAsStiffAsItsCorners) {
   const Mesh m = make_rect(0.1, 0.08, 0.02);
   const std::vector<double> x = flat(m.x);
   const std::vector<int> tris = flat(m.tris);
-  const double density = 0.15, spacing = 0.005;
-  const SurfaceSamples s = sample_surface(x, tris, density, spacing);
+  const double spacing = 0.005;
+  const std::vector<double> m_v = masses(x);
+  const SurfaceSamples s = sample_surface(x, tris, m_v, spacing);
   EXPECT_EQ(s.spacing, spacing);
   std::set<std::vector<long>> seen;  // each sample's position, rounded to a micrometre: no two alike
-  double mass = 0, area = 0;
   for (int k = 0; k < s.size(); ++k) {
     const double* w = s.w.data() + 3 * k;
     EXPECT_NEAR(w[0] + w[1] + w[2], 1.0, 1e-12);
@@ -84,32 +91,53 @@ TEST(SurfaceSamples, EachEdgesSamplesOnceWeightsOnTheTriangleMassOfTheClothRound
     const Vec3 p = sample(s, x, tris, k);
     EXPECT_TRUE(seen.insert({std::lround(p.x() * 1e6), std::lround(p.y() * 1e6), std::lround(p.z() * 1e6)}).second)
         << "sample " << k << " at " << p.transpose() << " twice";
-    mass += s.mass[k];
+    const int* v = tris.data() + 3 * s.tri[k];
+    EXPECT_NEAR(s.mass[k], (m_v[v[0]] + m_v[v[1]] + m_v[v[2]]) / 3, 1e-15);  // its barrier as stiff as its corners'
   }
-  for (const Eigen::Vector3i& t : m.tris) area += 0.5 * (m.x[t[1]] - m.x[t[0]]).cross(m.x[t[2]] - m.x[t[0]]).norm();
-  // Samples and vertices together stand for about the cloth's mass once over: the samples about
-  // (k - 1)^2 / k^2 of it for k parts per edge (k = 6 here: 2 cm diagonals over 5 mm).
-  EXPECT_GT(mass, 0.5 * density * area);
-  EXPECT_LT(mass, 1.2 * density * area);
+  // 2 cm legs (3 samples each) and 2.8 cm diagonals (6 parts: 10 interior points, 5 on the
+  // diagonal): per pair of triangles 2 x 10 + 5 + 2 x 3 on the edges they own, about.
+  const int pairs = static_cast<int>(m.tris.size()) / 2;
+  EXPECT_GT(s.size(), 25 * pairs);
+  EXPECT_LT(s.size(), 36 * pairs);
 }
 
 TEST(SurfaceSamples, TrianglesShorterThanTheSpacingGetNone) {
   const Mesh m = make_rect(0.05, 0.05, 0.005);
-  const SurfaceSamples s = sample_surface(flat(m.x), flat(m.tris), 0.2, 0.008);  // 7 mm diagonals
+  const SurfaceSamples s = sample_surface(flat(m.x), flat(m.tris), masses(flat(m.x)), 0.008);  // 7 mm diagonals
   EXPECT_EQ(s.size(), 0);
   EXPECT_EQ(s.tri_ptr.back(), 0);
 }
 
-TEST(SurfaceSamples, BadSpacingDensityOrIndexIsRefused) {
-  const std::vector<double> x = {0, 0, 0, 1, 0, 0, 0, 1, 0};
-  EXPECT_THROW(sample_surface(x, {0, 1, 2}, 0.2, 0.0), InputError);
-  EXPECT_THROW(sample_surface(x, {0, 1, 2}, 0.2, NAN), InputError);
-  EXPECT_THROW(sample_surface(x, {0, 1, 2}, -1.0, 0.1), InputError);
-  EXPECT_THROW(sample_surface(x, {0, 1, 3}, 0.2, 0.1), InputError);
-  const SurfaceSamples s = sample_surface(x, {0, 1, 2}, 0.2, 0.1);
+// Only triangles wider than `wider_than` (the pad's thickness) are sampled, and their edges: of two
+// sheets, one meshed at 2 cm and one at 5 mm, sampled 4 mm apart for an 8 mm pad, only the coarse
+// one gets samples.
+TEST(SurfaceSamples, OnlyTrianglesWiderThanThePadIsThickGetThem) {
+  Mesh coarse = make_rect(0.06, 0.06, 0.02);
+  const Mesh fine = make_rect(0.06, 0.06, 0.005);
+  const int nc = static_cast<int>(coarse.x.size()), ntc = static_cast<int>(coarse.tris.size());
+  for (const Vec3& p : fine.x) coarse.x.push_back(p + Vec3(0.1, 0, 0));  // apart: two meshes in one
+  for (const Eigen::Vector3i& t : fine.tris) coarse.tris.push_back(t + Eigen::Vector3i::Constant(nc));
+  const std::vector<double> x = flat(coarse.x), m = masses(x);
+  const SurfaceSamples s = sample_surface(x, flat(coarse.tris), m, 0.004, 0.008);
+  EXPECT_GT(s.size(), 0);
+  for (int k = 0; k < s.size(); ++k) EXPECT_LT(s.tri[k], ntc);
+  EXPECT_EQ(s.tri_ptr.back(), s.size());
+  EXPECT_THROW(sample_surface(x, flat(coarse.tris), m, 0.004, -1.0), InputError);
+  // without the width every triangle of the coarse half has more than the fine half's
+  EXPECT_GT(sample_surface(x, flat(coarse.tris), m, 0.004).size(), s.size());
+}
+
+TEST(SurfaceSamples, BadSpacingMassOrIndexIsRefused) {
+  const std::vector<double> x = {0, 0, 0, 1, 0, 0, 0, 1, 0}, m = {1e-4, 1e-4, 1e-4};
+  EXPECT_THROW(sample_surface(x, {0, 1, 2}, m, 0.0), InputError);
+  EXPECT_THROW(sample_surface(x, {0, 1, 2}, m, NAN), InputError);
+  EXPECT_THROW(sample_surface(x, {0, 1, 2}, {1e-4, -1e-4, 1e-4}, 0.1), InputError);
+  EXPECT_THROW(sample_surface(x, {0, 1, 2}, {1e-4, 1e-4}, 0.1), InputError);
+  EXPECT_THROW(sample_surface(x, {0, 1, 3}, m, 0.1), InputError);
+  const SurfaceSamples s = sample_surface(x, {0, 1, 2}, m, 0.1);
   EXPECT_GT(s.size(), 0);
   // A sliver longer than kMaxSampleDivisions spacings is cut into that many parts per edge.
-  const SurfaceSamples capped = sample_surface(x, {0, 1, 2}, 0.2, 1e-4);
+  const SurfaceSamples capped = sample_surface(x, {0, 1, 2}, m, 1e-4);
   const int k = kMaxSampleDivisions;
   EXPECT_EQ(capped.size(), (k - 1) * (k - 2) / 2 + 3 * (k - 1));
 }

@@ -32,7 +32,7 @@ struct PadOverTriangle {
 
   PadOverTriangle(const Eigen::Isometry3d& start, const Eigen::Isometry3d& end, double friction) {
     const std::vector<double> x = {0, 0, 0, 0.02, 0, 0, 0, 0.02, 0};
-    s = sample_surface(x, tris, 0.2, 0.004);
+    s = sample_surface(x, tris, {2e-5, 2e-5, 2e-5}, 0.004);
     on.assign(s.size(), 1);
     for (const Eigen::Isometry3d& p : {start, end}) {
       for (int r = 0; r < 3; ++r)
