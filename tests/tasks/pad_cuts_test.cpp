@@ -2,7 +2,7 @@
 // alone (SceneOptions::pad_samples off), where the sheet's triangles are far larger than the pads
 // (8 cm) the pads' tips land inside one, meet no vertex and go through the sheet, which stays
 // where it was: the hand's state says its pads cut the cloth (RobotArmState::pad_cuts). With the
-// surface samples (the default) a sheet meshed at 2 cm, coarser than the pads are thick, is caught
+// surface samples (SceneOptions::pad_samples) a sheet meshed at 2 cm, coarser than the pads are thick, is caught
 // by the tips, which no longer pass through it (one meshed at 5 mm is caught and pushed 3 cm down). (This near its base the arm
 // reaches the point with its hand tilted up to 49 degrees from pointing down; the pads' tips
 // still lead.)
