@@ -33,8 +33,8 @@ using PoseFn = std::function<Eigen::Isometry3d(double t)>;
 struct ColliderPush {
   double along_z = 0;    ///< N (>= 0): the vertices pushing it towards its +z, summed
   double against_z = 0;  ///< N (<= 0): those pushing it towards -z
-  /// How many free vertices push each way (the sums above include the cloth's surface samples on a
-  /// collider they are held out of, SceneOptions::pad_samples; the counts do not).
+  /// How many points of the cloth push each way: free vertices, and the surface samples on a
+  /// collider they are held out of (SceneOptions::pad_samples), which the sums above include too.
   int vertices_along = 0, vertices_against = 0;
 };
 

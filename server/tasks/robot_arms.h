@@ -162,7 +162,8 @@ struct RobotArmState {
   double squeeze = 0;               ///< N: the cloth's mean push on the two pads at the step's start
   /// The squeeze split (squeeze = push_open + push_close): the mean push of the cloth on the
   /// two pads' inner faces (opening them, N >= 0) and round their outer faces (closing them, N
-  /// <= 0), and the vertices doing each (Scene::collider_pushes).
+  /// <= 0), and the points of the cloth doing each: vertices and, with pad_samples, surface
+  /// samples (Scene::collider_pushes).
   double push_open = 0, push_close = 0;
   int vertices_open = 0, vertices_close = 0;
   /// The smaller fraction of its last step's motion either pad made (1 unless the cloth stopped

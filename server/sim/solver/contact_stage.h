@@ -122,9 +122,10 @@ GD_HD Vec3 collider_reaction(const View& V, const Params& P, const double* x, in
 }
 /// The reaction collider c receives from the surface samples of triangle t at x (zero unless c is
 /// sampled), each sample's barrier gradient scaled by its mass; with `z` (non-null), only the samples
-/// whose push along *z has the sign `sign`.
+/// whose push along *z has the sign `sign`; `count` (non-null) gets how many samples push.
 GD_HD Vec3 samples_reaction(const View& V, const Params& P, const double* x, int c, int t, const Vec3* z = nullptr,
-                            int sign = 1) {
+                            int sign = 1, int* count = nullptr) {
+  if (count) *count = 0;
   Vec3 sum = Vec3::Zero();
   const int first = V.samp_ptr[t], last = V.samp_ptr[t + 1];
   if (first == last || !V.col_sampled[c]) return sum;
@@ -143,6 +144,7 @@ GD_HD Vec3 samples_reaction(const View& V, const Params& P, const double* x, int
     if (!(e > 0 && std::isfinite(e))) continue;
     if (z && !(sign * g.dot(*z) > 0)) continue;
     sum += g;
+    if (count) ++*count;
   }
   return sum;
 }
@@ -172,7 +174,8 @@ std::vector<double> Solver<Exec>::collider_forces() {
 }
 
 /// Each collider's push along its own z axis split by sign (SolverBase::collider_pushes): the
-/// vertices pushing it towards +z and their sum, those pushing it towards -z and theirs.
+/// vertices and surface samples pushing it towards +z and their sum, those pushing it towards -z
+/// and theirs.
 template <class Exec>
 std::vector<double> Solver<Exec>::collider_pushes() {
   std::vector<double> out(4 * static_cast<size_t>(n_col_), 0.0);
@@ -182,16 +185,27 @@ std::vector<double> Solver<Exec>::collider_pushes() {
   const double* x = Exec::ptr(x_);
   for (int c = 0; c < n_col_; ++c)
     for (const int sign : {1, -1}) {
-      // The vertices, then (by triangle) the surface samples; the count is the vertices'.
-      const auto push = [=] GD_HD_LAMBDA(int i) {
+      // The vertices, then (by triangle) the surface samples: the push and how many points push.
+      const auto push = [=] GD_HD_LAMBDA(int i, int* count) {
         const Vec3 z = detail::collider_z(V, c);
-        if (i >= V.n) return detail::samples_reaction(V, P, x, c, i - V.n, &z, sign).dot(z);
+        if (i >= V.n) return detail::samples_reaction(V, P, x, c, i - V.n, &z, sign, count).dot(z);
+        *count = 0;
         if (V.fixed[i]) return 0.0;
         const double f = detail::collider_reaction(V, P, x, c, i).dot(z);
-        return sign * f > 0 ? f : 0.0;
+        if (!(sign * f > 0)) return 0.0;
+        *count = 1;
+        return f;
       };
-      out[4 * c + (sign > 0 ? 0 : 1)] = Exec::sum(n_ + (V.n_samp > 0 ? V.nt : 0), push);
-      out[4 * c + (sign > 0 ? 2 : 3)] = Exec::sum(n_, [=] GD_HD_LAMBDA(int i) { return push(i) != 0.0 ? 1.0 : 0.0; });
+      const int points = n_ + (V.n_samp > 0 ? V.nt : 0);
+      out[4 * c + (sign > 0 ? 0 : 1)] = Exec::sum(points, [=] GD_HD_LAMBDA(int i) {
+        int count = 0;
+        return push(i, &count);
+      });
+      out[4 * c + (sign > 0 ? 2 : 3)] = Exec::sum(points, [=] GD_HD_LAMBDA(int i) {
+        int count = 0;
+        push(i, &count);
+        return static_cast<double>(count);
+      });
     }
   return out;
 }

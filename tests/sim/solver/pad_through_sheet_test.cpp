@@ -25,6 +25,8 @@ const Vec3 kHalf(0.01, 0.004, 0.02);  // a Piper finger pad standing on its 2 x 
 struct Stab {
   double depth = 0;  ///< the deepest cut over the run, m (contact/cuts.h)
   double sheet_min_z = 0;
+  double push_up = 0;  ///< N: the cloth's push on the pad along its +z (up) at the end
+  int pushing = 0;     ///< the points of the cloth doing it (vertices and surface samples)
   bool failed = true;
 };
 
@@ -76,6 +78,9 @@ Stab stab(bool samples, const Vec3& offset, double turn) {
     at.linear() = R;
     out.depth = std::max(out.depth, collider_cuts(pad, at, scene->positions(), m.tris).depth);
   }
+  const ColliderPush push = scene->collider_pushes({id})[0];
+  out.push_up = push.along_z;
+  out.pushing = push.vertices_along;
   out.failed = scene->failed();
   out.sheet_min_z = std::numeric_limits<double>::infinity();
   for (const Vec3& p : scene->positions()) out.sheet_min_z = std::min(out.sheet_min_z, p.z());
@@ -90,8 +95,9 @@ TEST(PadThroughSheet, SamplesCatchACoarseSheetThatThePadOtherwiseGoesThrough) {
     ASSERT_FALSE(bare.failed);
     const Stab held = stab(true, offset, turn);
     ASSERT_FALSE(held.failed);
-    std::printf("vertices alone: cut %.2f mm deep, sheet down to %.1f mm; with samples: %.2f mm, %.1f mm\n",
-                1e3 * bare.depth, 1e3 * (bare.sheet_min_z - kZ), 1e3 * held.depth, 1e3 * (held.sheet_min_z - kZ));
+    std::printf("vertices alone: cut %.2f mm deep, sheet down to %.1f mm, push %.3g N by %d points; with samples: "
+                "%.2f mm, %.1f mm, %.3g N by %d\n", 1e3 * bare.depth, 1e3 * (bare.sheet_min_z - kZ), bare.push_up,
+                bare.pushing, 1e3 * held.depth, 1e3 * (held.sheet_min_z - kZ), held.push_up, held.pushing);
     // Vertices alone: the tip, 3 cm below the sheet at the end, went through its middle (half
     // the pad's 8 mm thickness deep), and the sheet barely moved.
     EXPECT_GT(bare.depth, 0.003);
@@ -101,6 +107,11 @@ TEST(PadThroughSheet, SamplesCatchACoarseSheetThatThePadOtherwiseGoesThrough) {
     // threaded depth).
     EXPECT_LT(held.sheet_min_z, kZ - 0.02);
     EXPECT_LT(held.depth, 0.002);
+    // The sheet it stretches pushes it back up, and Scene::collider_pushes counts the points doing
+    // so, samples with the vertices: a push with no point counted would be a sum of nothing.
+    EXPECT_GT(held.push_up, 0.0);
+    EXPECT_GT(held.pushing, 0);
+    for (const Stab* r : {&bare, &held}) EXPECT_EQ(r->pushing == 0, r->push_up == 0.0);
   }
 }
 
