@@ -533,9 +533,10 @@ void Solver<Exec>::log_what_cuts(const char* leg, const CcdBounds& b) {
                   at(dx, v[3]).norm());
 }
 
-/// Debug log (stop_yielding_colliders): for each stopped collider, the free vertex that keeps it
-/// from going further (the closest to losing its clearance just past where it stopped): index,
-/// whether it is pinched (carry_pinched_cloth), its clearance kept and due, and where it lies in
+/// Debug log (stop_yielding_colliders): for each stopped collider, the free vertex or surface
+/// sample that keeps it from going further (the closest to losing its clearance just past where it
+/// stopped): index, whether a vertex is pinched (carry_pinched_cloth) or a sample's triangle, its
+/// clearance kept and due, and where it lies in
 /// the collider's frame, so a pad stopped by its own pinch tells from one stopped by cloth round it.
 template <class Exec>
 void Solver<Exec>::log_what_stops(const std::vector<int>& stop, const std::vector<double>& reach, double b,
@@ -551,13 +552,25 @@ void Solver<Exec>::log_what_stops(const std::vector<int>& stop, const std::vecto
       const double d = c.query(guess_at(i, b), pose).distance;
       if (d - keep[k][i] < worst_margin) worst_margin = d - keep[k][i], worst = i, worst_d = d;
     }
+    if (samp_live_ && col_sampled_host_[k])  // the surface samples near it (index n_ + s), as keeps_clear
+      for (const int s : samp_near_[k]) {
+        if (!(keep[k][n_ + s] > -INFINITY)) continue;
+        const int* v = data_->tris.data() + 3 * samples_.tri[s];
+        const double* w = samples_.w.data() + 3 * s;
+        const double d = c.query(w[0] * guess_at(v[0], b) + w[1] * guess_at(v[1], b) + w[2] * guess_at(v[2], b), pose)
+                             .distance;
+        if (d - keep[k][n_ + s] < worst_margin) worst_margin = d - keep[k][n_ + s], worst = n_ + s, worst_d = d;
+      }
     if (worst < 0) continue;
-    const Vec3 p(host_xt_[3 * worst], host_xt_[3 * worst + 1], host_xt_[3 * worst + 2]);
+    const bool sample = worst >= n_;
+    const Vec3 p = sample ? sample_at(host_xt_, worst - n_)
+                          : Vec3(host_xt_[3 * worst], host_xt_[3 * worst + 1], host_xt_[3 * worst + 2]);
     const Vec3 local = pose.inverse() * p;
-    gd::log().debug("collider {} held at {:.4f} by vertex {} ({}): clearance {:.3e} m past it, due {:.3e}; "
-                    "at the start in its frame ({:.4f}, {:.4f}, {:.4f}) m",
-                    k, reach[k], worst, pinched(worst) ? "pinched" : "not pinched", worst_d, keep[k][worst], local.x(),
-                    local.y(), local.z());
+    const std::string who = sample ? fmt::format("surface sample {} (triangle {})", worst - n_, samples_.tri[worst - n_])
+                                   : fmt::format("vertex {} ({})", worst, pinched(worst) ? "pinched" : "not pinched");
+    gd::log().debug("collider {} held at {:.4f} by {}: clearance {:.3e} m past it, due {:.3e}; at the start in its "
+                    "frame ({:.4f}, {:.4f}, {:.4f}) m",
+                    k, reach[k], who, worst_d, keep[k][worst], local.x(), local.y(), local.z());
   }
 }
 
