@@ -249,10 +249,7 @@ bool Solver<Exec>::keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
   if (!samp_live_ || !col_sampled_host_[k]) return true;
   for (const int s : samp_near_[k]) {  // and the surface samples near it
     if (!(keep[k][n_ + s] > -INFINITY)) continue;
-    const int* v = data_->tris.data() + 3 * samples_.tri[s];
-    const double* w = samples_.w.data() + 3 * s;
-    const Vec3 p = w[0] * guess_at(v[0], b) + w[1] * guess_at(v[1], b) + w[2] * guess_at(v[2], b);
-    if ((*colliders_)[k].query(p, pose).distance < keep[k][n_ + s]) return false;
+    if ((*colliders_)[k].query(sample_guess_at(s, b), pose).distance < keep[k][n_ + s]) return false;
   }
   return true;
 }
@@ -263,6 +260,15 @@ Vec3 Solver<Exec>::guess_at(int i, double b) const {
   Vec3 p;
   for (int r = 0; r < 3; ++r) p[r] = host_xt_[3 * i + r] + b * (host_x_[3 * i + r] - host_xt_[3 * i + r]);
   return p;
+}
+
+/// Surface sample s on the guess moved a fraction b of the way (its triangle's corners by guess_at,
+/// combined by its weights).
+template <class Exec>
+Vec3 Solver<Exec>::sample_guess_at(int s, double b) const {
+  const int* v = data_->tris.data() + 3 * samples_.tri[s];
+  const double* w = samples_.w.data() + 3 * s;
+  return w[0] * guess_at(v[0], b) + w[1] * guess_at(v[1], b) + w[2] * guess_at(v[2], b);
 }
 
 /// Whether carry_pinched_cloth found vertex i pinched this step (only where it weighs the pinch).
@@ -555,10 +561,7 @@ void Solver<Exec>::log_what_stops(const std::vector<int>& stop, const std::vecto
     if (samp_live_ && col_sampled_host_[k])  // the surface samples near it (index n_ + s), as keeps_clear
       for (const int s : samp_near_[k]) {
         if (!(keep[k][n_ + s] > -INFINITY)) continue;
-        const int* v = data_->tris.data() + 3 * samples_.tri[s];
-        const double* w = samples_.w.data() + 3 * s;
-        const double d = c.query(w[0] * guess_at(v[0], b) + w[1] * guess_at(v[1], b) + w[2] * guess_at(v[2], b), pose)
-                             .distance;
+        const double d = c.query(sample_guess_at(s, b), pose).distance;
         if (d - keep[k][n_ + s] < worst_margin) worst_margin = d - keep[k][n_ + s], worst = n_ + s, worst_d = d;
       }
     if (worst < 0) continue;

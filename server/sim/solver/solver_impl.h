@@ -432,6 +432,7 @@ class Solver final : public SolverBase {
   bool keeps_clear(int k, const Eigen::Isometry3d& pose, double b,
                    const std::vector<std::vector<double>>& keep) const;  ///< predictor.h
   Vec3 guess_at(int i, double b) const;              ///< predictor.h
+  Vec3 sample_guess_at(int s, double b) const;       ///< predictor.h
   // The surface samples (surface_samples.h) against thin yielding colliders (sample_stage.h)
   void build_samples();
   Vec3 sample_at(const std::vector<double>& x, int s) const;
