@@ -28,6 +28,9 @@ set(_gd_costs
   "Folds/GarmentFold.LiesFoldedOnTheTable/pleat_skirt_speed_p5pct" 46
   "Backends/GpuPaths.PinnedSheetSwingingMatchesTheCpuPaths/CpuGpuPaths" 38
   "RobotScenesRpc.FingersPickATowelOffTheTableThroughTheService" 38
+  "PinchStroke.AStepTheLineSearchCutShortDoesNotEndNewton" 38
+  "PinchStroke.AHandAtTheEndOfItsStepNeverStallsNewton" 22
+  "PinchStroke.SurfaceSamplesHoldTheStripInEveryDraw" 22
   "Folds/GarmentFold.LiesFoldedOnTheTable/skirt_vertices_x2" 31
   "Backends/GpuPaths.CollidersWithFrictionMatchTheCpuPaths/CpuGpuPaths" 29
   "RobotArms.FingersPickClothOffTheTable" 26

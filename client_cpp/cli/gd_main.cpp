@@ -237,10 +237,10 @@ int main(int argc, char** argv) {
                 "(for comparison; docs/robot.md, \"Pads that stop together\")");
   run->add_flag("!--no-link-colliders", cfg.robot.link_colliders,
                 "robot mode: the finger pads alone collide with the cloth, not the arms' links");
-  run->add_flag("--pad-samples", cfg.robot.pad_samples,
+  run->add_flag("--pad-samples,!--no-pad-samples", cfg.robot.pad_samples,
                 "robot mode: the pads keep points sampled over the cloth's triangles out too, not only its vertices "
-                "(cloth meshed coarser than a pad is thick otherwise stands threaded on the pads; docs/robot.md, "
-                "\"Surface samples\")");
+                "(the default; --no-pad-samples keeps out the vertices alone, and cloth meshed coarser than a pad is "
+                "thick then stands threaded on the pads; docs/robot.md, \"Surface samples\")");
   run->add_option("--vertices", cfg.vertices, "target vertex count of a generated garment")->capture_default_str();
   std::vector<double> garment_position;
   run->add_option("--garment-position", garment_position,
@@ -413,7 +413,7 @@ int main(int argc, char** argv) {
                                      "--contact-hessian", "--preconditioner", "--broad-phase", "--newton-rtol", "--newton-max", "--no-plots", "--mesh-every",
                                      "--compression-ratio", "--grip-force-limit", "--jaw-radius", "--urdf-package-path",
                                      "--no-link-colliders", "--grip-force-schedule", "--independent-pads",
-                                     "--pad-samples"})
+                                     "--pad-samples", "--no-pad-samples"})
         if (run->count(local_only) > 0)
           throw gd::sim::InputError(std::string(local_only) + " is not available with --server (the server decides)");
       gd::cli::RemoteRun r;

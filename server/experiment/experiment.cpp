@@ -1047,7 +1047,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
         gd::log().warn("robot mode: the {} hand's pads stand through the cloth from {:.3f} s (up to {} cloth edges "
                        "through a pad or triangles a pad's edge passes through, {:.1f} mm deep): cloth threaded on "
                        "a pad goes where it goes (docs/robot.md, \"Pads that cut through the cloth\" and \"Surface "
-                       "samples\"; timeseries.csv {}_pad_cuts; without --pad-samples the contact keeps only the "
+                       "samples\"; timeseries.csv {}_pad_cuts; with --no-pad-samples the contact keeps only the "
                        "cloth's vertices out of the pads)",
                        tasks::arm_name(a), st.pad_threaded_from, st.pad_cuts_max, 1e3 * st.pad_cut_depth_max,
                        tasks::arm_name(a));

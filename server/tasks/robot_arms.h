@@ -143,9 +143,9 @@ struct RobotOptions {
   /// Points sampled over the cloth's triangles a pad's half thickness apart are held out of the
   /// pads as its vertices are (sim::SceneOptions::pad_samples, which robot mode's scenes take from
   /// here): without them a pad thinner than the cloth's edges are long stood in the sheet, threaded
-  /// (docs/robot.md, "Pads that cut through the cloth", "Surface samples"). Off by default until
-  /// robot mode's results are rerun with it (`gd run --pad-samples`).
-  bool pad_samples = false;
+  /// (docs/robot.md, "Pads that cut through the cloth", "Surface samples"). On by default since
+  /// 2026-12-07 (`gd run --no-pad-samples` turns them off).
+  bool pad_samples = true;
   /// Rotation from the trajectory's tool frame to the end-effector link (IK targets only). Piper
   /// default: link7 y = tool z (approach), link7 z = tool x (closing direction).
   Eigen::Matrix3d tool_to_ee = (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished();

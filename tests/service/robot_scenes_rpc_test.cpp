@@ -309,9 +309,13 @@ TEST(RobotScenesRpc, FingersPickATowelOffTheTableThroughTheService) {
   // land on the 1 cm mesh): on the 70 x 50 cm towel of 3000 vertices the same command at eight
   // grasp points within 5 mm of each other caught it at 5 of them (docs/robot.md, "Pinched
   // layers"); this smaller towel was caught at all eight. Four of those points here: every one must
-  // end as a grasp or a clean miss, and at least half must lift the towel.
+  // end as a grasp, a clean miss or a grip the service reports lost, and at least half must lift
+  // the towel. A grip is lost where the closing pads stall on cloth the 1.2 cm mesh cannot fold
+  // between them: pinned under their tips, it stops them 5 mm apart at the force limit (a held
+  // fold lets them close to 1 mm); lifted, the cloth slides out and the fingers shut (docs/robot.md,
+  // "Surface samples"). At most one of the four.
   const std::vector<Eigen::Vector3d> offsets = {{0, 0, 0}, {0.005, -0.004, 0}, {-0.003, 0, 0}, {-0.005, 0.004, 0}};
-  int lifted = 0;
+  int lifted = 0, lost = 0;
   for (const Eigen::Vector3d& offset : offsets) {
     SCOPED_TRACE(::testing::Message() << "grasp offset " << offset.transpose());
     pb::ResetScenesRequest reset;
@@ -345,7 +349,12 @@ TEST(RobotScenesRpc, FingersPickATowelOffTheTableThroughTheService) {
     // Within the URDF's 10 N limit (and its control overshoot).
     EXPECT_LT(s.arms(0).squeeze(), 12.0);
     const bool caught = s.arms(0).squeeze() > 0.5;
-    if (caught) {
+    if (s.arms(0).grip() == pb::GRIP_LOST) {
+      // Held once, then nothing between the fingers: they shut on nothing.
+      ++lost;
+      EXPECT_FALSE(caught);
+      EXPECT_EQ(s.arms(0).gripper(), 0.0);
+    } else if (caught) {
       // Fingers pressing on cloth never close through it, and the edge goes up with the hand
       // (the tips end 6 cm up).
       EXPECT_GT(s.arms(0).gripper(), 0.0);
@@ -361,6 +370,7 @@ TEST(RobotScenesRpc, FingersPickATowelOffTheTableThroughTheService) {
     }
   }
   EXPECT_GE(lifted, static_cast<int>(offsets.size()) / 2);
+  EXPECT_LE(lost, 1);
 }
 
 }  // namespace

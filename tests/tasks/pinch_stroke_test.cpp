@@ -6,6 +6,9 @@
 // them on by a hair; Newton used to keep them there by bounding the step length, to 0, and ran to
 // its cap without moving: 34 such steps over these eight draws, one of them lost (docs/robot.md,
 // "A hand at the end of its step"); likewise at s = 0 ("A hand at the other end of its step").
+// Those strokes hold the strip's vertices alone out of the pads (SceneOptions::pad_samples off):
+// robot mode's default since 2026-12-07 holds its surface samples out too, which fills the pads'
+// faces with some 220 points of the strip instead of two vertices (the last test below).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -38,7 +41,10 @@ struct Swept {
 /// (velocity (1 - cos) shaped, 2 m/s at its peak), measured 0.2 s after the stroke.
 /// `to_tolerance`: Newton run to newton_tol (the residual rule off), else robot mode's default rule.
 /// `self_contact`: the cloth's self-contact (robot mode's scenes have it; a user's may not).
-Swept sweep(double finger_friction, const Vec3& hand_offset, bool to_tolerance = true, bool self_contact = true) {
+/// `samples`: the cloth's surface samples held out of the pads (robot mode's default since
+/// 2026-12-07); without them only the strip's vertices are, two of them between the pads.
+Swept sweep(double finger_friction, const Vec3& hand_offset, bool to_tolerance = true, bool self_contact = true,
+            bool samples = true) {
   sim::Mesh m = sim::make_rect(0.04, 0.12, 0.02);
   for (Vec3& p : m.x) p = Vec3(kX, kY - 0.02 + p.x(), 0.11 - p.y());
   sim::SceneOptions o = task_options();
@@ -46,6 +52,7 @@ Swept sweep(double finger_friction, const Vec3& hand_offset, bool to_tolerance =
   o.table = false;
   o.self_contact = self_contact;
   o.pad_stiffness = kDefaultPadStiffness;  // as robot mode's scenes take it
+  o.pad_samples = samples;
   if (to_tolerance) o.newton_rtol = o.newton_atol = 0;  // Newton runs on past the pads' arrival at s = 1
   auto scene = make_scene(m, o);
   std::vector<int> top;
@@ -61,6 +68,7 @@ Swept sweep(double finger_friction, const Vec3& hand_offset, bool to_tolerance =
   RobotOptions ro;
   ro.urdf = piper_urdf();
   ro.finger_friction = finger_friction;
+  ro.pad_samples = samples;
   RobotController c(two_arms(times, at, [](double t) { return t < 0.1 ? kGripperOpen : 0.0; }), ro);
   Swept out;
   const auto count_stuck = [&](const sim::StepStats& st) {
@@ -91,7 +99,7 @@ TEST(PinchStroke, AHandAtTheEndOfItsStepNeverStallsNewton) {
   for (const double mu : {0.266, 0.8}) {
     for (const Vec3& offset : {Vec3(0, 0, 0), Vec3(0.001, 0.001, 0), Vec3(0.003, 0, 0), Vec3(-0.003, 0.003, 0)}) {
       SCOPED_TRACE(::testing::Message() << "friction " << mu << ", hand offset " << offset.transpose());
-      const Swept s = sweep(mu, offset);
+      const Swept s = sweep(mu, offset, true, true, false);
       std::printf("friction %.3f, offset (%g, %g): %d vertices on the pads, the strip moved %.1f mm of %.0f, "
                   "lost at %.3f s, %d stuck steps\n", mu, offset.x(), offset.y(), s.pinched, 1e3 * s.moved,
                   1e3 * kStroke, s.lost_at, s.stuck_steps);
@@ -105,7 +113,7 @@ TEST(PinchStroke, AHandAtTheEndOfItsStepNeverStallsNewton) {
   // 34 without the active set at s = 1; one more (friction 0.266, offset (-3, 3) mm) until the
   // active set at s = 0 too (docs/robot.md, "A hand at the other end of its step").
   EXPECT_EQ(stuck, 0) << "steps ran to the Newton cap with a hand held at an end of its motion";
-  const Swept frictionless = sweep(0.0, Vec3::Zero());
+  const Swept frictionless = sweep(0.0, Vec3::Zero(), true, true, false);
   ASSERT_FALSE(frictionless.failed);
   std::printf("without friction: the strip moved %.1f mm, lost at %.3f s\n", 1e3 * frictionless.moved,
               frictionless.lost_at);
@@ -142,7 +150,7 @@ TEST(PinchStroke, AStepTheLineSearchCutShortDoesNotEndNewton) {
     for (const Vec3& offset : {Vec3(0, 0, 0), Vec3(0.001, 0.001, 0), Vec3(0.003, 0, 0), Vec3(-0.003, 0.003, 0),
                                Vec3(0.002, -0.002, 0), Vec3(-0.001, 0, 0), Vec3(0, 0.002, 0), Vec3(0.0015, 0.0025, 0)}) {
       SCOPED_TRACE(::testing::Message() << "friction " << mu << ", hand offset " << offset.transpose());
-      const Swept s = sweep(mu, offset, false);
+      const Swept s = sweep(mu, offset, false, true, false);
       std::printf("friction %.3f, offset (%g, %g): %d vertices on the pads, the strip moved %.1f mm, lost at %.3f s\n",
                   mu, offset.x(), offset.y(), s.pinched, 1e3 * s.moved, s.lost_at);
       ASSERT_FALSE(s.failed);
@@ -153,6 +161,29 @@ TEST(PinchStroke, AStepTheLineSearchCutShortDoesNotEndNewton) {
   }
   std::printf("%d of %d draws let go\n", lost, draws);
   EXPECT_LE(lost, 4) << "steps ended on cut line-search steps again? (7 of 16 before)";
+}
+
+// Robot mode's defaults (the surface samples on, its stopping rule) on the same strokes: the pinch
+// is no longer coarse (the strip's samples cover the pads' faces), and every draw holds, where the
+// vertices alone let go of 3 of 16 (above). Without friction the strip slides out.
+TEST(PinchStroke, SurfaceSamplesHoldTheStripInEveryDraw) {
+  if (piper_urdf().empty()) GTEST_SKIP() << "../shared/data/rgbench/piper_with_gripper.urdf not present";
+  for (const Vec3& offset : {Vec3(0, 0, 0), Vec3(0.001, 0.001, 0), Vec3(0.003, 0, 0), Vec3(-0.003, 0.003, 0),
+                             Vec3(0.002, -0.002, 0), Vec3(-0.001, 0, 0), Vec3(0, 0.002, 0), Vec3(0.0015, 0.0025, 0)}) {
+    SCOPED_TRACE(::testing::Message() << "hand offset " << offset.transpose());
+    const Swept s = sweep(0.266, offset, false);
+    std::printf("samples, offset (%g, %g): %d points on the pads, the strip moved %.1f mm, lost at %.3f s\n",
+                offset.x(), offset.y(), s.pinched, 1e3 * s.moved, s.lost_at);
+    ASSERT_FALSE(s.failed);
+    EXPECT_GT(s.pinched, 50) << "the samples did not reach the pads' faces";
+    EXPECT_LT(s.lost_at, 0) << "the hand let go";
+    EXPECT_NEAR(s.moved, kStroke, 0.05 * kStroke);  // 199.6-200.1 mm measured
+  }
+  const Swept frictionless = sweep(0.0, Vec3::Zero(), false);
+  ASSERT_FALSE(frictionless.failed);
+  std::printf("samples, without friction: the strip moved %.1f mm, lost at %.3f s\n", 1e3 * frictionless.moved,
+              frictionless.lost_at);
+  EXPECT_LT(frictionless.moved, 0.5 * kStroke);
 }
 
 }  // namespace pinch_stroke

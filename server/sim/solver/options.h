@@ -107,10 +107,9 @@ struct SceneOptions {
   /// apart, held out of the yielding colliders (gripper pads) as the vertices are: without them
   /// a pad thinner than the cloth's edges are long passed between the vertices and stood in the
   /// sheet, threaded (contact/surface_samples.h; docs/robot.md, "Pads that cut through the cloth").
-  /// Off by default until robot mode's tables and service tests are rerun with it (with it on, a
-  /// towel picked through the service slid out of the hand 0.2 s into the lift in one of four
-  /// draws: docs/robot.md, "Surface samples").
-  bool pad_samples = false;
+  /// On by default (robot mode's scenes take it from tasks::RobotOptions::pad_samples); off, a
+  /// pad cuts through coarse cloth between its vertices.
+  bool pad_samples = true;
   /// PCG iteration cap per Newton iteration; 0 (the default): max(50, sqrt(n) / 2.5) for n vertices
   /// (effective_pcg_max_iters). Block-Jacobi PCG (self-contact's default) reaches the cap in most
   /// Newton iterations after a step's first, and past ~50 iterations at 5-20k vertices its slow
