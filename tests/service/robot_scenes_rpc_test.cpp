@@ -313,7 +313,7 @@ TEST(RobotScenesRpc, FingersPickATowelOffTheTableThroughTheService) {
   // the towel. A grip is lost where the closing pads stall on cloth the 1.2 cm mesh cannot fold
   // between them: pinned under their tips, it stops them 5 mm apart at the force limit (a held
   // fold lets them close to 1 mm); lifted, the cloth slides out and the fingers shut (docs/robot.md,
-  // "Surface samples"). At most one of the four.
+  // "Surface samples by default"). At most one of the four.
   const std::vector<Eigen::Vector3d> offsets = {{0, 0, 0}, {0.005, -0.004, 0}, {-0.003, 0, 0}, {-0.005, 0.004, 0}};
   int lifted = 0, lost = 0;
   for (const Eigen::Vector3d& offset : offsets) {
