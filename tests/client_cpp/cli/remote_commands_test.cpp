@@ -252,6 +252,13 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   EXPECT_EQ(s.at("robot").at("rigid_hands"), true);  // a hand's pads yield together (--independent-pads: not)
   EXPECT_DOUBLE_EQ(s.at("robot").at("pad_stiffness").get<double>(), 3e5);  // a stopped hand goes on in the solve
   EXPECT_EQ(s.at("contact_hessian"), "projected");  // auto: the exact projection where fingers press the cloth
+  EXPECT_EQ(s.at("robot").at("pad_samples"), true);  // the cloth's surface samples kept out of the pads
+  {
+    CliRun off = gd(run + " --no-pad-samples --urdf " + urdf + " --out " + (dir / "vertices_alone").string());
+    ASSERT_EQ(off.rc, 0) << off.err;
+    EXPECT_EQ(nlohmann::json::parse(slurp(dir / "vertices_alone" / "summary.json")).at("robot").at("pad_samples"),
+              false);
+  }
   // The time series carries each hand's opening (within the finger's travel), squeeze, lift
   // off the table and squeeze limit (the URDF's 10 N without a schedule), the squeeze split into
   // the inner faces' push and the outer faces' (summing to it), the vertices doing each, and the
