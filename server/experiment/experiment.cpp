@@ -14,6 +14,7 @@
 #include <fstream>
 #include <limits>
 
+#include "experiment/shape_stats.h"
 #include "garments/generator.h"
 #include "garments/refine.h"
 #include "garments/obj_import.h"
@@ -48,28 +49,6 @@ metrics::Cloud to_cloud(const std::vector<Vec3>& x) {
   metrics::Cloud c(x.size());
   for (size_t i = 0; i < x.size(); ++i) c[i] = x[i].cast<float>();
   return c;
-}
-
-/// Shape statistics of the cloth at one instant.
-struct Shape {
-  double min_z = 0, max_z = 0, mean_z = 0, extent_x = 0, extent_y = 0;
-  /// Height below which 95% of the vertices lie: how tall the bulk of a folded stack is, without
-  /// the one sleeve tip that max_z follows.
-  double p95_z = 0;
-};
-Shape shape_of(const std::vector<Vec3>& x) {
-  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  double z = 0;
-  std::vector<double> zs;
-  zs.reserve(x.size());
-  for (const Vec3& p : x) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p), z += p.z(), zs.push_back(p.z());
-  double p95 = 0;
-  if (!zs.empty()) {
-    const size_t k = std::min(zs.size() - 1, static_cast<size_t>(0.95 * static_cast<double>(zs.size())));
-    std::nth_element(zs.begin(), zs.begin() + static_cast<std::ptrdiff_t>(k), zs.end());
-    p95 = zs[k];
-  }
-  return {lo.z(), hi.z(), x.empty() ? 0.0 : z / double(x.size()), hi.x() - lo.x(), hi.y() - lo.y(), p95};
 }
 
 /// First time at which an arm's gripper is below the closing threshold (fixed-point grab time of
@@ -211,7 +190,7 @@ class Run {
  private:
   void record() {
     const std::vector<Vec3> x = scene_->positions();
-    const Shape s = shape_of(x);
+    const ClothShape s = shape_of(x, scene_->data().mass);
     const sim::StepStats& st = scene_->last_stats();
     rows_.push_back(fmt::format("{:.5f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6e},{},{},{},{},{:.3f}", scene_->time(),
                                 s.min_z, s.max_z, s.mean_z, s.extent_x, s.extent_y, scene_->energies().kinetic,
@@ -935,7 +914,7 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   sim::write_obj(mesh, xf, out + "/final.obj");
   run.write_timeseries(out + "/timeseries.csv");
   result.summary["animation"] = run.write_animation(out + "/animation.npy");
-  const Shape fin = shape_of(xf), ini = shape_of(x0);
+  const ClothShape fin = shape_of(xf, sc.data().mass), ini = shape_of(x0, sc.data().mass);
   const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
   s["garment"] = garment.type;
   s["garment_source"] = config.garment;
