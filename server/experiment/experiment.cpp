@@ -693,6 +693,30 @@ bool run_plot_script(const std::string& script_name, const std::string& dir) {
   return false;
 }
 
+namespace {
+
+/// Robot mode on a generated task: the median longest edge of the cloth's triangles within 3 cm of
+/// the grasp points (summary.json's robot.grasp_edge_m), and a warning where it is longer than the
+/// pads are thick and their surface samples are on: such cloth cannot fold between the closing
+/// pads, which then stall on it or close on nothing (docs/robot.md, "The garment refined under the
+/// pads").
+double check_grasp_mesh(const ExperimentConfig& c, const garments::Garment& g) {
+  constexpr double kRadius = 0.03;
+  const double edge = garments::edge_near(g, garments::grasp_landmarks(g.landmarks, tasks::task_kind_from_name(c.task) ==
+                                                                                        tasks::TaskKind::kFold),
+                                          kRadius);
+  const double thickness = 2 * c.robot.arm.pad.half_extents.minCoeff();
+  if (c.robot.pad_samples && edge > thickness && thickness > 0)
+    gd::log().warn("robot mode: the cloth round the grasp points is meshed at {:.1f} mm (the median edge within {:.0f} "
+                   "cm), coarser than the pads are thick ({:.1f} mm): it cannot fold between the closing pads, which "
+                   "stall on it or close on nothing where it lies flat; --refine-grasp 0.008 --refine-grasp-radius "
+                   "0.03 meshes it finer there (docs/robot.md, \"The garment refined under the pads\")",
+                   1e3 * edge, 1e2 * kRadius, 1e3 * thickness);
+  return edge;
+}
+
+}  // namespace
+
 bool plot_report(const std::string& dir) { return run_plot_script("plot_report.py", dir); }
 
 ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn& progress,
@@ -775,6 +799,8 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
   }
   std::unique_ptr<tasks::TaskController> controller;
   const tasks::RobotController* robot = nullptr;
+  std::optional<double> grasp_edge;  // robot mode, generated task: how finely the cloth is meshed round the grasp points
+  if (config.mode == "robot" && settled) grasp_edge = check_grasp_mesh(config, garment);
   if (config.mode == "robot") {
     auto r = std::make_unique<tasks::RobotController>(traj, config.robot, arm_model());
     robot = r.get();
@@ -1044,6 +1070,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const ProgressFn
                   {"rigid_hands", config.robot.rigid_hands},
                   {"pad_stiffness", config.robot.pad_stiffness},  // N/m; 0: pads stopped by the predictor
                   {"pad_samples", config.robot.pad_samples},      // the cloth's surface samples kept out of the pads
+                  // m: the median edge of the cloth within 3 cm of a generated task's grasp points (null: a
+                  // given trajectory, whose grasp points are not known beforehand)
+                  {"grasp_edge_m", grasp_edge ? nlohmann::json(*grasp_edge) : nlohmann::json()},
                   // the pads' Coulomb coefficient on the cloth: the option's, else the material's
                   {"finger_friction", config.robot.finger_friction >= 0 ? config.robot.finger_friction
                                                                         : double(sc.material().friction)},

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <functional>
@@ -205,6 +206,24 @@ int refine_near(Garment& g, const RefineRegion& region) {
   Refiner(g, region).run(budget);
   sim::validate_mesh(g.mesh);
   return static_cast<int>(g.mesh.x.size()) - before;
+}
+
+Real edge_near(const Garment& g, const std::vector<Vec3>& centres, Real radius) {
+  const sim::Mesh& m = g.mesh;
+  std::vector<Real> edges;
+  for (const auto& f : m.tris) {
+    bool near = false;
+    for (int k = 0; k < 3 && !near; ++k)
+      for (const Vec3& c : centres) near = near || (m.x[f[k]] - c).norm() <= radius;
+    if (!near) continue;
+    Real longest = 0;
+    for (int k = 0; k < 3; ++k) longest = std::max(longest, (m.x[f[k]] - m.x[f[(k + 1) % 3]]).norm());
+    edges.push_back(longest);
+  }
+  if (edges.empty()) return 0;
+  const auto mid = edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2);
+  std::nth_element(edges.begin(), mid, edges.end());
+  return *mid;
 }
 
 std::vector<Vec3> grasp_landmarks(const Landmarks& l, bool fold) {

@@ -43,6 +43,12 @@ class TooManyVertices : public sim::InputError {
 /// the region's vertex budget (`g` is then partly refined); returns the number of vertices added.
 int refine_near(Garment& g, const RefineRegion& region);
 
+/// How finely `g` is meshed round `centres` (garment frame): the median longest edge, m, of the
+/// triangles with a corner within `radius` of a centre (0 if none is). Robot mode compares it
+/// with the pads' thickness: cloth meshed coarser than a pad is thick cannot fold between the
+/// closing pads (docs/robot.md, "The garment refined under the pads").
+Real edge_near(const Garment& g, const std::vector<Vec3>& centres, Real radius);
+
 /// The points a task grasps, in the garment frame: both shoulders (grasp, fling), with `fold`
 /// also both hem corners and, on a hooded garment, the hood's face corners (tasks/generators.h).
 std::vector<Vec3> grasp_landmarks(const Landmarks& l, bool fold);

@@ -161,5 +161,24 @@ TEST(RefineNear, StopsAtItsVertexBudget) {
   EXPECT_THROW(refine_near(g, region), TooManyVertices);
 }
 
+// How finely the cloth round the grasp points is meshed (robot mode's check of the pads against the
+// mesh): the 1000-vertex T-shirt's shoulders at centimetres, refined to 6 mm there at most 6 mm,
+// and nothing near a point off the garment.
+TEST(EdgeNear, TheMedianEdgeRoundThePointsFollowsTheRefinement) {
+  const Garment coarse = make_garment("tshirt", 1000);
+  const std::vector<Vec3> shoulders = grasp_landmarks(coarse.landmarks, /*fold=*/false);
+  const Real before = edge_near(coarse, shoulders, 0.03);
+  EXPECT_GT(before, 0.02);
+  EXPECT_LT(before, 0.06);
+  Garment fine = coarse;
+  RefineRegion region;
+  region.centres = shoulders;
+  region.radius = 0.05;
+  region.edge = 0.006;
+  refine_near(fine, region);
+  EXPECT_LE(edge_near(fine, shoulders, 0.03), 0.006);
+  EXPECT_EQ(edge_near(coarse, {Vec3(10, 10, 10)}, 0.03), 0.0);
+}
+
 }  // namespace
 }  // namespace gd::garments

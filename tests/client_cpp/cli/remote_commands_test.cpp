@@ -253,11 +253,18 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   EXPECT_DOUBLE_EQ(s.at("robot").at("pad_stiffness").get<double>(), 3e5);  // a stopped hand goes on in the solve
   EXPECT_EQ(s.at("contact_hessian"), "projected");  // auto: the exact projection where fingers press the cloth
   EXPECT_EQ(s.at("robot").at("pad_samples"), true);  // the cloth's surface samples kept out of the pads
+  // The 200-vertex towel is meshed coarser round its grasp points than the pads are thick (8 mm):
+  // the run says so and what to do, and records how coarse.
+  const char* coarse = "coarser than the pads are thick";
+  EXPECT_GT(s.at("robot").at("grasp_edge_m").get<double>(), 0.008);
+  EXPECT_NE(r.err.find(coarse), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--refine-grasp 0.008"), std::string::npos) << r.err;
   {
     CliRun off = gd(run + " --no-pad-samples --urdf " + urdf + " --out " + (dir / "vertices_alone").string());
     ASSERT_EQ(off.rc, 0) << off.err;
     EXPECT_EQ(nlohmann::json::parse(slurp(dir / "vertices_alone" / "summary.json")).at("robot").at("pad_samples"),
               false);
+    EXPECT_EQ(off.err.find(coarse), std::string::npos) << "pads that pass between the vertices need no finer mesh";
   }
   // The time series carries each hand's opening (within the finger's travel), squeeze, lift
   // off the table and squeeze limit (the URDF's 10 N without a schedule), the squeeze split into
