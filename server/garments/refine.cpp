@@ -16,6 +16,18 @@ namespace gd::garments {
 
 namespace {
 
+/// Whether a triangle (its corners `f` in `m`) has a corner or its centroid within `radius` of one
+/// of `centres`: the triangles refine_near refines and edge_near measures.
+bool near_centres(const sim::Mesh& m, const Eigen::Vector3i& f, const std::vector<Vec3>& centres, Real radius) {
+  const Vec3 c = (m.x[f[0]] + m.x[f[1]] + m.x[f[2]]) / 3.0;
+  for (const Vec3& centre : centres) {
+    if ((c - centre).norm() <= radius) return true;
+    for (int k = 0; k < 3; ++k)
+      if ((m.x[f[k]] - centre).norm() <= radius) return true;
+  }
+  return false;
+}
+
 using EdgeKey = std::pair<int, int>;  // an undirected edge, smaller vertex first
 EdgeKey key(int a, int b) { return a < b ? EdgeKey{a, b} : EdgeKey{b, a}; }
 
@@ -81,16 +93,7 @@ class Refiner {
     return pair[0] == t ? pair[1] : pair[0];
   }
 
-  bool near(int t) const {
-    const auto& f = m_.tris[t];
-    const Vec3 c = (m_.x[f[0]] + m_.x[f[1]] + m_.x[f[2]]) / 3.0;
-    for (const Vec3& centre : r_.centres) {
-      if ((c - centre).norm() <= r_.radius) return true;
-      for (int k = 0; k < 3; ++k)
-        if ((m_.x[f[k]] - centre).norm() <= r_.radius) return true;
-    }
-    return false;
-  }
+  bool near(int t) const { return near_centres(m_, m_.tris[t], r_.centres, r_.radius); }
 
   void add_edge(const EdgeKey& e, int t) {
     auto [it, fresh] = edge_tris_.try_emplace(e, std::array<int, 2>{t, -1});
@@ -212,10 +215,7 @@ Real edge_near(const Garment& g, const std::vector<Vec3>& centres, Real radius) 
   const sim::Mesh& m = g.mesh;
   std::vector<Real> edges;
   for (const auto& f : m.tris) {
-    bool near = false;
-    for (int k = 0; k < 3 && !near; ++k)
-      for (const Vec3& c : centres) near = near || (m.x[f[k]] - c).norm() <= radius;
-    if (!near) continue;
+    if (!near_centres(m, f, centres, radius)) continue;
     Real longest = 0;
     for (int k = 0; k < 3; ++k) longest = std::max(longest, (m.x[f[k]] - m.x[f[(k + 1) % 3]]).norm());
     edges.push_back(longest);

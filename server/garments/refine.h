@@ -44,7 +44,8 @@ class TooManyVertices : public sim::InputError {
 int refine_near(Garment& g, const RefineRegion& region);
 
 /// How finely `g` is meshed round `centres` (garment frame): the median longest edge, m, of the
-/// triangles with a corner within `radius` of a centre (0 if none is). Robot mode compares it
+/// triangles with a corner or their centroid within `radius` of a centre (those refine_near would
+/// refine with that radius; 0 if none is). Robot mode compares it
 /// with the pads' thickness: cloth meshed coarser than a pad is thick cannot fold between the
 /// closing pads (docs/robot.md, "The garment refined under the pads").
 Real edge_near(const Garment& g, const std::vector<Vec3>& centres, Real radius);
