@@ -5,8 +5,9 @@
 ///          [--vertices N] [--capture DIR] [--trajectory FILE] --out DIR [...]
 ///       one experiment, locally, with a progress bar (server/experiment/experiment.h lists the
 ///       files it writes); prints a short summary.
-///   gd metrics --sim A --real B [--json]
-///       RGBench's seven sim-to-real metrics between two clouds (PCD, PLY or OBJ vertices).
+///   gd metrics --sim A --real B [--json] [--surface N]
+///       RGBench's seven sim-to-real metrics between two clouds (PCD, PLY or OBJ vertices); with
+///       --surface, two OBJ meshes also compared as surfaces (N points of each).
 ///   gd synth-capture --garment G --task T --out DIR [...]
 ///       a synthetic capture in RGBench's layout filmed from a reference simulation (for
 ///       trying `gd run --capture` without the real dataset).
@@ -28,6 +29,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -74,12 +76,35 @@ int cmd_run(const ExperimentConfig& cfg, bool quiet) {
   return 0;
 }
 
-int cmd_metrics(const std::string& sim, const std::string& real, bool json) {
+/// RGBench's seven metrics between the clouds at `sim` and `real`; with `surface` > 0 (both OBJ
+/// meshes with faces) also their Euclidean distances as surfaces, that many area-sampled points of
+/// each to the other's nearest triangle (experiment::surface_distance): what two meshings of one
+/// shape (a garment refined under the pads, or at another resolution) agree on, where the vertex
+/// clouds weigh each region by how finely it is meshed.
+int cmd_metrics(const std::string& sim, const std::string& real, bool json, int surface) {
   const gd::metrics::Metrics m = gd::metrics::compute_metrics(gd::metrics::load_cloud(sim), gd::metrics::load_cloud(real));
+  nlohmann::json j = gd::metrics::to_json(m);
+  if (surface > 0) {
+    for (const std::string* p : {&sim, &real}) {
+      std::string ext = std::filesystem::path(*p).extension().string();
+      for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      if (ext != ".obj")
+        throw gd::sim::InputError("gd metrics --surface compares two OBJ meshes; " + *p + " is not an .obj file");
+    }
+    const gd::sim::Mesh a = gd::sim::read_obj(sim), b = gd::sim::read_obj(real);
+    for (const auto& [mesh, path] : {std::pair{&a, &sim}, std::pair{&b, &real}})
+      if (mesh->tris.empty())
+        throw gd::sim::InputError("gd metrics --surface needs faces; " + *path + " has only vertices");
+    const gd::experiment::SurfaceDistance d = gd::experiment::surface_distance(a, b, surface);
+    j["surface_cd_s2r"] = d.cd_ab, j["surface_cd_r2s"] = d.cd_ba;
+    j["surface_hd_s2r"] = d.hd_ab, j["surface_hd_r2s"] = d.hd_ba;
+  }
   if (json) {
-    std::printf("%s\n", gd::metrics::to_json(m).dump().c_str());
+    std::printf("%s\n", j.dump().c_str());
   } else {
     for (const auto& n : gd::metrics::kMetricNames) std::printf("%-10s %.6f\n", n.key, m.*n.field);
+    for (const char* k : {"surface_cd_s2r", "surface_cd_r2s", "surface_hd_s2r", "surface_hd_r2s"})
+      if (j.contains(k)) std::printf("%-14s %.6f\n", k, j[k].get<double>());
   }
   return 0;
 }
@@ -329,6 +354,12 @@ int main(int argc, char** argv) {
       ->required();
   met->add_option("--real", real_path, "real cloud (PCD, PLY or OBJ), same frame")->required();
   met->add_flag("--json", json, "print one JSON object");
+  int surface_samples = 0;
+  met->add_option("--surface", surface_samples,
+                  "also compare two OBJ meshes as surfaces (Euclidean, m): this many area-sampled points of each to "
+                  "the other's nearest triangle (surface_cd_s2r/r2s, surface_hd_s2r/r2s); for meshes refined "
+                  "differently, whose vertices weigh the finer regions more")
+      ->check(CLI::NonNegativeNumber);
 
   ExperimentConfig ref;
   gd::experiment::SyntheticCaptureOptions sco;
@@ -494,7 +525,7 @@ int main(int argc, char** argv) {
       std::printf("wrote %d frames (%.2f s) to %s\n", c.frames, c.duration, c.dir.c_str());
       return 0;
     }
-    return cmd_metrics(sim_path, real_path, json);
+    return cmd_metrics(sim_path, real_path, json, surface_samples);
   } catch (const gd::ClientError& e) {
     return gd::cli::report_client_error(e);
   } catch (const gd::sim::InputError& e) {

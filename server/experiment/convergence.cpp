@@ -149,7 +149,7 @@ SurfaceDistance surface_distance(const sim::Mesh& a, const sim::Mesh& b, int sam
   const SurfaceQuery sa(a.x, a.tris), sb(b.x, b.tris);
   const auto [mean_ab, max_ab] = to_surface(sample_surface(a.x, a.tris, samples, 1), sb);
   const auto [mean_ba, max_ba] = to_surface(sample_surface(b.x, b.tris, samples, 2), sa);
-  return {0.5 * (mean_ab + mean_ba), std::max(max_ab, max_ba)};
+  return {0.5 * (mean_ab + mean_ba), std::max(max_ab, max_ba), mean_ab, mean_ba, max_ab, max_ba};
 }
 
 double draw_vertex_factor(int k) {
@@ -174,10 +174,14 @@ SurfaceDistance mean_distance(const std::vector<std::string>& a, const std::vect
   for (size_t i = 0; i < a.size(); ++i)
     for (size_t j = same ? i + 1 : 0; j < b.size(); ++j) {
       const SurfaceDistance d = surface_distance(mesh(a[i]), mesh(b[j]), samples);
-      sum.cd += d.cd, sum.hd += d.hd, ++n;
+      sum.cd += d.cd, sum.hd += d.hd, sum.cd_ab += d.cd_ab, sum.cd_ba += d.cd_ba, sum.hd_ab += d.hd_ab;
+      sum.hd_ba += d.hd_ba, ++n;
     }
-  if (n == 0) return {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
-  return {sum.cd / n, sum.hd / n};
+  if (n == 0) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    return {nan, nan, nan, nan, nan, nan};
+  }
+  return {sum.cd / n, sum.hd / n, sum.cd_ab / n, sum.cd_ba / n, sum.hd_ab / n, sum.hd_ba / n};
 }
 
 std::string csv_number(double v) { return std::isfinite(v) ? fmt::format("{:.6f}", v) : std::string(); }

@@ -107,9 +107,11 @@ std::vector<sim::Vec3> sample_surface(const std::vector<sim::Vec3>& x, const std
 /// Symmetric Chamfer (cd) and Hausdorff (hd) distances between two surfaces, Euclidean, m:
 /// `samples` area-sampled points of each surface, each point's exact distance to the other
 /// surface's nearest triangle (not to its nearest sample: no sampling floor), cd the mean of the
-/// two directions' means, hd the larger maximum.
+/// two directions' means, hd the larger maximum; each direction's own mean and maximum beside
+/// them (ab: a's samples to b's surface; `gd metrics --surface` reports them).
 struct SurfaceDistance {
   double cd = 0, hd = 0;
+  double cd_ab = 0, cd_ba = 0, hd_ab = 0, hd_ba = 0;
 };
 SurfaceDistance surface_distance(const sim::Mesh& a, const sim::Mesh& b, int samples);
 

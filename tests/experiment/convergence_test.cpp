@@ -57,6 +57,17 @@ TEST(SurfaceDistance, TheSameSurfaceMeshedTwiceIsAtZeroAndAShiftIsMeasuredExactl
   EXPECT_NEAR(slid.hd, 0.02, 2e-4);  // the farthest sample lies within ~0.1 mm of the strip's end
   // Mean over a 30 cm length of a ramp 0..2 cm over the 2 cm strip: 0.02 * (0.02/0.3) / 2.
   EXPECT_NEAR(slid.cd, 0.02 * 0.02 / 0.3 / 2, 2e-4);
+  EXPECT_NEAR(slid.cd_ab, slid.cd_ba, 2e-4) << "a slide is the same seen from either side";
+  // Half the rectangle against the whole: every point of the half lies on the whole (0 one way),
+  // the other half of the whole is up to 15 cm from it (a ramp: 3.75 cm on average over the whole).
+  const sim::Mesh half = sim::make_rect(0.15, 0.2, 0.01);
+  const SurfaceDistance part = surface_distance(half, fine, 20000);
+  EXPECT_LT(part.cd_ab, 1e-9);
+  EXPECT_LT(part.hd_ab, 1e-9);
+  EXPECT_NEAR(part.cd_ba, 0.5 * 0.15 / 2, 1e-3);
+  EXPECT_NEAR(part.hd_ba, 0.15, 1e-3);
+  EXPECT_NEAR(part.cd, 0.5 * (part.cd_ab + part.cd_ba), 1e-12);
+  EXPECT_EQ(part.hd, std::max(part.hd_ab, part.hd_ba));
 }
 
 ConvergenceConfig small_study(const std::string& out) {
