@@ -54,7 +54,10 @@ def run(gd, out: Path, garment, vertices, task, mode, urdf, params, threads, gar
 
 
 def metrics(gd, a: Path, b: Path):
-    proc = subprocess.run([gd, "metrics", "--sim", str(a), "--real", str(b), "--json"], stdout=subprocess.PIPE,
+    # --surface: also as surfaces (a robot run refined under the pads weighs the hands' regions more by
+    # its vertices; docs/metrics.md)
+    proc = subprocess.run([gd, "metrics", "--sim", str(a), "--real", str(b), "--json", "--surface", "20000"],
+                          stdout=subprocess.PIPE,
                           stderr=subprocess.PIPE, text=True)
     return json.loads(proc.stdout) if proc.returncode == 0 else None
 
@@ -128,8 +131,8 @@ def main():
                                             args.grip_force, args.refine_grasp), jobs))
     print("| task | mode | ms/step | final max z (cm) | mean z (cm) | extent x, y (cm) | intersecting pairs (max) "
           "| untangling runs | held at the end (left, right squeeze N) | CD L1 robot->pseudo / pseudo->robot (cm) "
-          "| HD (cm) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "| HD (cm) | surface CD robot->pseudo / pseudo->robot (cm) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     table = []
     for task in args.tasks.split(","):
         pair = {r["mode"]: r for r in rows if r["task"] == task}
@@ -140,18 +143,19 @@ def main():
             r = pair.get(mode)
             s = r["summary"] if r else None
             if not s:
-                print(f"| {task} | {mode} | failed | | | | | | | | |")
+                print(f"| {task} | {mode} | failed | | | | | | | | | |")
                 continue
             fin = s.get("final", {})
-            cd = hd = ""
+            cd = hd = surf = ""
             if m and mode == "robot":  # gd metrics --sim robot --real pseudo
                 cd = f"{100 * m['cd_l1_s2r']:.2f} / {100 * m['cd_l1_r2s']:.2f}"
                 hd = f"{100 * m['hd_s2r']:.2f} / {100 * m['hd_r2s']:.2f}"
+                surf = f"{100 * m['surface_cd_s2r']:.2f} / {100 * m['surface_cd_r2s']:.2f}"
             arms = (s.get("robot") or {}).get("arms")
             held = (f"{arms['left']['squeeze_final_n']:.1f}, {arms['right']['squeeze_final_n']:.1f}" if arms else "")
             print(f"| {task} | {mode} | {s.get('ms_per_step', 0):.0f} | {100 * fin.get('max_z', 0):.1f} | "
                   f"{100 * fin.get('mean_z', 0):.1f} | {100 * fin.get('extent_x', 0):.0f}, {100 * fin.get('extent_y', 0):.0f} "
-                  f"| {s.get('intersecting_pairs_max')} | {s.get('untangle_runs')} | {held} | {cd} | {hd} |")
+                  f"| {s.get('intersecting_pairs_max')} | {s.get('untangle_runs')} | {held} | {cd} | {hd} | {surf} |")
             table.append({"task": task, "mode": mode, "summary_final": fin, "metrics_vs_pseudo": m if mode == "robot" else None,
                           "failed": s.get("failed"), "ms_per_step": s.get("ms_per_step")})
     if args.json:
