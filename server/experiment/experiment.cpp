@@ -709,8 +709,10 @@ double check_grasp_mesh(const ExperimentConfig& c, const garments::Garment& g) {
   if (c.robot.pad_samples && edge > thickness && thickness > 0)
     gd::log().warn("robot mode: the cloth round the grasp points is meshed at {:.1f} mm (the median edge within {:.0f} "
                    "cm), coarser than the pads are thick ({:.1f} mm): it cannot fold between the closing pads, which "
-                   "stall on it or close on nothing where it lies flat; --refine-grasp 0.006 meshes it finer there "
-                   "(at some 2-7 times the cost of a step; docs/robot.md, \"The garment refined under the pads\")",
+                   "stall on it or close on nothing where it lies flat; --refine-grasp 0.008 --refine-grasp-radius "
+                   "0.03 meshes it finer there, and --task-param grasp_inset=0.01 takes the grasp points 1 cm onto "
+                   "the cloth (together: every hand caught in the draws tried, at some 2-3 times the cost of a step; "
+                   "docs/robot.md, \"How far the refinement must reach\")",
                    1e3 * edge, 1e2 * kRadius, 1e3 * thickness);
   return edge;
 }

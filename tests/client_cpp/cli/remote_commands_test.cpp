@@ -258,7 +258,8 @@ TEST_F(CliTest, RobotModeRunsLocallyAndAsAJobAndIsRefusedWithoutAUrdf) {
   const char* coarse = "coarser than the pads are thick";
   EXPECT_GT(s.at("robot").at("grasp_edge_m").get<double>(), 0.008);
   EXPECT_NE(r.err.find(coarse), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("--refine-grasp 0.006"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--refine-grasp 0.008 --refine-grasp-radius 0.03"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("grasp_inset=0.01"), std::string::npos) << r.err;
   {
     CliRun off = gd(run + " --no-pad-samples --urdf " + urdf + " --out " + (dir / "vertices_alone").string());
     ASSERT_EQ(off.rc, 0) << off.err;
