@@ -359,7 +359,7 @@ int main(int argc, char** argv) {
                   "also compare two OBJ meshes as surfaces (Euclidean, m): this many area-sampled points of each to "
                   "the other's nearest triangle (surface_cd_s2r/r2s, surface_hd_s2r/r2s); for meshes refined "
                   "differently, whose vertices weigh the finer regions more")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0, 5000000));
 
   ExperimentConfig ref;
   gd::experiment::SyntheticCaptureOptions sco;
@@ -424,7 +424,12 @@ int main(int argc, char** argv) {
 
   gd::cli::RemoteCommands remote(app);
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help (0) as CLI11 has it; a flag or value it refuses is bad input, exit 2 like the rest
+    return app.exit(e) == 0 ? 0 : 2;
+  }
   try {
     gd::log();  // the logger reads GD_LOG_LEVEL
     for (const std::string& kv : garment_params) cfg.garment_params.insert(gd::cli::parse_name_value(kv, "--garment-param"));

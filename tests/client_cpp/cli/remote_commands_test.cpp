@@ -546,6 +546,16 @@ TEST_F(CliTest, ExitCodes) {
   EXPECT_NE(r.err.find("--server"), std::string::npos) << r.err;
   r = gd(server_flag() + " run --backend cuda --out /tmp/unused");
   EXPECT_EQ(r.rc, 2) << r.err;
+  // A flag or value the command line itself refuses: 2 as well, with what was wrong.
+  r = gd("metrics --sim a.obj --real b.obj --surface 9000000");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--surface"), std::string::npos) << r.err;
+  r = gd("metrics --sim a.obj");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--real"), std::string::npos) << r.err;
+  r = gd("run --no-such-flag");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_EQ(gd("--help").rc, 0);
   // No server there: 3.
   r = gd("--server 127.0.0.1:1 info");
   EXPECT_EQ(r.rc, 3) << r.err;
