@@ -711,8 +711,10 @@ double check_grasp_mesh(const ExperimentConfig& c, const garments::Garment& g) {
                    "cm), coarser than the pads are thick ({:.1f} mm): it cannot fold between the closing pads, which "
                    "stall on it or close on nothing where it lies flat; --refine-grasp 0.008 --refine-grasp-radius "
                    "0.03 meshes it finer there, and --task-param grasp_inset=0.01 takes the grasp points 1 cm onto "
-                   "the cloth (together: every hand caught in the draws tried, at some 2-3 times the cost of a step; "
-                   "docs/robot.md, \"How far the refinement must reach\")",
+                   "the cloth (together at some 2-3 times the cost of a step; they caught the cake skirt and the "
+                   "skirt's fold where the coarse cloth was missed, but missed the skirt's grasp that the coarse "
+                   "cloth held: which hands catch is the draw; docs/robot.md, \"Robot mode's grasp defaults, "
+                   "tried\")",
                    1e3 * edge, 1e2 * kRadius, 1e3 * thickness);
   return edge;
 }
