@@ -30,6 +30,9 @@ void TaskParams::validate() const {
   positive(close_duration, "close_duration");
   finite(grasp_inset, "grasp_inset");
   finite(grasp_inset_side, "grasp_inset_side");
+  if (!(std::isfinite(grasp_yaw) && std::abs(grasp_yaw) <= 360))
+    throw InputError(fmt::format("task parameter grasp_yaw must be a finite angle in degrees within [-360, 360] (got {})",
+                                 grasp_yaw));
   finite(grasp_depth, "grasp_depth");
   finite(lift_height, "lift_height");
   positive(lift_duration, "lift_duration");
@@ -68,6 +71,7 @@ constexpr TaskParamField kTaskParamFields[] = {
     {"close_duration", &TaskParams::close_duration},
     {"grasp_inset", &TaskParams::grasp_inset},
     {"grasp_inset_side", &TaskParams::grasp_inset_side},
+    {"grasp_yaw", &TaskParams::grasp_yaw},
     {"grasp_depth", &TaskParams::grasp_depth},
     {"lift_height", &TaskParams::lift_height},
     {"lift_duration", &TaskParams::lift_duration},
@@ -131,7 +135,11 @@ struct Waypoint {
 /// Appends minimum-jerk segments between waypoints to both arms' sample lists.
 class Builder {
  public:
-  Builder(const Waypoint& start, double sample_dt) : cur_(start), dt_(sample_dt) { emit(0.0, start); }
+  /// `hand`: both grippers' orientation throughout (the tool frame, jaw down).
+  Builder(const Waypoint& start, double sample_dt, const Eigen::Quaterniond& hand)
+      : cur_(start), dt_(sample_dt), hand_(hand) {
+    emit(0.0, start);
+  }
 
   /// Moves to `to` over `duration` seconds (a hold when the positions do not change).
   void move(const Waypoint& to, double duration) {
@@ -191,10 +199,11 @@ class Builder {
 
  private:
   void emit(double t, const Waypoint& w) {
-    for (int a = 0; a < 2; ++a) samples_[a].push_back({t, w.pos[a], top_down_orientation(), w.gripper});
+    for (int a = 0; a < 2; ++a) samples_[a].push_back({t, w.pos[a], hand_, w.gripper});
   }
   Waypoint cur_;
   double dt_;
+  Eigen::Quaterniond hand_;
   double t_ = 0;
   std::array<std::vector<ArmSample>, 2> samples_;
 };
@@ -203,6 +212,7 @@ class Builder {
 struct Setup {
   std::array<Vec3, 2> grasp;  ///< [left, right] grasp points, world
   Vec3 forward;               ///< garment +x in the world (unit)
+  Eigen::Quaterniond hand;    ///< the grippers' orientation: jaw down, closing along forward turned by grasp_yaw
   double length = 0, width = 0;
   double shoulder_distance = 0;
   double hem_x = 0;           ///< garment-frame x of the hem (far) end
@@ -235,6 +245,9 @@ Setup setup(const garments::Garment& g, const Eigen::Isometry3d& T, const TaskPa
   s.length = g.length;
   s.width = g.width;
   s.forward = T.linear() * Vec3::UnitX();
+  // The fingers close along the garment's +x seen from above, turned by grasp_yaw about the vertical.
+  const double heading = std::hypot(s.forward.x(), s.forward.y()) > 1e-9 ? std::atan2(s.forward.y(), s.forward.x()) : 0.0;
+  s.hand = Eigen::AngleAxisd(heading + p.grasp_yaw * kPi / 180.0, Vec3::UnitZ()) * top_down_orientation();
   const Vec3 side = p.grasp_inset_side * Vec3::UnitY();  // towards the centre line: -y on the left, +y on the right
   s.grasp_local = {lm.left_shoulder + p.grasp_inset * Vec3::UnitX() - side,
                    lm.right_shoulder + p.grasp_inset * Vec3::UnitX() + side};
@@ -277,7 +290,7 @@ std::array<Vec3, 2> raised(const std::array<Vec3, 2>& p, double dz) {
 /// Start above the grasp points, descend, close: the common opening of every task.
 Builder approach_and_close(const Setup& s, const TaskParams& p) {
   const double k = p.time_scale;
-  Builder b(at(raised(s.grasp, p.approach_height), kGripperOpen), p.sample_dt);
+  Builder b(at(raised(s.grasp, p.approach_height), kGripperOpen), p.sample_dt, s.hand);
   b.hold(p.start_delay * k);
   b.move(at(s.grasp, kGripperOpen), p.approach_duration * k);
   b.gripper(0.0, p.close_duration * k);

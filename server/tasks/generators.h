@@ -15,7 +15,8 @@
 /// The garment lies as RGBench's T-shirt mesh does (garments/garment.h): length along +x away
 /// from the robots, shoulders at the small-x end. Grasp points are the shoulder landmarks mapped
 /// to the world with `garment_to_world` (frames.h default_garment_pose()). The gripper points its
-/// jaw down (top_down_orientation()), is 0.035 m open and 0 closed. Between waypoints the arms move
+/// jaw down (top_down_orientation(), its fingers closing along the garment's +x turned by
+/// TaskParams::grasp_yaw), is 0.035 m open and 0 closed. Between waypoints the arms move
 /// along minimum-jerk profiles, sampled every `sample_dt`; the result starts at t = 0 with
 /// master_start_time 0, and can be replayed by GripperController in pseudo-grasp mode.
 
@@ -48,9 +49,15 @@ struct TaskParams {
   /// robot mode's fingers, which close along garment x, beside the cloth's corner rather than over
   /// the cloth.
   double grasp_inset_side = 0.0;
+  /// degrees the gripper turns about the vertical before it comes down: the direction its fingers
+  /// close along (robot mode) from the garment's +x (0: across a collar or waist edge, which runs
+  /// along garment y) towards its +y (90: along that edge, both fingers on the same side of it).
+  /// The jaw keeps pointing down and keeps this turn through the whole task.
+  double grasp_yaw = 0.0;
   /// m the grippers reach below each grasp point (world -z). Negative: automatic, 0 for the
-  /// pseudo modes; robot mode (experiment) takes 5 mm, so the fingers go down to the table, whose
-  /// clearance stops them (tasks/robot_arms.h), as a real gripper's fingertips touch it.
+  /// pseudo modes; robot mode (experiment) takes 5 mm plus the highest grasp landmark's height
+  /// above the table, so the fingers go down to the table however high the grasp points lie, and
+  /// its clearance stops them (tasks/robot_arms.h), as a real gripper's fingertips touch it.
   double grasp_depth = -1;
 
   // Grasp

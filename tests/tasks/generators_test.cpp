@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <numbers>
 
 #include "sim/demand.h"
 #include "tasks/grippers.h"
@@ -205,7 +206,7 @@ TEST(Generators, TaskParamsSetByNameChangeTheTask) {
   set_task_param(p, "fold_duration", p.fold_duration + 2.0);
   EXPECT_NEAR(make_fold(g, default_garment_pose(), p).end_time(), full + 2.0, 1e-9);
   // Every listed name is a field: setting each to 7 leaves a different struct each time.
-  ASSERT_EQ(task_param_names().size(), 28u);
+  ASSERT_EQ(task_param_names().size(), 29u);
   for (const std::string& name : task_param_names()) {
     TaskParams q;
     set_task_param(q, name, 7.0);
@@ -223,7 +224,7 @@ TEST(Generators, TaskParamsSetByNameChangeTheTask) {
   for (size_t k = 0; k < values.size(); ++k) EXPECT_EQ(values[k].first, task_param_names()[k]);
   EXPECT_EQ(std::find(values.begin(), values.end(), std::make_pair(std::string("fold_duration"), p.fold_duration)) -
                 values.begin(),
-            20);  // the 21st name
+            21);  // the 22nd name
   try {
     set_task_param(p, "fold_speed", 1.0);
     FAIL() << "no error";
@@ -260,6 +261,48 @@ TEST(Generators, GraspInsetSideMovesTheGraspPointsTowardsTheCentreLine) {
     FAIL() << "grasp points across the centre line were accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("grasp_inset_side"), std::string::npos) << e.what();
+  }
+}
+
+// grasp_yaw turns the grippers about the vertical: the fingers (tool x) close along the garment's
+// +x turned towards its +y, jaw still down, the same turn on every sample and the path unchanged;
+// a garment lying turned turns the hands with it. Out of range it is refused.
+TEST(Generators, GraspYawTurnsTheFingersAboutTheVerticalFromTheGarmentsLength) {
+  const garments::Garment g = small_garment();
+  const Eigen::Isometry3d T = default_garment_pose();
+  TaskParams p;
+  set_task_param(p, "grasp_yaw", 90);
+  const DualArmTrajectory plain = make_fold(g, T), turned = make_fold(g, T, p);
+  for (Arm a : {Arm::kLeft, Arm::kRight}) {
+    const auto& ps = plain.arm(a).samples();
+    const auto& ts = turned.arm(a).samples();
+    ASSERT_EQ(ps.size(), ts.size());
+    for (size_t k = 0; k < ps.size(); ++k) {
+      EXPECT_LT((ts[k].position - ps[k].position).norm(), 1e-12) << k;
+      EXPECT_LT((ps[k].orientation * Vec3::UnitX() - Vec3::UnitX()).norm(), 1e-12) << k;  // default: along +x
+      EXPECT_LT((ts[k].orientation * Vec3::UnitX() - Vec3::UnitY()).norm(), 1e-12) << k;  // turned: along +y
+      EXPECT_LT((ts[k].orientation * Vec3::UnitZ() + Vec3::UnitZ()).norm(), 1e-12) << k;  // jaw down
+    }
+  }
+  // The garment lying turned by 30 degrees: the fingers follow its length, plus the yaw.
+  Eigen::Isometry3d R = T;
+  R.linear() = Eigen::AngleAxisd(std::numbers::pi / 6, Vec3::UnitZ()).toRotationMatrix();
+  set_task_param(p, "grasp_yaw", 0);
+  const ArmSample s0 = make_grasp(g, R, p).arm(Arm::kLeft).samples().front();
+  EXPECT_LT((s0.orientation * Vec3::UnitX() - R.linear() * Vec3::UnitX()).norm(), 1e-12);
+  set_task_param(p, "grasp_yaw", -45);
+  const ArmSample s1 = make_grasp(g, R, p).arm(Arm::kLeft).samples().front();
+  EXPECT_LT((s1.orientation * Vec3::UnitX() -
+             Eigen::AngleAxisd(-std::numbers::pi / 12, Vec3::UnitZ()).toRotationMatrix() * Vec3::UnitX()).norm(),
+            1e-12);
+  for (double bad : {std::nan(""), 400.0}) {
+    p.grasp_yaw = bad;
+    try {
+      make_grasp(g, T, p);
+      FAIL() << "grasp_yaw " << bad << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("grasp_yaw"), std::string::npos) << e.what();
+    }
   }
 }
 
