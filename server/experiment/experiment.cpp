@@ -75,7 +75,7 @@ constexpr double kRobotGraspDepth = 0.005;
 /// Robot mode's automatic TaskParams::grasp_depth: the fingertips go down to the table, as a
 /// gripper picking cloth off a table does, however high the grasp points lie: kRobotGraspDepth
 /// below the highest of the task's grasp landmarks above the table top. A flat garment's landmarks
-/// lie on the table (the depth stays 5 mm); a skirt's waist corners sit on its side folds, which
+/// lie on the cloth on the table (the depth grows by a few millimetres); a skirt's waist corners sit on its side folds, which
 /// stand 2-4 cm tall as loops of fabric, and fingertips aimed 5 mm below them closed in the air
 /// on the loop's top and caught it or not by chance (docs/robot.md, "Down to the table").
 double robot_grasp_depth(const garments::Garment& g, const Eigen::Isometry3d& place, tasks::TaskKind kind,
@@ -726,8 +726,8 @@ double check_grasp_mesh(const ExperimentConfig& c, const garments::Garment& g) {
                    "may stall on it or close on nothing where it lies flat; --refine-grasp 0.008 --refine-grasp-radius "
                    "0.03 meshes it finer there, and --task-param grasp_inset=0.01 takes the grasp points 1 cm onto "
                    "the cloth (together at some 2-3 times the cost of a step; with the fingertips down at the "
-                   "table every garment's grasp at 2000 vertices was caught without them; docs/robot.md, \"Down "
-                   "to the table\")",
+                   "table the seven garments' grasps tried at 2000 vertices caught every hand without them; "
+                   "docs/robot.md, \"Down to the table\")",
                    1e3 * edge, 1e2 * kRadius, 1e3 * thickness);
   return edge;
 }
