@@ -22,11 +22,13 @@ constexpr Real kGramPerM2 = 1e-3;         // g/m² -> kg/m²
 constexpr Real kMillimetre = 1e-3;        // mm -> m
 constexpr Real kDefaultPoisson = 0.35;    // RGBench cloth configs
 constexpr Real kDefaultFriction = 0.266;  // RGBench's fitted ground_friction
+constexpr Real kGramForceCmPerCm = 9.80665e-3;  // gf·cm/cm (KES 2HB) -> N·m/m = N
 
 // The fields a material entry may have (docs/materials.md).
 const std::set<std::string> kKeys{
     "name", "notes", "source", "stretch_g_s2", "shear_g_s2", "poisson", "bending_g_mm2_s2_rad",
-    "areal_density_g_m2", "thickness_mm", "friction", "bend_kappa_n_per_m"};
+    "areal_density_g_m2", "thickness_mm", "friction", "bend_kappa_n_per_m", "bending_2hb_gf_cm_cm",
+    "bend_slip_curvature_per_m"};
 
 /// Reads one material entry; `where` prefixes error messages ("file: material 'x'").
 class EntryReader {
@@ -95,6 +97,12 @@ Material parse_material(const json& j, const std::string& path, size_t index) {
   m.thickness = r.number("thickness_mm") * kMillimetre;
   m.friction = r.has("friction") ? r.number("friction") : kDefaultFriction;
   m.bend_kappa_n = r.has("bend_kappa_n_per_m") ? r.number("bend_kappa_n_per_m") : 1 / m.thickness;
+  if (r.has("bending_2hb_gf_cm_cm")) {  // KES 2HB: the loop's width, twice the friction moment
+    const auto [hw, hf] = r.warp_weft("bending_2hb_gf_cm_cm");
+    m.bend_friction_warp = 0.5 * hw * kGramForceCmPerCm;
+    m.bend_friction_weft = 0.5 * hf * kGramForceCmPerCm;
+  }
+  if (r.has("bend_slip_curvature_per_m")) m.bend_slip_curvature = r.number("bend_slip_curvature_per_m");
   try {
     m.validate();
   } catch (const InputError& e) {
@@ -136,11 +144,15 @@ Material with_catalogue_params(const Material& base, const std::map<std::string,
   j["thickness_mm"] = base.thickness / kMillimetre;
   j["friction"] = base.friction;
   j["bend_kappa_n_per_m"] = base.bend_kappa_n;
+  j["bending_2hb_gf_cm_cm"] = {{"warp", 2 * base.bend_friction_warp / kGramForceCmPerCm},
+                               {"weft", 2 * base.bend_friction_weft / kGramForceCmPerCm}};
+  j["bend_slip_curvature_per_m"] = base.bend_slip_curvature;
   for (const auto& [key, value] : params) {
     if (!kKeys.contains(key) || key == "name" || key == "notes" || key == "source")
       throw InputError(fmt::format("unknown material parameter '{}'; use stretch_g_s2, shear_g_s2, poisson, "
-                                   "bending_g_mm2_s2_rad, areal_density_g_m2, thickness_mm, friction or "
-                                   "bend_kappa_n_per_m (docs/materials.md)",
+                                   "bending_g_mm2_s2_rad, areal_density_g_m2, thickness_mm, friction, "
+                                   "bend_kappa_n_per_m, bending_2hb_gf_cm_cm or bend_slip_curvature_per_m "
+                                   "(docs/materials.md)",
                                    key));
     j[key] = value;
   }
@@ -156,13 +168,18 @@ void Material::validate() const {
   const std::pair<const char*, Real> positive[] = {
       {"stretch_warp", stretch_warp}, {"stretch_weft", stretch_weft}, {"shear", shear},
       {"bend_warp", bend_warp},       {"bend_weft", bend_weft},       {"density", density},
-      {"thickness", thickness},       {"bend_kappa_n", bend_kappa_n}};
+      {"thickness", thickness},       {"bend_kappa_n", bend_kappa_n}, {"bend_slip_curvature", bend_slip_curvature}};
   for (const auto& [field, v] : positive) {
     if (!(std::isfinite(v) && v > 0))
       throw InputError(fmt::format("{}: {} must be positive and finite (got {})", who, field, v));
   }
   if (!(std::isfinite(friction) && friction >= 0))
     throw InputError(fmt::format("{}: friction must be finite and >= 0 (got {})", who, friction));
+  for (const auto& [field, v] : {std::pair<const char*, Real>{"bend_friction_warp (2HB/2)", bend_friction_warp},
+                                 std::pair<const char*, Real>{"bend_friction_weft (2HB/2)", bend_friction_weft}}) {
+    if (!(std::isfinite(v) && v >= 0))
+      throw InputError(fmt::format("{}: {} must be finite and >= 0 (got {})", who, field, v));
+  }
 }
 
 MaterialLibrary MaterialLibrary::load(const std::string& path) {

@@ -28,9 +28,17 @@ struct Material {
   /// by 3G (to 4G). The loader sets it to 1/thickness when the file omits it; code that builds a
   /// Material by hand must set it too.
   Real bend_kappa_n = 0;
+  /// Internal friction in bending (sim/energy/bending_friction.h): the limit moment per unit
+  /// width, N (half of KES's bending hysteresis 2HB), of a strip along the warp / the weft;
+  /// 0 (the default): none.
+  Real bend_friction_warp = 0;
+  Real bend_friction_weft = 0;
+  /// The change of curvature, 1/m, over which the friction moment builds up after a reversal
+  /// (the friction element's spring is bend_friction / this).
+  Real bend_slip_curvature = 20;
 
   /// Throws InputError naming the offending field: non-finite values, non-positive stiffness,
-  /// density, thickness or bend_kappa_n, negative friction.
+  /// density, thickness, bend_kappa_n or bend_slip_curvature, negative friction or bending friction.
   void validate() const;
 };
 
@@ -60,8 +68,8 @@ class MaterialLibrary {
 
 /// `base` with some of its parameters replaced, given by the material file's field names and
 /// catalogue units (docs/materials.md): stretch_g_s2, shear_g_s2, poisson, bending_g_mm2_s2_rad,
-/// areal_density_g_m2, thickness_mm, friction, bend_kappa_n_per_m (one number sets warp and
-/// weft alike). A new stretch or poisson derives the shear again (from the poisson given, else
+/// areal_density_g_m2, thickness_mm, friction, bend_kappa_n_per_m, bending_2hb_gf_cm_cm,
+/// bend_slip_curvature_per_m (one number sets warp and weft alike). A new stretch or poisson derives the shear again (from the poisson given, else
 /// 0.35) unless shear_g_s2 is given too;
 /// a new thickness resets κn to 1/thickness unless bend_kappa_n_per_m is given. The result is
 /// named "<base> with params". Throws InputError naming an unknown parameter or an invalid value.

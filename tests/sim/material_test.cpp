@@ -217,5 +217,31 @@ TEST(MaterialParams, ReplaceTheGivenFieldsInCatalogueUnits) {
   expect_input_error([&] { with_catalogue_params(cotton, {{"shear_g_s2", 1e4}, {"poisson", 0.3}}); }, {"not both"});
 }
 
+// KES's bending hysteresis 2HB (gf·cm/cm) sets internal friction in bending: a limit moment of
+// 2HB/2 per unit width, none by default; kept through with_catalogue_params.
+TEST(MaterialParams, BendingHysteresisInKesUnits) {
+  const Material cotton = MaterialLibrary::load_default().get("cotton");
+  EXPECT_EQ(cotton.bend_friction_warp, 0.0);
+  EXPECT_EQ(cotton.bend_friction_weft, 0.0);
+  const Material m = with_catalogue_params(cotton, {{"bending_2hb_gf_cm_cm", 0.08}, {"bend_slip_curvature_per_m", 30}});
+  EXPECT_NEAR(m.bend_friction_warp, 0.04 * 9.80665e-3, 1e-15);
+  EXPECT_NEAR(m.bend_friction_weft, 0.04 * 9.80665e-3, 1e-15);
+  EXPECT_EQ(m.bend_slip_curvature, 30);
+  const Material again = with_catalogue_params(m, {{"friction", 0.3}});  // kept when not given
+  EXPECT_NEAR(again.bend_friction_warp, m.bend_friction_warp, 1e-15);
+  EXPECT_EQ(again.bend_slip_curvature, 30);
+  const std::string path = temp_json("hysteresis.json", R"({"materials": [
+    {"name": "twill", "stretch_g_s2": 400000, "bending_g_mm2_s2_rad": 7430, "areal_density_g_m2": 253,
+     "thickness_mm": 0.62, "bending_2hb_gf_cm_cm": {"warp": 0.1, "weft": 0.06}}]})");
+  const Material& t = MaterialLibrary::load(path).get("twill");
+  EXPECT_NEAR(t.bend_friction_warp, 0.05 * 9.80665e-3, 1e-15);
+  EXPECT_NEAR(t.bend_friction_weft, 0.03 * 9.80665e-3, 1e-15);
+  EXPECT_EQ(t.bend_slip_curvature, 20);  // the default
+  std::filesystem::remove(path);
+  expect_input_error([&] { with_catalogue_params(cotton, {{"bending_2hb_gf_cm_cm", -0.1}}); }, {"2HB"});
+  expect_input_error([&] { with_catalogue_params(cotton, {{"bend_slip_curvature_per_m", 0}}); },
+                     {"bend_slip_curvature"});
+}
+
 }  // namespace
 }  // namespace gd::sim

@@ -32,6 +32,10 @@ struct HingeRest {
   Real area;       ///< (A1 + A2) / 3, m^2: the area the hinge stands for
   Real stiffness;  ///< bending stiffness G, N·m
   Real kappa_n;    ///< curvature at which the bending moment has doubled, 1/m; <= 0: linear
+  /// Internal friction (bending_friction.h): the slider's limit moment per unit length, N
+  /// (KES 2HB / 2); 0: none.
+  Real friction_moment = 0;
+  Real friction_stiffness = 0;  ///< the friction element's spring, N·m (M / its slip curvature)
 };
 
 namespace detail {
@@ -270,10 +274,14 @@ GD_HD Real bending_energy(const Vec3& x0, const Vec3& x1, const Vec3& x2, const 
 /// solver assembles from: Hessian = *hess_coef ∇θ ∇θᵀ with ∇θ written to *grad_theta (a
 /// rank-one 12x12 matrix added block by block without being formed). grad may be null;
 /// grad_theta and hess_coef may not. Degenerate hinges: 0 energy, zero ∇θ and coefficient.
+/// theta_out, when non-null, receives θ (0 for a degenerate hinge).
 GD_HD Real bending_energy_rank1(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3,
-                                const HingeRest& r, Vec12* grad, Vec12* grad_theta, Real* hess_coef) {
+                                const HingeRest& r, Vec12* grad, Vec12* grad_theta, Real* hess_coef,
+                                Real* theta_out = nullptr) {
   Real theta;
-  if (!detail::hinge_angle(x0, x1, x2, x3, &theta, grad_theta, nullptr)) {
+  const bool ok = detail::hinge_angle(x0, x1, x2, x3, &theta, grad_theta, nullptr);
+  if (theta_out) *theta_out = theta;
+  if (!ok) {
     if (grad) grad->setZero();
     *hess_coef = Real(0);
     return Real(0);

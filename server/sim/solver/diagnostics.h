@@ -23,8 +23,12 @@ EnergyReport Solver<Exec>::energies() {
   });
   e.bending = Exec::sum(V.nh, [=] GD_HD_LAMBDA(int h) {
     const int* hv = V.hinges + 4 * h;
-    return bending_energy(detail::load3(x, hv[0]), detail::load3(x, hv[1]), detail::load3(x, hv[2]),
-                          detail::load3(x, hv[3]), V.hinge_rest[h], nullptr, nullptr, HessianKind::kNone);
+    const Vec3 x0 = detail::load3(x, hv[0]), x1 = detail::load3(x, hv[1]), x2 = detail::load3(x, hv[2]),
+               x3 = detail::load3(x, hv[3]);
+    const HingeRest& r = V.hinge_rest[h];
+    double e = bending_energy(x0, x1, x2, x3, r, nullptr, nullptr, HessianKind::kNone);
+    if (r.friction_moment > 0) e += bending_friction_stored(r, dihedral_angle(x0, x1, x2, x3), V.hinge_theta_f[h]);
+    return e;
   });
   if (P_.table) {
     const detail::Params P = P_;

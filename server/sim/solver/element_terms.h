@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "sim/energy/bending.h"
+#include "sim/energy/bending_friction.h"
 #include "sim/energy/damping.h"
 #include "sim/energy/drag.h"
 #include "sim/energy/gravity.h"
@@ -91,6 +92,7 @@ struct View {
   const int* hinges;
   const HingeRest* hinge_rest;
   const double* hinge_grad_t;  // per hinge: the dihedral angle's gradient at x_t (12), for damping
+  const double* hinge_theta_f; // per hinge: the bending friction slider's angle (bending_friction.h)
   const int* row_ptr;
   const int* cols;
   const int* diag;
@@ -504,8 +506,15 @@ GD_HD Real hinge_terms_rank2(const View& V, const Params& P, int h, const double
   Vec12 xs, gth;
   Real d2E;
   for (int k = 0; k < 4; ++k) xs.segment<3>(3 * k) = load3(x, hv[k]);
+  Real theta;
   Real e = bending_energy_rank1(xs.segment<3>(0), xs.segment<3>(3), xs.segment<3>(6), xs.segment<3>(9), r, g,
-                                H ? &H->u : &gth, H ? &H->cu : &d2E);
+                                H ? &H->u : &gth, H ? &H->cu : &d2E, &theta);
+  if (r.friction_moment > Real(0)) {  // internal friction: a term along the same ∇θ
+    Real dF, d2F;
+    e += bending_friction_of_theta(r, theta, V.hinge_theta_f[h], &dF, &d2F);
+    if (g) *g += dF * (H ? H->u : gth);
+    if (H) H->cu += d2F;
+  }
   if (H) H->cw = 0, H->w.setZero();  // no damping: a zero term (w must not hold garbage)
   if (P.beta_bend > 0) {
     Vec12 ys;
@@ -531,6 +540,15 @@ GD_HD Real hinge_terms(const View& V, const Params& P, int h, const double* x, V
   for (int k = 0; k < 4; ++k) xs.segment<3>(3 * k) = load3(x, hv[k]);
   Real e = bending_energy(xs.segment<3>(0), xs.segment<3>(3), xs.segment<3>(6), xs.segment<3>(9), r, g, H,
                           P.bending_exact_projected ? HessianKind::kExact : HessianKind::kProjected);
+  if (r.friction_moment > Real(0)) {  // internal friction
+    Vec12 gf;
+    Mat12 Hf;
+    e += bending_friction_energy(xs.segment<3>(0), xs.segment<3>(3), xs.segment<3>(6), xs.segment<3>(9), r,
+                                 V.hinge_theta_f[h], g ? &gf : nullptr, H ? &Hf : nullptr,
+                                 P.bending_exact_projected ? HessianKind::kExact : HessianKind::kProjected);
+    if (g) *g += gf;
+    if (H) *H += Hf;
+  }
   if (H && P.bending_exact_projected) project_psd<12>(H);
   if (P.beta_bend > 0) {
     Vec12 ys;

@@ -169,6 +169,22 @@ void Solver<Exec>::end_step() {
   Exec::for_each(3 * n_, [=] GD_HD_LAMBDA(int k) { v[k] = (x[k] - xt[k]) * inv_h; });
 }
 
+/// Bending friction's sliders after the step (bending_friction.h): where the step carried a
+/// hinge's friction spring past its limit moment, the slider slips so that it carries the limit.
+template <class Exec>
+void Solver<Exec>::slip_bending_friction() {
+  const double* x = Exec::ptr(x_);
+  const int* hinges = Exec::ptr(hinges_);
+  const HingeRest* rest = Exec::ptr(hinge_rest_);
+  double* theta_f = Exec::ptr(hinge_theta_f_);
+  Exec::for_each(data_->hinge_count(), [=] GD_HD_LAMBDA(int h) {
+    const int* hv = hinges + 4 * h;
+    const Real theta = dihedral_angle(detail::load3(x, hv[0]), detail::load3(x, hv[1]), detail::load3(x, hv[2]),
+                                      detail::load3(x, hv[3]));
+    theta_f[h] = bending_friction_slip(rest[h], theta, theta_f[h]);
+  });
+}
+
 /// A collider may move into the cloth during the step: Newton starts from a guess with every
 /// free vertex outside each collider's end pose by dhat/2, or by its clearance at the step's start
 /// where that was less (at least 1e-3 dhat): cloth a pad already presses moves with the pad instead

@@ -266,10 +266,12 @@ SceneData build_scene_data(const Mesh& mesh, const Material& mat, const SceneOpt
     const Vec2 eh = e2d.normalized();
     HingeRest& r = d.hinge_rest[h];
     r.stiffness = mat.bend_warp * eh.y() * eh.y() + mat.bend_weft * eh.x() * eh.x();
+    r.friction_moment = mat.bend_friction_warp * eh.y() * eh.y() + mat.bend_friction_weft * eh.x() * eh.x();
     if (!creases.empty()) {
       const auto it = creases.find(edge_key(hv[0], hv[1]));
-      if (it != creases.end()) r.stiffness *= it->second;
+      if (it != creases.end()) r.stiffness *= it->second, r.friction_moment *= it->second;
     }
+    r.friction_stiffness = r.friction_moment > 0 ? r.friction_moment / mat.bend_slip_curvature : 0.0;
     // Curvature scale and area of the hinge from its rest shape (docs/physics.md); with uvs
     // the two wings may come from different panels (a seam), so each wing uses its own corners.
     if (use_uv) {

@@ -95,6 +95,7 @@ struct StepStats {
 
 /// Energies of the current state, J. Gravity is m g.x relative to z = 0.
 struct EnergyReport {
+  /// bending includes bending friction's stored spring energy (sim/energy/bending_friction.h)
   double kinetic = 0, stretch = 0, bending = 0, gravity = 0, contact = 0;
   double total() const { return kinetic + stretch + bending + gravity + contact; }
 };

@@ -50,6 +50,14 @@ class Solver final : public SolverBase {
     Exec::upload(hinge_rest_, d.hinge_rest);
     hinge_rest_host_ = d.hinge_rest;
     hinge_clamped_.assign(d.hinge_count(), 0);
+    {  // bending friction's sliders start unloaded at the rest angles
+      std::vector<double> theta_f(d.hinge_count());
+      for (int h = 0; h < d.hinge_count(); ++h) {
+        theta_f[h] = d.hinge_rest[h].theta0;
+        bend_friction_ = bend_friction_ || d.hinge_rest[h].friction_moment > 0;
+      }
+      Exec::upload(hinge_theta_f_, theta_f);
+    }
     Exec::upload(row_ptr_, d.row_ptr);
     Exec::upload(cols_, d.cols);
     Exec::upload(diag_, d.diag);
@@ -184,6 +192,7 @@ class Solver final : public SolverBase {
       }
     }
     end_step();                                                     // v = (x - x_t)/h
+    if (bend_friction_) slip_bending_friction();                    // bending friction's sliders follow
     if (self_) st.min_self_distance = min_active_distance(x_, x_gen_);  // closest active pair
     st.max_grip_force = max_grip_force();
     adapt_barrier_stiffness(st.min_self_distance);                  // stiffer barriers if gaps got tiny
@@ -265,6 +274,7 @@ class Solver final : public SolverBase {
   void clamp_hinges(const std::vector<int>& fixed, const std::vector<int>& gripped);
   bool accept_step(double alpha);
   void end_step();
+  void slip_bending_friction();
 
   // Self-contact pair lists, barrier stiffness, intersection check (contact_stage.h)
   void select_contacts();
@@ -463,6 +473,7 @@ class Solver final : public SolverBase {
     V.hinges = Exec::ptr(hinges_);
     V.hinge_rest = Exec::ptr(hinge_rest_);
     V.hinge_grad_t = Exec::ptr(hinge_grad_t_);
+    V.hinge_theta_f = Exec::ptr(hinge_theta_f_);
     V.row_ptr = Exec::ptr(row_ptr_);
     V.cols = Exec::ptr(cols_);
     V.diag = Exec::ptr(diag_);
@@ -546,6 +557,8 @@ class Solver final : public SolverBase {
   Vec<HingeRest> hinge_rest_;
   Vec<double> f_ext_;
   Vec<double> x_, v_, x_t_, v_t_, g_, dx_, dx_full_, r_, z_, p_, ap_, x_trial_, kin_target_, hinge_grad_t_;
+  Vec<double> hinge_theta_f_;  ///< per hinge: bending friction's slider angle (bending_friction.h)
+  bool bend_friction_ = false;  ///< some hinge has internal friction
   typename Exec::template LargeVector<double> vals_;  ///< the Hessian's 3x3 blocks (SceneData's pattern)
   std::unique_ptr<Preconditioner<Exec>> precond_;
   std::unique_ptr<MultilevelAdditiveSchwarz<Exec>> estimator_;  ///< MAS for the stopping rule when PCG's is not

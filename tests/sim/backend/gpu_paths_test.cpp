@@ -51,14 +51,15 @@ class GpuPaths : public ::testing::TestWithParam<BackendKind> {
 /// largest distance between their vertices over the steps, m; `moved` gets the largest
 /// displacement of a vertex from its start.
 double largest_difference(BackendKind other, const Mesh& m, const SceneOptions& base, const Setup& setup, int steps,
-                          double* moved, BroadPhaseKind other_broad_phase = BroadPhaseKind::kEmbree) {
+                          double* moved, BroadPhaseKind other_broad_phase = BroadPhaseKind::kEmbree,
+                          const Material& material = cotton()) {
   SceneOptions a = base, b = base;
   a.backend = BackendKind::kCpu;
   a.broad_phase = BroadPhaseKind::kEmbree;
   b.backend = other;
   b.broad_phase = other_broad_phase;
-  auto cpu = Scene::create(m, cotton(), a);
-  auto gpu = Scene::create(m, cotton(), b);
+  auto cpu = Scene::create(m, material, a);
+  auto gpu = Scene::create(m, material, b);
   EXPECT_EQ(cpu->backend(), "cpu");
   EXPECT_EQ(gpu->backend(), other == BackendKind::kCuda ? "cuda" : "cpu-gpu-paths");
   setup(*cpu);
@@ -171,6 +172,22 @@ TEST_P(GpuPaths, PinnedSheetSwingingMatchesTheCpuPaths) {
   const double worst = largest_difference(GetParam(), m, tight(false), [&](Scene& s) {
     s.pin(vertices_where(m, [](const Vec3& p) { return p.y() < 1e-9 && (p.x() < 1e-9 || p.x() > 0.16 - 1e-9); }));
   }, 12, &moved);
+  EXPECT_GT(moved, 0.01);
+  EXPECT_LT(worst, 1e-7 * std::max(1.0, moved / 0.01));
+}
+
+// Bending hysteresis (sim/energy/bending_friction.h): the friction term in the hinge kernels
+// and the sliders' slip after each step, on the same swinging sheet.
+TEST_P(GpuPaths, BendingHysteresisMatchesTheCpuPaths) {
+  Mesh m = make_rect(0.16, 0.16, 0.005);
+  for (Vec3& p : m.x) p.z() = 0.5;
+  Material mat = cotton();
+  mat.bend_friction_warp = 30 * mat.bend_warp;  // the limit moment at a bend of 30 1/m
+  mat.bend_friction_weft = 30 * mat.bend_weft;
+  double moved = 0;
+  const double worst = largest_difference(GetParam(), m, tight(false), [&](Scene& s) {
+    s.pin(vertices_where(m, [](const Vec3& p) { return p.y() < 1e-9 && (p.x() < 1e-9 || p.x() > 0.16 - 1e-9); }));
+  }, 12, &moved, BroadPhaseKind::kEmbree, mat);
   EXPECT_GT(moved, 0.01);
   EXPECT_LT(worst, 1e-7 * std::max(1.0, moved / 0.01));
 }

@@ -7,7 +7,7 @@
 #include "sim/fd_check.h"
 
 namespace gd::sim {
-namespace {
+namespace drag_test {
 
 Vec9 stack(const Vec3& a, const Vec3& b, const Vec3& c) {
   Vec9 v;
@@ -80,5 +80,5 @@ TEST(DragEnergy, ForceOpposesVelocity) {
   EXPECT_EQ(g.norm(), 0.0);
 }
 
-}  // namespace
+}  // namespace drag_test
 }  // namespace gd::sim

@@ -8,7 +8,7 @@
 #include "sim/fd_check.h"
 
 namespace gd::sim {
-namespace {
+namespace stretch_shear_test {
 
 using test::fd_gradient;
 using test::fd_jacobian;
@@ -283,5 +283,5 @@ TEST(StretchShearEnergy, CollapsedTriangleIsFinite) {
   }
 }
 
-}  // namespace
+}  // namespace stretch_shear_test
 }  // namespace gd::sim
